@@ -1,0 +1,1 @@
+//! Reconstruction estimators (work in progress).

@@ -1,0 +1,3 @@
+//! cvtrace's path tracer (work in progress).
+pub mod intersect;
+pub use intersect::{Hit, Intersector, Ray};

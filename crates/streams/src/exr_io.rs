@@ -1,0 +1,208 @@
+//! Flat f32 multi-channel OpenEXR read/write: the one place that talks to the `exr` crate.
+use crate::atomic::write_atomically;
+use crate::StreamError;
+use exr::prelude::{read, AnyChannel, AnyChannels, AttributeValue, Blocks, Compression, Encoding, FlatSamples, Layer, LayerAttributes, LineOrder, ReadChannels, ReadLayers, SmallVec, Text, WritableImage};
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// A header attribute value. Integers that fit are stored as EXR `int`, the rest as `string`.
+#[derive(Clone, Debug, PartialEq)]
+pub enum AttrValue {
+    Int(i32),
+    Float(f32),
+    Text(String),
+}
+
+impl AttrValue {
+    pub fn as_text(&self) -> String {
+        match self {
+            AttrValue::Int(v) => v.to_string(),
+            AttrValue::Float(v) => v.to_string(),
+            AttrValue::Text(s) => s.clone(),
+        }
+    }
+}
+
+/// All channels of a single-part scanline EXR as f32 planes, plus its custom attributes.
+#[derive(Clone, Debug, Default)]
+pub struct ExrChannels {
+    pub width: usize,
+    pub height: usize,
+    pub channels: BTreeMap<String, Vec<f32>>,
+    pub attributes: BTreeMap<String, AttrValue>,
+}
+
+impl ExrChannels {
+    pub fn new(width: usize, height: usize) -> Self {
+        ExrChannels { width, height, ..Default::default() }
+    }
+
+    pub fn insert(&mut self, name: impl Into<String>, plane: Vec<f32>) {
+        assert_eq!(plane.len(), self.width * self.height, "channel plane has the wrong length");
+        self.channels.insert(name.into(), plane);
+    }
+
+    /// The plane of `name`, or an error naming the file and the channel.
+    pub fn take(&mut self, path: &Path, name: &str) -> Result<Vec<f32>, StreamError> {
+        self.channels
+            .remove(name)
+            .ok_or_else(|| StreamError::MissingChannel { path: path.to_path_buf(), channel: name.to_string() })
+    }
+
+    pub fn attr(&self, name: &str) -> Option<&AttrValue> {
+        self.attributes.get(name)
+    }
+
+    /// Reads every channel of `path` (f16 and u32 samples are converted to f32).
+    pub fn read(path: &Path) -> Result<Self, StreamError> {
+        if !path.exists() {
+            return Err(StreamError::Io {
+                path: path.to_path_buf(),
+                source: std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
+            });
+        }
+        let image = read()
+            .no_deep_data()
+            .largest_resolution_level()
+            .all_channels()
+            .all_layers()
+            .all_attributes()
+            .from_file(path)
+            .map_err(|e| StreamError::Exr { path: path.to_path_buf(), message: e.to_string() })?;
+        if image.layer_data.len() != 1 {
+            return Err(StreamError::invalid(
+                path,
+                format!("expected a single-part EXR, found {} parts", image.layer_data.len()),
+            ));
+        }
+        let layer = &image.layer_data[0];
+        let (width, height) = (layer.size.width(), layer.size.height());
+        let mut out = ExrChannels::new(width, height);
+        let prefix = layer.attributes.layer_name.as_ref().map(|n| format!("{n}."));
+        for ch in &layer.channel_data.list {
+            let mut name = ch.name.to_string();
+            if let Some(p) = &prefix {
+                // A named single layer: keep full dotted names.
+                if !name.starts_with(p.as_str()) {
+                    name = format!("{p}{name}");
+                }
+            }
+            let plane: Vec<f32> = ch.sample_data.values_as_f32().collect();
+            out.channels.insert(name, plane);
+        }
+        let attrs = image.attributes.other.iter().chain(layer.attributes.other.iter());
+        for (k, v) in attrs {
+            let value = match v {
+                AttributeValue::I32(i) => AttrValue::Int(*i),
+                AttributeValue::F32(f) => AttrValue::Float(*f),
+                AttributeValue::Text(t) => AttrValue::Text(t.to_string()),
+                _ => continue,
+            };
+            out.attributes.insert(k.to_string(), value);
+        }
+        Ok(out)
+    }
+
+    /// Writes a single-part, ZIP-compressed, f32 scanline EXR atomically.
+    pub fn write(&self, path: &Path, overwrite: bool) -> Result<(), StreamError> {
+        let size = (self.width, self.height);
+        let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = self
+            .channels
+            .iter()
+            .map(|(name, plane)| AnyChannel::new(name.as_str(), FlatSamples::F32(plane.clone())))
+            .collect();
+        let channels = AnyChannels::sort(list);
+        let mut attributes = LayerAttributes::default();
+        for (k, v) in &self.attributes {
+            let value = match v {
+                AttrValue::Int(i) => AttributeValue::I32(*i),
+                AttrValue::Float(f) => AttributeValue::F32(*f),
+                AttrValue::Text(s) => AttributeValue::Text(Text::new_or_panic(s.as_str())),
+            };
+            attributes.other.insert(Text::new_or_panic(k.as_str()), value);
+        }
+        let encoding = Encoding { compression: Compression::ZIP16, blocks: Blocks::ScanLines, line_order: LineOrder::Increasing };
+        let layer = Layer::new(size, attributes, encoding, channels);
+        let image = exr::image::Image::from_layer(layer);
+        write_atomically(path, overwrite, |tmp| image.write().to_file(tmp))
+    }
+}
+
+/// Reads an RGB image from channels `{prefix}R/G/B` (prefix "" for a plain beauty image).
+pub fn read_rgb(path: &Path) -> Result<crate::Image, StreamError> {
+    let mut ch = ExrChannels::read(path)?;
+    take_rgb(&mut ch, path, "")
+}
+
+/// Removes `{prefix}R/G/B` from `ch` and returns them as an image, rejecting non-finite values.
+pub fn take_rgb(ch: &mut ExrChannels, path: &Path, prefix: &str) -> Result<crate::Image, StreamError> {
+    let names = ["R", "G", "B"].map(|c| format!("{prefix}{c}"));
+    let planes = [ch.take(path, &names[0])?, ch.take(path, &names[1])?, ch.take(path, &names[2])?];
+    let img = crate::Image::from_channels(ch.width, ch.height, [&planes[0], &planes[1], &planes[2]]);
+    if let Some((x, y, c)) = img.find_non_finite() {
+        return Err(StreamError::NonFinite { path: path.to_path_buf(), channel: names[c].clone(), x, y });
+    }
+    Ok(img)
+}
+
+/// Adds an RGB image as channels `{prefix}R/G/B`.
+pub fn put_rgb(ch: &mut ExrChannels, prefix: &str, img: &crate::Image) {
+    for (c, name) in ["R", "G", "B"].iter().enumerate() {
+        ch.insert(format!("{prefix}{name}"), img.channel(c));
+    }
+}
+
+/// Writes a plain RGB EXR (channels R, G, B) with the given attributes.
+pub fn write_rgb(
+    path: &Path,
+    img: &crate::Image,
+    attributes: &[(&str, AttrValue)],
+    overwrite: bool,
+) -> Result<(), StreamError> {
+    let mut ch = ExrChannels::new(img.width, img.height);
+    put_rgb(&mut ch, "", img);
+    for (k, v) in attributes {
+        ch.attributes.insert(k.to_string(), v.clone());
+    }
+    ch.write(path, overwrite)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip_keeps_channels_and_attributes() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.exr");
+        let img = crate::Image::from_fn(5, 3, |x, y| [x as f32, y as f32, 0.5]);
+        write_rgb(&p, &img, &[("cvtrace.spp", AttrValue::Int(7)), ("cvtrace.note", AttrValue::Text("hi".into()))], false)
+            .unwrap();
+        let back = read_rgb(&p).unwrap();
+        assert_eq!(back, img);
+        let ch = ExrChannels::read(&p).unwrap();
+        assert_eq!(ch.attr("cvtrace.spp"), Some(&AttrValue::Int(7)));
+        assert_eq!(ch.attr("cvtrace.note"), Some(&AttrValue::Text("hi".into())));
+    }
+
+    #[test]
+    fn garbage_file_is_a_clear_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("bad.exr");
+        std::fs::write(&p, b"not an exr at all").unwrap();
+        let e = read_rgb(&p).unwrap_err().to_string();
+        assert!(e.contains("bad.exr") && e.contains("OpenEXR"), "{e}");
+    }
+
+    #[test]
+    fn missing_channel_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("g.exr");
+        let mut ch = ExrChannels::new(2, 2);
+        ch.insert("R", vec![0.0; 4]);
+        ch.insert("G", vec![0.0; 4]);
+        ch.write(&p, false).unwrap();
+        let e = read_rgb(&p).unwrap_err().to_string();
+        assert!(e.contains("g.exr") && e.contains("`B`"), "{e}");
+    }
+}

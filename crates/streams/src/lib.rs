@@ -1,0 +1,21 @@
+//! The contract between cvtrace's renderer and its reconstruction stage.
+//!
+//! A *stream file* is one single-part OpenEXR image holding two paired renders of the
+//! same image: `pt` (independent random numbers per pixel) and `crn` (common random
+//! numbers: sample `s` of every pixel uses the same random vector), each as the mean of
+//! all its samples plus `B` batch means, and first-hit features. See `docs/stream-format.md`.
+//!
+//! Nothing here depends on Embree: any renderer can write these files, and the
+//! reconstruction stage can read them.
+
+pub mod atomic;
+pub mod error;
+pub mod exr_io;
+pub mod image;
+pub mod iduw_layout;
+pub mod preview;
+pub mod stream_set;
+
+pub use error::StreamError;
+pub use image::Image;
+pub use stream_set::{Features, Stream, StreamMeta, StreamSet};

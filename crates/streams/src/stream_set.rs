@@ -1,0 +1,255 @@
+//! The in-memory stream set and its file form (see `docs/stream-format.md`).
+use crate::exr_io::{put_rgb, take_rgb, AttrValue, ExrChannels};
+use crate::{Image, StreamError};
+use std::path::Path;
+
+/// One sample stream: the mean of all `n` samples and `B` batch means over fixed,
+/// contiguous ranges of sample indices (the same range in every pixel).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Stream {
+    pub mean: Image,
+    pub batches: Vec<Image>,
+}
+
+impl Stream {
+    /// A stream whose mean is the mean of its batches (equal-size batches).
+    pub fn from_batches(batches: Vec<Image>) -> Self {
+        Stream { mean: Image::mean_of(&batches), batches }
+    }
+}
+
+/// First-hit features averaged over the samples of a pixel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Features {
+    pub albedo: Image,
+    pub normal: Image,
+    pub depth: Vec<f32>,
+}
+
+/// Provenance recorded in the file header.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct StreamMeta {
+    /// Samples per pixel of *each* stream.
+    pub spp: u32,
+    pub seed: u64,
+    /// Mitsuba convention: longest path in segments from the camera, -1 unlimited.
+    pub max_depth: i32,
+    pub scene: String,
+    pub version: String,
+    /// Samples that were NaN or infinite, replaced by zero, over both streams.
+    pub non_finite_samples: u64,
+}
+
+/// Two paired renders of the same image plus features: the input of every estimator.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StreamSet {
+    pub width: usize,
+    pub height: usize,
+    pub pt: Stream,
+    pub crn: Stream,
+    pub features: Option<Features>,
+    pub meta: StreamMeta,
+}
+
+const ATTR_SPP: &str = "cvtrace.spp";
+const ATTR_BATCHES: &str = "cvtrace.batches";
+const ATTR_SEED: &str = "cvtrace.seed";
+const ATTR_MAX_DEPTH: &str = "cvtrace.maxDepth";
+const ATTR_SCENE: &str = "cvtrace.scene";
+const ATTR_VERSION: &str = "cvtrace.version";
+const ATTR_NON_FINITE: &str = "cvtrace.nonFiniteSamples";
+
+/// Channel prefix of batch `b` of `stream` ("pt" or "crn"), e.g. `pt.b03.`.
+pub fn batch_prefix(stream: &str, b: usize) -> String {
+    format!("{stream}.b{b:02}.")
+}
+
+impl StreamSet {
+    pub fn batch_count(&self) -> usize {
+        self.pt.batches.len()
+    }
+
+    /// Checks sizes, batch counts and finiteness; `origin` names the source in errors.
+    pub fn validate(&self, origin: &Path) -> Result<(), StreamError> {
+        let (w, h) = (self.width, self.height);
+        if w == 0 || h == 0 {
+            return Err(StreamError::invalid(origin, "image is empty"));
+        }
+        let b = self.pt.batches.len();
+        if b == 0 || b != self.crn.batches.len() {
+            return Err(StreamError::invalid(
+                origin,
+                format!("pt has {} batches and crn {}; both need the same non-zero count", b, self.crn.batches.len()),
+            ));
+        }
+        let named = [("pt", &self.pt), ("crn", &self.crn)];
+        for (name, s) in named {
+            let all = std::iter::once((format!("{name}."), &s.mean))
+                .chain(s.batches.iter().enumerate().map(|(i, im)| (batch_prefix(name, i), im)));
+            for (prefix, im) in all {
+                if im.width != w || im.height != h {
+                    return Err(StreamError::invalid(
+                        origin,
+                        format!("{prefix}RGB is {}x{}, expected {w}x{h}", im.width, im.height),
+                    ));
+                }
+                if let Some((x, y, c)) = im.find_non_finite() {
+                    return Err(StreamError::NonFinite {
+                        path: origin.to_path_buf(),
+                        channel: format!("{prefix}{}", ["R", "G", "B"][c]),
+                        x,
+                        y,
+                    });
+                }
+            }
+        }
+        if let Some(f) = &self.features {
+            if f.albedo.width != w || f.albedo.height != h || f.normal.width != w || f.normal.height != h || f.depth.len() != w * h {
+                return Err(StreamError::invalid(origin, "feature channels do not match the image size"));
+            }
+        }
+        Ok(())
+    }
+
+    /// Writes the stream file atomically (refusing to replace an existing file unless `overwrite`).
+    pub fn write(&self, path: &Path, overwrite: bool) -> Result<(), StreamError> {
+        self.validate(path)?;
+        let mut ch = ExrChannels::new(self.width, self.height);
+        for (name, s) in [("pt", &self.pt), ("crn", &self.crn)] {
+            put_rgb(&mut ch, &format!("{name}."), &s.mean);
+            for (b, im) in s.batches.iter().enumerate() {
+                put_rgb(&mut ch, &batch_prefix(name, b), im);
+            }
+        }
+        if let Some(f) = &self.features {
+            put_rgb(&mut ch, "albedo.", &f.albedo);
+            for (c, n) in ["X", "Y", "Z"].iter().enumerate() {
+                ch.insert(format!("normal.{n}"), f.normal.channel(c));
+            }
+            ch.insert("depth.Z", f.depth.clone());
+        }
+        let m = &self.meta;
+        let a = &mut ch.attributes;
+        a.insert(ATTR_SPP.into(), AttrValue::Int(m.spp as i32));
+        a.insert(ATTR_BATCHES.into(), AttrValue::Int(self.batch_count() as i32));
+        a.insert(ATTR_SEED.into(), AttrValue::Text(m.seed.to_string()));
+        a.insert(ATTR_MAX_DEPTH.into(), AttrValue::Int(m.max_depth));
+        a.insert(ATTR_SCENE.into(), AttrValue::Text(m.scene.clone()));
+        a.insert(ATTR_VERSION.into(), AttrValue::Text(m.version.clone()));
+        a.insert(ATTR_NON_FINITE.into(), AttrValue::Text(m.non_finite_samples.to_string()));
+        ch.write(path, overwrite)
+    }
+
+    /// Reads and validates a stream file. Features are optional; everything else is required.
+    pub fn read(path: &Path) -> Result<StreamSet, StreamError> {
+        let mut ch = ExrChannels::read(path)?;
+        let (w, h) = (ch.width, ch.height);
+        let batches = match ch.attr(ATTR_BATCHES) {
+            Some(AttrValue::Int(b)) if *b > 0 => *b as usize,
+            Some(other) => {
+                return Err(StreamError::invalid(path, format!("attribute {ATTR_BATCHES} = {} is not a positive integer", other.as_text())))
+            }
+            None => count_batches(&ch),
+        };
+        if batches == 0 {
+            return Err(StreamError::MissingChannel { path: path.to_path_buf(), channel: "pt.b00.R".into() });
+        }
+        let mut streams = Vec::with_capacity(2);
+        for name in ["pt", "crn"] {
+            let mean = take_rgb(&mut ch, path, &format!("{name}."))?;
+            let mut bs = Vec::with_capacity(batches);
+            for b in 0..batches {
+                bs.push(take_rgb(&mut ch, path, &batch_prefix(name, b))?);
+            }
+            streams.push(Stream { mean, batches: bs });
+        }
+        let features = if ch.channels.contains_key("albedo.R") {
+            let albedo = take_rgb(&mut ch, path, "albedo.")?;
+            let nx = ch.take(path, "normal.X")?;
+            let ny = ch.take(path, "normal.Y")?;
+            let nz = ch.take(path, "normal.Z")?;
+            let depth = ch.take(path, "depth.Z")?;
+            Some(Features { albedo, normal: Image::from_channels(w, h, [&nx, &ny, &nz]), depth })
+        } else {
+            None
+        };
+        let text = |k: &str| ch.attr(k).map(|v| v.as_text()).unwrap_or_default();
+        let int = |k: &str| match ch.attr(k) {
+            Some(AttrValue::Int(i)) => Some(*i),
+            _ => None,
+        };
+        let meta = StreamMeta {
+            spp: int(ATTR_SPP).unwrap_or(0).max(0) as u32,
+            seed: text(ATTR_SEED).parse().unwrap_or(0),
+            max_depth: int(ATTR_MAX_DEPTH).unwrap_or(-1),
+            scene: text(ATTR_SCENE),
+            version: text(ATTR_VERSION),
+            non_finite_samples: text(ATTR_NON_FINITE).parse().unwrap_or(0),
+        };
+        let crn = streams.pop().unwrap();
+        let pt = streams.pop().unwrap();
+        let set = StreamSet { width: w, height: h, pt, crn, features, meta };
+        set.validate(path)?;
+        Ok(set)
+    }
+}
+
+fn count_batches(ch: &ExrChannels) -> usize {
+    (0..).take_while(|b| ch.channels.contains_key(&format!("{}R", batch_prefix("pt", *b)))).count()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn synthetic(w: usize, h: usize, b: usize) -> StreamSet {
+        let mk = |s: f32| (0..b).map(|i| Image::from_fn(w, h, |x, y| [s + x as f32, y as f32, i as f32])).collect::<Vec<_>>();
+        StreamSet {
+            width: w,
+            height: h,
+            pt: Stream::from_batches(mk(0.0)),
+            crn: Stream::from_batches(mk(1.0)),
+            features: Some(Features {
+                albedo: Image::from_fn(w, h, |_, _| [0.5; 3]),
+                normal: Image::from_fn(w, h, |_, _| [0.0, 0.0, 1.0]),
+                depth: vec![2.0; w * h],
+            }),
+            meta: StreamMeta { spp: 8, seed: 1 << 40, max_depth: 8, scene: "s.gltf".into(), version: "0.1.0".into(), non_finite_samples: 3 },
+        }
+    }
+
+    #[test]
+    fn round_trip() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("s.streams.exr");
+        let s = synthetic(7, 5, 4);
+        s.write(&p, false).unwrap();
+        assert_eq!(StreamSet::read(&p).unwrap(), s);
+    }
+
+    #[test]
+    fn missing_batch_channel_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("s.exr");
+        synthetic(3, 3, 2).write(&p, false).unwrap();
+        let mut ch = ExrChannels::read(&p).unwrap();
+        ch.channels.remove("crn.b01.G");
+        let q = dir.path().join("t.exr");
+        ch.write(&q, false).unwrap();
+        let e = StreamSet::read(&q).unwrap_err().to_string();
+        assert!(e.contains("t.exr") && e.contains("crn.b01.G"), "{e}");
+    }
+
+    #[test]
+    fn nan_is_rejected_with_its_channel() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("s.exr");
+        synthetic(3, 3, 2).write(&p, false).unwrap();
+        let mut ch = ExrChannels::read(&p).unwrap();
+        ch.channels.get_mut("pt.b01.R").unwrap()[4] = f32::NAN;
+        let q = dir.path().join("nan.exr");
+        ch.write(&q, false).unwrap();
+        let e = StreamSet::read(&q).unwrap_err().to_string();
+        assert!(e.contains("nan.exr") && e.contains("pt.b01.R") && e.contains("(1, 1)"), "{e}");
+    }
+}

@@ -1,0 +1,1 @@
+//! cvtrace: Embree FFI and its safe wrapper live here (work in progress).
