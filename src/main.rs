@@ -1,1 +1,50 @@
-fn main() {}
+//! The `cvtrace` command line: render, reconstruct, and (later) study/compare/report.
+mod cli;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(name = "cvtrace", version, about = "Embree path tracer with paired PT/CRN streams and image-space control-variate reconstruction")]
+struct Cli {
+    /// Worker threads (default: all cores). Results are bit-identical for any count.
+    #[arg(long, global = true)]
+    threads: Option<usize>,
+    /// Log level filter (error, warn, info, debug, trace); RUST_LOG overrides it.
+    #[arg(long, global = true, default_value = "info")]
+    log: String,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a glTF scene into a PT/CRN stream file (or a reference image with --reference).
+    Render(cli::render::RenderArgs),
+    /// Reconstruct an image from a stream file with one or all estimators.
+    Reconstruct(cli::reconstruct::ReconstructArgs),
+}
+
+fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(&cli.log));
+    tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).with_target(false).init();
+    if let Some(n) = cli.threads {
+        if n == 0 {
+            eprintln!("error: --threads must be at least 1");
+            return std::process::ExitCode::from(2);
+        }
+        rayon::ThreadPoolBuilder::new().num_threads(n).build_global().expect("thread pool is built once");
+    }
+    let result = match cli.command {
+        Command::Render(a) => cli::render::run(a),
+        Command::Reconstruct(a) => cli::reconstruct::run(a),
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
