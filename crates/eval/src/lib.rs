@@ -1,0 +1,31 @@
+//! Evaluation of cvtrace's estimators, following the paper's protocol
+//! (`docs/` and `../shared/reference/method.md`):
+//!
+//! - [`metrics`]: relMSE (IDUW's definition, ε = 0.01) and MSE against a reference;
+//! - [`stats`]: per-method statistics over seeds — relMSE mean ± standard error and its
+//!   split into squared bias and variance — from a streaming accumulator;
+//! - [`reference_noise`]: how much relMSE the reference's own noise adds, with a warning;
+//! - [`results`]: the one JSON-able tree a study produces, plus headline ratios;
+//! - [`table`]: terminal, Markdown and CSV printers;
+//! - [`falsecolor`], [`plots`]: relMSE maps as PNG and convergence plots as SVG;
+//! - [`report`]: the static, offline HTML comparison viewer.
+//!
+//! Nothing here renders or reconstructs; it depends only on `cvtrace-streams`.
+
+pub mod error;
+pub mod falsecolor;
+pub mod metrics;
+pub mod palette;
+pub mod plots;
+pub mod reference_noise;
+pub mod results;
+pub mod stats;
+pub mod table;
+
+#[cfg(test)]
+mod test_rng;
+
+pub use error::EvalError;
+pub use metrics::{Metrics, Reference};
+pub use results::{keys, ConvergencePoint, ErrorMapScale, MethodResult, ReferenceInfo, SceneResult, StageTimes, StudyResults};
+pub use stats::{SeedAccumulator, SeedStats};

@@ -1,0 +1,185 @@
+//! Convergence plots: relMSE against total spp, log-log, one line per estimator, as SVG.
+//!
+//! Drawn with `plotters`' SVG backend, which writes `<text>` elements and only estimates
+//! text extents, so no system fonts are needed. Colours match the viewer (dark theme).
+use crate::palette::method_color;
+use crate::results::{ConvergencePoint, SceneResult};
+use crate::table::fmt_num;
+use crate::EvalError;
+use plotters::prelude::*;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+const BACKGROUND: RGBColor = RGBColor(0x1d, 0x1f, 0x23);
+const FOREGROUND: RGBColor = RGBColor(0xd0, 0xd0, 0xd0);
+const GRID: RGBColor = RGBColor(0x34, 0x37, 0x3d);
+
+/// Plot size in pixels.
+pub const PLOT_SIZE: (u32, u32) = (720, 440);
+
+/// One line of the plot: a method's points sorted by spp.
+struct Line {
+    key: String,
+    label: String,
+    color: RGBColor,
+    points: Vec<(f64, f64, Option<f64>)>,
+}
+
+fn lines(points: &[ConvergencePoint], label_of: &dyn Fn(&str) -> String) -> Vec<Line> {
+    // First-appearance order of methods, so the legend follows the results file.
+    let mut order: Vec<String> = Vec::new();
+    let mut by_method: BTreeMap<String, Vec<(f64, f64, Option<f64>)>> = BTreeMap::new();
+    for p in points {
+        if !by_method.contains_key(&p.method) {
+            order.push(p.method.clone());
+        }
+        by_method.entry(p.method.clone()).or_default().push((p.spp_total as f64, p.relmse, p.relmse_se));
+    }
+    order
+        .into_iter()
+        .enumerate()
+        .map(|(i, key)| {
+            let mut pts = by_method.remove(&key).unwrap_or_default();
+            pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let c = method_color(&key, i);
+            Line { label: label_of(&key), color: RGBColor(c[0], c[1], c[2]), key, points: pts }
+        })
+        .collect()
+}
+
+fn plot_err(e: impl std::fmt::Display) -> EvalError {
+    EvalError::invalid("convergence plot", e.to_string())
+}
+
+/// The SVG text of a convergence plot. `label_of` maps a method key to its legend label.
+/// A dashed grey guide shows the `1/spp` slope of an unbiased Monte Carlo estimator.
+pub fn convergence_svg(points: &[ConvergencePoint], title: &str, label_of: &dyn Fn(&str) -> String) -> Result<String, EvalError> {
+    let valid: Vec<ConvergencePoint> =
+        points.iter().filter(|p| p.spp_total > 0 && p.relmse > 0.0 && p.relmse.is_finite()).cloned().collect();
+    if valid.is_empty() {
+        return Err(EvalError::invalid("convergence plot", "no point with spp > 0 and a finite relMSE > 0"));
+    }
+    let lines = lines(&valid, label_of);
+    let xs = valid.iter().map(|p| p.spp_total as f64);
+    let (xmin, xmax) = xs.fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(x), b.max(x)));
+    let lows = valid.iter().map(|p| (p.relmse - p.relmse_se.unwrap_or(0.0)).max(p.relmse * 0.5));
+    let highs = valid.iter().map(|p| p.relmse + p.relmse_se.unwrap_or(0.0));
+    let ymin = lows.fold(f64::MAX, f64::min);
+    let ymax = highs.fold(f64::MIN, f64::max);
+    let (x0, x1) = (xmin / 1.3, xmax * 1.3);
+    let (y0, y1) = (ymin / 1.6, ymax * 1.6);
+
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, PLOT_SIZE).into_drawing_area();
+        root.fill(&BACKGROUND).map_err(plot_err)?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 20).into_font().color(&FOREGROUND))
+            .margin(14)
+            .x_label_area_size(44)
+            .y_label_area_size(78)
+            .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+            .map_err(plot_err)?;
+        chart
+            .configure_mesh()
+            .x_desc("total samples per pixel")
+            .y_desc("relMSE")
+            .x_label_formatter(&|v| format!("{}", v.round()))
+            .y_label_formatter(&|v| fmt_num(*v))
+            .axis_style(FOREGROUND.mix(0.8))
+            .bold_line_style(GRID)
+            .light_line_style(GRID.mix(0.4))
+            .label_style(("sans-serif", 13).into_font().color(&FOREGROUND))
+            .axis_desc_style(("sans-serif", 14).into_font().color(&FOREGROUND))
+            .draw()
+            .map_err(plot_err)?;
+
+        // 1/spp guide through the first point of the first line (PT when present).
+        if let Some(&(sx, sy, _)) = lines.first().and_then(|l| l.points.first()) {
+            let guide = [(x0, sy * sx / x0), (x1, sy * sx / x1)];
+            chart
+                .draw_series(DashedLineSeries::new(guide, 6, 6, RGBColor(0x70, 0x74, 0x7c).stroke_width(1)))
+                .map_err(plot_err)?
+                .label("∝ 1/spp")
+                .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], RGBColor(0x70, 0x74, 0x7c)));
+        }
+        for line in &lines {
+            let color = line.color;
+            chart
+                .draw_series(LineSeries::new(line.points.iter().map(|p| (p.0, p.1)), color.stroke_width(2)))
+                .map_err(plot_err)?
+                .label(&line.label)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2)));
+            chart
+                .draw_series(line.points.iter().map(|p| Circle::new((p.0, p.1), 3, color.filled())))
+                .map_err(plot_err)?;
+            // ± one standard error, clipped below to stay on the log axis.
+            chart
+                .draw_series(line.points.iter().filter_map(|p| p.2.map(|se| (p.0, p.1, se))).map(|(x, y, se)| {
+                    PathElement::new(vec![(x, (y - se).max(y * 0.5)), (x, y + se)], color.stroke_width(1))
+                }))
+                .map_err(plot_err)?;
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .background_style(BACKGROUND.mix(0.9))
+            .border_style(GRID)
+            .label_font(("sans-serif", 13).into_font().color(&FOREGROUND))
+            .draw()
+            .map_err(plot_err)?;
+        root.present().map_err(plot_err)?;
+    }
+    // Keep the keys findable (e.g. by tests and scripts) without relying on drawing order.
+    let keys: Vec<&str> = lines.iter().map(|l| l.key.as_str()).collect();
+    Ok(svg.replacen("<svg ", &format!("<svg data-methods=\"{}\" ", keys.join(" ")), 1))
+}
+
+/// Writes the convergence plot of `scene` atomically; `Ok(false)` when it has no points.
+pub fn write_convergence_svg(scene: &SceneResult, path: &Path, overwrite: bool) -> Result<bool, EvalError> {
+    if scene.convergence.is_empty() {
+        return Ok(false);
+    }
+    let label_of = |k: &str| scene.method(k).map(|m| m.label.clone()).unwrap_or_else(|| k.to_string());
+    let title = format!("{}: relMSE vs spp", scene.name);
+    let svg = convergence_svg(&scene.convergence, &title, &label_of)
+        .map_err(|e| EvalError::invalid(format!("scene `{}`", scene.name), e.to_string()))?;
+    cvtrace_streams::atomic::write_atomically(path, overwrite, |tmp| std::fs::write(tmp, svg.as_bytes()))?;
+    Ok(true)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pts() -> Vec<ConvergencePoint> {
+        let mut v = Vec::new();
+        for (m, c) in [("pt", 1.0), ("ours", 0.2)] {
+            for spp in [16u32, 64, 256] {
+                v.push(ConvergencePoint { method: m.into(), spp_total: spp, relmse: c / spp as f64, relmse_se: Some(0.1 * c / spp as f64) });
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn svg_has_lines_labels_and_text_without_system_fonts() {
+        let svg = convergence_svg(&pts(), "cbox: relMSE vs spp", &|k| format!("label-{k}")).unwrap();
+        assert!(svg.starts_with("<svg"), "{}", &svg[..100]);
+        assert!(svg.contains("data-methods=\"pt ours\""));
+        assert!(svg.contains("cbox: relMSE vs spp"));
+        assert!(svg.contains("label-pt") && svg.contains("label-ours"));
+        assert!(svg.contains("total samples per pixel") && svg.contains("relMSE"));
+        assert!(svg.contains("<text"), "text must be emitted as SVG text");
+        // One polyline per method plus the guide; a point per sample.
+        assert!(svg.matches("<polyline").count() >= 2, "{svg}");
+        assert!(svg.matches("<circle").count() >= 6);
+        assert!(svg.contains("#59D98E") || svg.contains("#59d98e"), "ours keeps its viewer colour");
+    }
+
+    #[test]
+    fn invalid_points_are_rejected_not_drawn() {
+        let bad = vec![ConvergencePoint { method: "pt".into(), spp_total: 0, relmse: 1.0, relmse_se: None }];
+        assert!(convergence_svg(&bad, "t", &|k| k.to_string()).is_err());
+    }
+}

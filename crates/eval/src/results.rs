@@ -1,0 +1,370 @@
+//! The results of a study as one JSON-able tree: what `cvtrace study` writes, what
+//! `cvtrace report` reads, and what the viewer shows (as `window.CVTRACE_DATA`).
+//!
+//! Paths of images are relative to the folder holding the results file, use `/`, and never
+//! leave it (no `..`, not absolute), so a study folder can be moved as a whole.
+use crate::reference_noise::ReferenceNoise;
+use crate::stats::SeedStats;
+use crate::EvalError;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeSet;
+use std::path::Path;
+
+/// Bumped whenever a field changes meaning.
+pub const SCHEMA_VERSION: u32 = 1;
+
+/// Canonical method keys: the ratios and the viewer's ordering and colours rely on them.
+pub mod keys {
+    /// PT stream alone (`n` spp).
+    pub const PT: &str = "pt";
+    /// CRN stream alone (`n` spp).
+    pub const CRN: &str = "crn";
+    /// `(PT + CRN) / 2`.
+    pub const AVERAGE: &str = "average";
+    pub const IDUW: &str = "iduw";
+    /// Classic control variates, PT treated as exact expectations.
+    pub const CV: &str = "cv";
+    /// Imperfect image-space control variates (Yang & Moon 2025).
+    pub const OURS: &str = "ours";
+    /// A real PT render with `2n` spp: the equal-total-samples baseline.
+    pub const PT_2N: &str = "pt2n";
+    /// The order the viewer and tables use for the known keys; others follow in file order.
+    pub const ORDER: [&str; 7] = [PT, CRN, AVERAGE, IDUW, CV, OURS, PT_2N];
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StudyResults {
+    pub schema_version: u32,
+    /// e.g. "cvtrace 0.1.0".
+    #[serde(default)]
+    pub generator: String,
+    pub scenes: Vec<SceneResult>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SceneResult {
+    pub name: String,
+    pub width: usize,
+    pub height: usize,
+    /// `n`: samples per pixel of *each* input stream; the estimators use `2n` in total.
+    pub spp_per_stream: u32,
+    /// Independent seeds evaluated.
+    pub seeds: u32,
+    pub reference: ReferenceInfo,
+    pub methods: Vec<MethodResult>,
+    /// relMSE against total spp for the convergence plot (empty without an `--spp` list).
+    #[serde(default)]
+    pub convergence: Vec<ConvergencePoint>,
+    /// Log10 range of the false-colour relMSE maps, shared by all methods of the scene.
+    #[serde(default)]
+    pub error_map_scale: Option<ErrorMapScale>,
+    /// Human-readable warnings (e.g. a reference too noisy to rank the methods).
+    #[serde(default)]
+    pub warnings: Vec<String>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ReferenceInfo {
+    /// Where the reference EXR was read from (as given by the user; informational).
+    pub path: String,
+    #[serde(default)]
+    pub spp: Option<u32>,
+    /// PNG preview, relative to the results folder.
+    #[serde(default)]
+    pub image: Option<String>,
+    /// The relMSE the reference's own noise adds to every method (see `reference_noise`).
+    #[serde(default)]
+    pub noise: Option<ReferenceNoise>,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct MethodResult {
+    /// Key: one of [`keys`] or a free name for ablations (e.g. "ours-no-penalty").
+    pub name: String,
+    /// Display label, e.g. "Ours (imperfect CV)".
+    pub label: String,
+    /// Total samples per pixel the method consumed (n for PT/CRN, 2n for the rest).
+    pub spp_total: u32,
+    pub relmse_mean: f64,
+    #[serde(default)]
+    pub relmse_se: Option<f64>,
+    /// Relative squared bias over seeds (unbiased estimate; may be slightly negative).
+    #[serde(default)]
+    pub bias2: Option<f64>,
+    /// Relative variance of one seed's image.
+    #[serde(default)]
+    pub variance: Option<f64>,
+    pub mse_mean: f64,
+    #[serde(default)]
+    pub relmse_per_seed: Vec<f64>,
+    /// Mean seconds per seed.
+    #[serde(default)]
+    pub time_seconds: StageTimes,
+    /// PNG preview (sRGB) of one seed's output, relative to the results folder.
+    #[serde(default)]
+    pub image: Option<String>,
+    /// False-colour relMSE map PNG, relative to the results folder.
+    #[serde(default)]
+    pub error_map: Option<String>,
+    /// Part of `--ablations` (shown in a separate table).
+    #[serde(default)]
+    pub ablation: bool,
+}
+
+/// Mean wall-clock seconds per seed spent in each stage of one method.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct StageTimes {
+    /// Rendering the stream(s) the method reads.
+    pub render: f64,
+    /// Running the estimator (0 for plain streams).
+    pub reconstruct: f64,
+}
+
+impl StageTimes {
+    pub fn total(&self) -> f64 {
+        self.render + self.reconstruct
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ConvergencePoint {
+    pub method: String,
+    pub spp_total: u32,
+    pub relmse: f64,
+    #[serde(default)]
+    pub relmse_se: Option<f64>,
+}
+
+/// The colour scale of false-colour maps: log10 relMSE from `log10_min` (darkest) to
+/// `log10_max` (brightest); values outside are clamped.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ErrorMapScale {
+    pub log10_min: f64,
+    pub log10_max: f64,
+    /// Name of the colour map (see `falsecolor`).
+    pub colormap: String,
+}
+
+impl MethodResult {
+    /// A result filled from seed statistics; times and images are left for the caller.
+    pub fn from_stats(name: &str, label: &str, spp_total: u32, stats: &SeedStats) -> Self {
+        MethodResult {
+            name: name.to_string(),
+            label: label.to_string(),
+            spp_total,
+            relmse_mean: stats.relmse_mean,
+            relmse_se: stats.relmse_se,
+            bias2: stats.bias2,
+            variance: stats.variance,
+            mse_mean: stats.mse_mean,
+            relmse_per_seed: stats.relmse_per_seed.clone(),
+            time_seconds: StageTimes::default(),
+            image: None,
+            error_map: None,
+            ablation: false,
+        }
+    }
+}
+
+/// `numerator / denominator` of two methods' mean relMSE.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Ratio {
+    pub numerator: String,
+    pub denominator: String,
+    pub value: f64,
+    /// Delta-method standard error; uses the per-seed pairing when both methods have
+    /// per-seed values for the same seeds (they share the input streams).
+    pub se: Option<f64>,
+}
+
+/// The ratios the paper reports: ours/IDUW, ours/CV, ours/PT(2n).
+pub const HEADLINE_RATIOS: [(&str, &str); 3] = [(keys::OURS, keys::IDUW), (keys::OURS, keys::CV), (keys::OURS, keys::PT_2N)];
+
+impl SceneResult {
+    pub fn method(&self, name: &str) -> Option<&MethodResult> {
+        self.methods.iter().find(|m| m.name == name)
+    }
+
+    /// The headline ratios among the methods present.
+    pub fn ratios(&self) -> Vec<Ratio> {
+        HEADLINE_RATIOS.iter().filter_map(|(a, b)| self.ratio(a, b)).collect()
+    }
+
+    pub fn ratio(&self, numerator: &str, denominator: &str) -> Option<Ratio> {
+        let (a, b) = (self.method(numerator)?, self.method(denominator)?);
+        if !(b.relmse_mean > 0.0) {
+            return None;
+        }
+        let value = a.relmse_mean / b.relmse_mean;
+        let (pa, pb) = (&a.relmse_per_seed, &b.relmse_per_seed);
+        let se = if pa.len() == pb.len() && pa.len() >= 2 {
+            let n = pa.len() as f64;
+            let (ma, mb) = (pa.iter().sum::<f64>() / n, pb.iter().sum::<f64>() / n);
+            let cov = |x: &[f64], mx: f64, y: &[f64], my: f64| {
+                x.iter().zip(y).map(|(x, y)| (x - mx) * (y - my)).sum::<f64>() / (n - 1.0) / n
+            };
+            let rel_var = cov(pa, ma, pa, ma) / (ma * ma) + cov(pb, mb, pb, mb) / (mb * mb) - 2.0 * cov(pa, ma, pb, mb) / (ma * mb);
+            Some(value * rel_var.max(0.0).sqrt())
+        } else {
+            match (a.relmse_se, b.relmse_se) {
+                (Some(sa), Some(sb)) => Some(value * ((sa / a.relmse_mean).powi(2) + (sb / b.relmse_mean).powi(2)).sqrt()),
+                _ => None,
+            }
+        };
+        Some(Ratio { numerator: numerator.into(), denominator: denominator.into(), value, se })
+    }
+
+    /// The smallest mean relMSE among non-ablation methods (for the reference-noise check).
+    pub fn best_relmse(&self) -> Option<f64> {
+        self.methods.iter().filter(|m| !m.ablation).map(|m| m.relmse_mean).filter(|v| v.is_finite()).reduce(f64::min)
+    }
+
+    /// Methods in display order: the known keys first in [`keys::ORDER`], then the rest in file order.
+    pub fn ordered_methods(&self) -> Vec<&MethodResult> {
+        let mut out: Vec<&MethodResult> = keys::ORDER.iter().filter_map(|k| self.method(k)).collect();
+        out.extend(self.methods.iter().filter(|m| !keys::ORDER.contains(&m.name.as_str())));
+        out
+    }
+}
+
+impl StudyResults {
+    pub fn new(scenes: Vec<SceneResult>) -> Self {
+        StudyResults { schema_version: SCHEMA_VERSION, generator: format!("cvtrace {}", env!("CARGO_PKG_VERSION")), scenes }
+    }
+
+    /// Geometric mean over scenes of each headline ratio (scenes lacking a method are skipped),
+    /// as the paper summarises its ten scenes.
+    pub fn geomean_ratios(&self) -> Vec<Ratio> {
+        HEADLINE_RATIOS
+            .iter()
+            .filter_map(|(a, b)| {
+                let logs: Vec<f64> = self.scenes.iter().filter_map(|s| s.ratio(a, b)).map(|r| r.value.ln()).collect();
+                (!logs.is_empty()).then(|| Ratio {
+                    numerator: a.to_string(),
+                    denominator: b.to_string(),
+                    value: (logs.iter().sum::<f64>() / logs.len() as f64).exp(),
+                    se: None,
+                })
+            })
+            .collect()
+    }
+
+    /// Checks everything the viewer and the tables rely on; errors name the scene and method.
+    pub fn validate(&self) -> Result<(), EvalError> {
+        if self.schema_version != SCHEMA_VERSION {
+            return Err(EvalError::invalid(
+                "results",
+                format!("schema version {} is not supported (this cvtrace reads version {SCHEMA_VERSION})", self.schema_version),
+            ));
+        }
+        let mut scene_names = BTreeSet::new();
+        for scene in &self.scenes {
+            let ctx = format!("scene `{}`", scene.name);
+            if scene.name.trim().is_empty() {
+                return Err(EvalError::invalid("results", "a scene has an empty name"));
+            }
+            if !scene_names.insert(scene.name.as_str()) {
+                return Err(EvalError::invalid(&ctx, "appears twice"));
+            }
+            if scene.width == 0 || scene.height == 0 || scene.spp_per_stream == 0 || scene.seeds == 0 {
+                return Err(EvalError::invalid(&ctx, "width, height, spp_per_stream and seeds must be positive"));
+            }
+            if scene.methods.is_empty() {
+                return Err(EvalError::invalid(&ctx, "has no methods"));
+            }
+            if let Some(p) = &scene.reference.image {
+                check_relative_path(p, &format!("{ctx}, reference image"))?;
+            }
+            if let Some(noise) = &scene.reference.noise {
+                check_number(noise.relmse, true, &format!("{ctx}, reference noise"))?;
+            }
+            if let Some(scale) = &scene.error_map_scale {
+                if !(scale.log10_min.is_finite() && scale.log10_max.is_finite() && scale.log10_min < scale.log10_max) {
+                    return Err(EvalError::invalid(&ctx, "error_map_scale needs finite log10_min < log10_max"));
+                }
+            }
+            let mut names = BTreeSet::new();
+            for m in &scene.methods {
+                let mctx = format!("{ctx}, method `{}`", m.name);
+                if m.name.trim().is_empty() {
+                    return Err(EvalError::invalid(&ctx, "a method has an empty name"));
+                }
+                if !names.insert(m.name.as_str()) {
+                    return Err(EvalError::invalid(&mctx, "appears twice"));
+                }
+                check_number(m.relmse_mean, true, &format!("{mctx}, relmse_mean"))?;
+                check_number(m.mse_mean, true, &format!("{mctx}, mse_mean"))?;
+                for (v, what) in [(m.relmse_se, "relmse_se"), (m.variance, "variance")] {
+                    if let Some(v) = v {
+                        check_number(v, true, &format!("{mctx}, {what}"))?;
+                    }
+                }
+                if let Some(b) = m.bias2 {
+                    check_number(b, false, &format!("{mctx}, bias2"))?;
+                }
+                for v in &m.relmse_per_seed {
+                    check_number(*v, true, &format!("{mctx}, relmse_per_seed"))?;
+                }
+                check_number(m.time_seconds.render, true, &format!("{mctx}, render time"))?;
+                check_number(m.time_seconds.reconstruct, true, &format!("{mctx}, reconstruct time"))?;
+                for (p, what) in [(&m.image, "image"), (&m.error_map, "error_map")] {
+                    if let Some(p) = p {
+                        check_relative_path(p, &format!("{mctx}, {what}"))?;
+                    }
+                }
+            }
+            for c in &scene.convergence {
+                let cctx = format!("{ctx}, convergence point of `{}` at {} spp", c.method, c.spp_total);
+                if c.spp_total == 0 || !(c.relmse > 0.0 && c.relmse.is_finite()) {
+                    return Err(EvalError::invalid(cctx, "needs spp_total > 0 and a finite relMSE > 0 (log-log plot)"));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Reads and validates a results JSON file.
+    pub fn read_json(path: &Path) -> Result<Self, EvalError> {
+        let bytes = std::fs::read(path).map_err(|e| EvalError::io(path, e))?;
+        let results: StudyResults =
+            serde_json::from_slice(&bytes).map_err(|e| EvalError::Json { path: path.to_path_buf(), message: e.to_string() })?;
+        results
+            .validate()
+            .map_err(|e| EvalError::Json { path: path.to_path_buf(), message: e.to_string() })?;
+        Ok(results)
+    }
+
+    /// Pretty JSON, the exact text of `results.json`.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("results serialise: plain data without maps keyed by non-strings")
+    }
+
+    /// Writes the results as pretty JSON, atomically.
+    pub fn write_json(&self, path: &Path, overwrite: bool) -> Result<(), EvalError> {
+        self.validate()?;
+        let text = self.to_json();
+        cvtrace_streams::atomic::write_atomically(path, overwrite, |tmp| std::fs::write(tmp, text.as_bytes()))?;
+        Ok(())
+    }
+}
+
+fn check_number(v: f64, non_negative: bool, ctx: &str) -> Result<(), EvalError> {
+    if !v.is_finite() || (non_negative && v < 0.0) {
+        let need = if non_negative { "a finite, non-negative number" } else { "a finite number" };
+        return Err(EvalError::invalid(ctx, format!("is {v}, expected {need}")));
+    }
+    Ok(())
+}
+
+/// Image paths must stay inside the results folder so a report can copy them safely.
+pub fn check_relative_path(p: &str, ctx: &str) -> Result<(), EvalError> {
+    let path = Path::new(p);
+    let bad = p.is_empty()
+        || path.is_absolute()
+        || p.contains('\\')
+        || path.components().any(|c| !matches!(c, std::path::Component::Normal(_)));
+    if bad {
+        return Err(EvalError::invalid(ctx, format!("`{p}` must be a relative path inside the results folder (no `..`, `.` or `/` prefix)")));
+    }
+    Ok(())
+}
