@@ -1,0 +1,414 @@
+//! glTF 2.0 → [`Scene`]: flattens every mesh instance of the default scene into world space,
+//! converts materials and textures, and picks the camera.
+//!
+//! What is read: triangles (lists, strips and fans; points and lines are skipped with a
+//! warning), `POSITION`, `NORMAL`, `TEXCOORD_0`; metallic-roughness materials with their
+//! textures, `KHR_materials_specular`, `KHR_materials_transmission`, `KHR_materials_ior`,
+//! `KHR_materials_emissive_strength`; the perspective camera of the first node (depth-first
+//! from the scene roots) that has one. Unsupported *required* extensions are an error; other
+//! unsupported extensions are ignored with a warning. Every error names the file.
+use crate::camera::Camera;
+use crate::material::Material;
+use crate::scene::{default_camera, Scene, SceneError, SceneParts};
+use crate::texture::{srgb_to_linear, Texture};
+use glam::{Mat3, Mat4, Vec2, Vec3};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+/// Extensions cvtrace understands, so a file may list them in `extensionsRequired`.
+pub const SUPPORTED_EXTENSIONS: &[&str] =
+    &["KHR_materials_specular", "KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_emissive_strength"];
+
+/// Node hierarchies deeper than this are treated as cyclic (the spec forbids cycles).
+const MAX_NODE_DEPTH: usize = 1024;
+
+/// Loads `path` (.gltf or .glb).
+pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    let bytes = std::fs::read(path).map_err(|e| SceneError::Io { path: path.to_path_buf(), source: e })?;
+    let malformed = |e: gltf::Error| SceneError::Malformed { path: path.to_path_buf(), message: e.to_string() };
+    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(&bytes).map_err(malformed)?;
+    let mut json = document.into_json();
+    for ext in &json.extensions_required {
+        if !SUPPORTED_EXTENSIONS.contains(&ext.as_str()) {
+            return Err(SceneError::UnsupportedExtension { path: path.to_path_buf(), extension: ext.clone() });
+        }
+    }
+    for ext in &json.extensions_used {
+        if !SUPPORTED_EXTENSIONS.contains(&ext.as_str()) {
+            tracing::warn!("{}: ignoring glTF extension {ext}", path.display());
+        }
+    }
+    // Checked above; gltf's own validator does not know every extension cvtrace reads.
+    json.extensions_required.clear();
+    let document = gltf::Document::from_json(json).map_err(malformed)?;
+
+    let base = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    check_external_files(&document, &base, path)?;
+    let buffers = gltf::import_buffers(&document, Some(&base), blob).map_err(malformed)?;
+    let images = gltf::import_images(&document, Some(&base), &buffers).map_err(|e| SceneError::Invalid {
+        path: path.to_path_buf(),
+        message: format!("cannot decode an image: {e}"),
+    })?;
+
+    // The accessor readers index buffers directly; turn any inconsistency they trip on into an
+    // error instead of a crash.
+    let built = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| Builder::new(path, &document, &buffers, &images).build()));
+    let parts = match built {
+        Ok(r) => r?,
+        Err(_) => {
+            return Err(SceneError::Malformed {
+                path: path.to_path_buf(),
+                message: "an accessor or buffer view points outside its buffer".into(),
+            })
+        }
+    };
+    Scene::from_parts_named(parts, path)
+}
+
+/// Percent-decodes a relative URI (glTF URIs are RFC 3986 encoded).
+fn decode_uri(uri: &str) -> String {
+    let bytes = uri.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        if bytes[i] == b'%' && i + 2 < bytes.len() {
+            let hex = |c: u8| (c as char).to_digit(16);
+            if let (Some(h), Some(l)) = (hex(bytes[i + 1]), hex(bytes[i + 2])) {
+                out.push((h * 16 + l) as u8);
+                i += 3;
+                continue;
+            }
+        }
+        out.push(bytes[i]);
+        i += 1;
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+fn external_path(base: &Path, uri: &str) -> Option<PathBuf> {
+    if uri.starts_with("data:") {
+        return None;
+    }
+    if let Some(rest) = uri.strip_prefix("file://").or_else(|| uri.strip_prefix("file:")) {
+        return Some(PathBuf::from(decode_uri(rest)));
+    }
+    Some(base.join(decode_uri(uri)))
+}
+
+/// Names the first missing buffer or image file, which the importer would only report as
+/// a bare "No such file" without the name.
+fn check_external_files(doc: &gltf::Document, base: &Path, path: &Path) -> Result<(), SceneError> {
+    let mut uris = Vec::new();
+    for b in doc.buffers() {
+        if let gltf::buffer::Source::Uri(uri) = b.source() {
+            uris.push(uri);
+        }
+    }
+    for im in doc.images() {
+        if let gltf::image::Source::Uri { uri, .. } = im.source() {
+            uris.push(uri);
+        }
+    }
+    for uri in uris {
+        if let Some(file) = external_path(base, uri) {
+            if let Err(e) = std::fs::metadata(&file) {
+                return Err(SceneError::MissingFile { path: path.to_path_buf(), file, message: e.to_string() });
+            }
+        }
+    }
+    Ok(())
+}
+
+struct Builder<'a> {
+    path: &'a Path,
+    doc: &'a gltf::Document,
+    buffers: &'a [gltf::buffer::Data],
+    images: &'a [gltf::image::Data],
+    parts: SceneParts,
+    /// (image index, sRGB?) → texture index.
+    texture_ids: HashMap<(usize, bool), u32>,
+    /// glTF material index → scene material id; `None` key is the default material.
+    material_ids: HashMap<Option<usize>, u32>,
+    camera: Option<Camera>,
+    warned_texcoord: bool,
+}
+
+impl<'a> Builder<'a> {
+    fn new(path: &'a Path, doc: &'a gltf::Document, buffers: &'a [gltf::buffer::Data], images: &'a [gltf::image::Data]) -> Self {
+        Builder {
+            path,
+            doc,
+            buffers,
+            images,
+            parts: SceneParts::default(),
+            texture_ids: HashMap::new(),
+            material_ids: HashMap::new(),
+            camera: None,
+            warned_texcoord: false,
+        }
+    }
+
+    fn err(&self, message: impl Into<String>) -> SceneError {
+        SceneError::invalid(self.path, message)
+    }
+
+    fn build(mut self) -> Result<SceneParts, SceneError> {
+        let roots: Vec<gltf::Node> = match self.doc.default_scene().or_else(|| self.doc.scenes().next()) {
+            Some(s) => s.nodes().collect(),
+            None => {
+                // No scene: every node that is nobody's child is a root.
+                let mut is_child = vec![false; self.doc.nodes().len()];
+                for n in self.doc.nodes() {
+                    for c in n.children() {
+                        is_child[c.index()] = true;
+                    }
+                }
+                self.doc.nodes().filter(|n| !is_child[n.index()]).collect()
+            }
+        };
+        if self.doc.lights().map(|mut l| l.next().is_some()).unwrap_or(false) {
+            tracing::warn!("{}: punctual lights (KHR_lights_punctual) are ignored; only emissive surfaces emit", self.path.display());
+        }
+        for root in roots {
+            self.visit(&root, Mat4::IDENTITY, 0)?;
+        }
+        if self.parts.triangles.is_empty() {
+            return Err(self.err("the scene contains no triangles"));
+        }
+        let (lo, hi) = self.parts.positions.iter().fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        self.parts.camera = Some(self.camera.take().unwrap_or_else(|| default_camera(lo, hi)));
+        if self.parts.normals.iter().all(|n| *n == Vec3::ZERO) {
+            self.parts.normals.clear();
+        }
+        if self.parts.uvs.iter().all(|n| *n == Vec2::ZERO) {
+            self.parts.uvs.clear();
+        }
+        Ok(self.parts)
+    }
+
+    fn visit(&mut self, node: &gltf::Node, parent: Mat4, depth: usize) -> Result<(), SceneError> {
+        if depth > MAX_NODE_DEPTH {
+            return Err(self.err("the node hierarchy is cyclic or deeper than 1024 levels"));
+        }
+        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        if !world.is_finite() {
+            return Err(self.err(format!("node {} has a non-finite transform", node.index())));
+        }
+        if self.camera.is_none() {
+            if let Some(cam) = node.camera() {
+                self.camera = self.convert_camera(&cam, world);
+            }
+        }
+        if let Some(mesh) = node.mesh() {
+            self.add_mesh(&mesh, world)?;
+        }
+        for child in node.children() {
+            self.visit(&child, world, depth + 1)?;
+        }
+        Ok(())
+    }
+
+    fn convert_camera(&self, cam: &gltf::Camera, world: Mat4) -> Option<Camera> {
+        match cam.projection() {
+            gltf::camera::Projection::Perspective(p) => {
+                let eye = world.transform_point3(Vec3::ZERO);
+                let forward = world.transform_vector3(Vec3::NEG_Z).normalize_or_zero();
+                let up = world.transform_vector3(Vec3::Y).normalize_or_zero();
+                let (width, height) = match p.aspect_ratio() {
+                    Some(a) if a.is_finite() && a >= 1.0 => ((512.0 * a).round().min(16384.0) as u32, 512),
+                    Some(a) if a.is_finite() && a > 0.0 => (512, (512.0 / a).round().min(16384.0) as u32),
+                    _ => (512, 512),
+                };
+                let c = Camera { eye, target: eye + forward, up, vfov_deg: p.yfov().to_degrees(), width, height };
+                match c.validate() {
+                    Ok(()) => Some(c),
+                    Err(m) => {
+                        tracing::warn!("{}: camera {} is unusable ({m}); using the default view", self.path.display(), cam.index());
+                        None
+                    }
+                }
+            }
+            gltf::camera::Projection::Orthographic(_) => {
+                tracing::warn!("{}: orthographic camera {} is not supported; skipped", self.path.display(), cam.index());
+                None
+            }
+        }
+    }
+
+    fn add_mesh(&mut self, mesh: &gltf::Mesh, world: Mat4) -> Result<(), SceneError> {
+        let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
+        let flip = world.determinant() < 0.0;
+        for prim in mesh.primitives() {
+            use gltf::mesh::Mode;
+            let mode = prim.mode();
+            if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
+                tracing::warn!("{}: mesh {} has a {mode:?} primitive; only triangles are rendered, skipped", self.path.display(), mesh.index());
+                continue;
+            }
+            let reader = prim.reader(|b| self.buffers.get(b.index()).map(|d| &d.0[..]));
+            let Some(pos) = reader.read_positions() else {
+                return Err(self.err(format!("mesh {} has a primitive without POSITION", mesh.index())));
+            };
+            let positions: Vec<Vec3> = pos.map(|p| world.transform_point3(Vec3::from(p))).collect();
+            let n = positions.len();
+            let normals: Option<Vec<Vec3>> =
+                reader.read_normals().map(|it| it.map(|v| (normal_matrix * Vec3::from(v)).normalize_or_zero()).collect());
+            let uvs: Option<Vec<Vec2>> = reader.read_tex_coords(0).map(|t| t.into_f32().map(Vec2::from).collect());
+            let indices: Vec<u32> = match reader.read_indices() {
+                Some(i) => i.into_u32().collect(),
+                None => (0..n as u32).collect(),
+            };
+            if let Some(bad) = indices.iter().find(|&&i| i as usize >= n) {
+                return Err(self.err(format!("mesh {} indexes vertex {bad} but has {n} vertices", mesh.index())));
+            }
+            if normals.as_ref().is_some_and(|v| v.len() != n) || uvs.as_ref().is_some_and(|v| v.len() != n) {
+                return Err(self.err(format!("mesh {}: attribute counts differ from POSITION", mesh.index())));
+            }
+            let tris = triangulate(mode, &indices);
+            let material = self.material_id(prim.material())?;
+            let offset = self.parts.positions.len() as u32;
+            if (offset as usize + n) > u32::MAX as usize {
+                return Err(self.err("the scene has more than 2^32 vertices"));
+            }
+            self.parts.positions.extend_from_slice(&positions);
+            self.parts.normals.extend(normals.unwrap_or_else(|| vec![Vec3::ZERO; n]));
+            self.parts.uvs.extend(uvs.unwrap_or_else(|| vec![Vec2::ZERO; n]));
+            for [a, b, c] in tris {
+                let t = if flip { [a, c, b] } else { [a, b, c] };
+                self.parts.triangles.push(t.map(|i| i + offset));
+                self.parts.triangle_materials.push(material);
+            }
+        }
+        Ok(())
+    }
+
+    fn material_id(&mut self, m: gltf::Material) -> Result<u32, SceneError> {
+        if let Some(&id) = self.material_ids.get(&m.index()) {
+            return Ok(id);
+        }
+        let mat = if m.index().is_none() { Material::default() } else { self.convert_material(&m)? };
+        let id = self.parts.materials.len() as u32;
+        self.parts.materials.push(mat);
+        self.material_ids.insert(m.index(), id);
+        Ok(id)
+    }
+
+    fn convert_material(&mut self, m: &gltf::Material) -> Result<Material, SceneError> {
+        let pbr = m.pbr_metallic_roughness();
+        let bc = pbr.base_color_factor();
+        let mut mat = Material {
+            name: m.name().map(str::to_owned).unwrap_or_else(|| format!("material {}", m.index().unwrap_or(0))),
+            base_color: Vec3::new(bc[0], bc[1], bc[2]),
+            metallic: pbr.metallic_factor(),
+            roughness: pbr.roughness_factor(),
+            ..Material::default()
+        };
+        mat.base_color_texture = self.texture(pbr.base_color_texture(), true)?;
+        mat.metallic_roughness_texture = self.texture(pbr.metallic_roughness_texture(), false)?;
+        if let Some(s) = m.specular() {
+            mat.specular = s.specular_factor();
+            mat.specular_color = Vec3::from(s.specular_color_factor());
+        }
+        if let Some(t) = m.transmission() {
+            mat.transmission = t.transmission_factor();
+        }
+        if let Some(ior) = m.ior() {
+            mat.ior = ior;
+        }
+        let strength = m.emissive_strength().unwrap_or(1.0);
+        mat.emission = Vec3::from(m.emissive_factor()) * strength;
+        if mat.emission.max_element() > 0.0 {
+            mat.emissive_texture = self.texture(m.emissive_texture(), true)?;
+        }
+        if !(mat.ior >= 1.0 && mat.ior.is_finite()) {
+            return Err(self.err(format!("material `{}` has ior {}; expected ≥ 1", mat.name, mat.ior)));
+        }
+        Ok(mat)
+    }
+
+    fn texture(&mut self, info: Option<gltf::texture::Info>, srgb: bool) -> Result<Option<u32>, SceneError> {
+        let Some(info) = info else { return Ok(None) };
+        if info.tex_coord() != 0 && !self.warned_texcoord {
+            tracing::warn!("{}: textures using TEXCOORD_{} are looked up with TEXCOORD_0", self.path.display(), info.tex_coord());
+            self.warned_texcoord = true;
+        }
+        let image = info.texture().source().index();
+        if let Some(&id) = self.texture_ids.get(&(image, srgb)) {
+            return Ok(Some(id));
+        }
+        let data = self.images.get(image).ok_or_else(|| self.err(format!("texture refers to missing image {image}")))?;
+        let tex = convert_image(data, srgb).ok_or_else(|| self.err(format!("image {image} has an unexpected pixel layout")))?;
+        let id = self.parts.textures.len() as u32;
+        self.parts.textures.push(tex);
+        self.texture_ids.insert((image, srgb), id);
+        Ok(Some(id))
+    }
+}
+
+/// Triangle index triples of a list, strip or fan.
+fn triangulate(mode: gltf::mesh::Mode, idx: &[u32]) -> Vec<[u32; 3]> {
+    use gltf::mesh::Mode;
+    match mode {
+        Mode::TriangleStrip => (0..idx.len().saturating_sub(2))
+            .map(|i| if i % 2 == 0 { [idx[i], idx[i + 1], idx[i + 2]] } else { [idx[i + 1], idx[i], idx[i + 2]] })
+            .collect(),
+        Mode::TriangleFan => (1..idx.len().saturating_sub(1)).map(|i| [idx[0], idx[i], idx[i + 1]]).collect(),
+        _ => idx.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+    }
+}
+
+/// Decodes glTF's image data to linear RGB (sRGB-decoding colour textures).
+fn convert_image(data: &gltf::image::Data, srgb: bool) -> Option<Texture> {
+    use gltf::image::Format;
+    let (channels, bytes_per) = match data.format {
+        Format::R8 => (1, 1),
+        Format::R8G8 => (2, 1),
+        Format::R8G8B8 => (3, 1),
+        Format::R8G8B8A8 => (4, 1),
+        Format::R16 => (1, 2),
+        Format::R16G16 => (2, 2),
+        Format::R16G16B16 => (3, 2),
+        Format::R16G16B16A16 => (4, 2),
+        Format::R32G32B32FLOAT => (3, 4),
+        Format::R32G32B32A32FLOAT => (4, 4),
+    };
+    let n = data.width as usize * data.height as usize;
+    if data.pixels.len() < n * channels * bytes_per {
+        return None;
+    }
+    let value = |i: usize| -> f32 {
+        let b = &data.pixels[i * bytes_per..(i + 1) * bytes_per];
+        match bytes_per {
+            1 => b[0] as f32 / 255.0,
+            2 => u16::from_ne_bytes([b[0], b[1]]) as f32 / 65535.0,
+            _ => f32::from_ne_bytes([b[0], b[1], b[2], b[3]]),
+        }
+    };
+    let decode = |v: f32| if srgb && bytes_per < 4 { srgb_to_linear(v) } else { v };
+    let texels = (0..n)
+        .map(|p| {
+            let c = |k: usize| decode(value(p * channels + k));
+            match channels {
+                1 | 2 => Vec3::splat(c(0)),
+                _ => Vec3::new(c(0), c(1), c(2)),
+            }
+        })
+        .collect();
+    Texture::new(data.width, data.height, texels)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn uri_decoding_and_triangulation() {
+        assert_eq!(decode_uri("my%20mesh.bin"), "my mesh.bin");
+        assert_eq!(decode_uri("100%"), "100%");
+        assert_eq!(triangulate(gltf::mesh::Mode::TriangleStrip, &[0, 1, 2, 3]), vec![[0, 1, 2], [2, 1, 3]]);
+        assert_eq!(triangulate(gltf::mesh::Mode::TriangleFan, &[0, 1, 2, 3]), vec![[0, 1, 2], [0, 2, 3]]);
+    }
+}

@@ -1,0 +1,311 @@
+//! The render-ready scene: world-space triangles in flat arrays (positions, index triples,
+//! per-vertex normals/UVs, per-triangle material id, normal and area), materials, textures,
+//! the light distribution and the camera. `Hit.prim` indexes [`Scene::triangles`].
+use crate::camera::Camera;
+use crate::lights::{triangle_power, LightSet};
+use crate::material::Material;
+use crate::texture::Texture;
+use glam::{Vec2, Vec3};
+use std::path::{Path, PathBuf};
+
+/// Why a scene could not be loaded or built. Every variant names the file (or `<memory>`).
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: not a valid glTF 2.0 file: {message}")]
+    Malformed { path: PathBuf, message: String },
+    #[error("{path}: requires the glTF extension `{extension}`, which cvtrace does not support")]
+    UnsupportedExtension { path: PathBuf, extension: String },
+    #[error("{path}: cannot read the referenced file {file}: {message}")]
+    MissingFile { path: PathBuf, file: PathBuf, message: String },
+    #[error("{path}: {message}")]
+    Invalid { path: PathBuf, message: String },
+}
+
+impl SceneError {
+    pub fn invalid(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
+        SceneError::Invalid { path: path.into(), message: message.into() }
+    }
+}
+
+/// Everything needed to build a [`Scene`] in memory (tests, procedural scenes, other loaders).
+#[derive(Clone, Debug, Default)]
+pub struct SceneParts {
+    pub positions: Vec<Vec3>,
+    pub triangles: Vec<[u32; 3]>,
+    /// Per-vertex shading normals, or empty to use geometric normals. A zero normal means "none".
+    pub normals: Vec<Vec3>,
+    /// Per-vertex `TEXCOORD_0`, or empty.
+    pub uvs: Vec<Vec2>,
+    /// Material id of each triangle.
+    pub triangle_materials: Vec<u32>,
+    pub materials: Vec<Material>,
+    pub textures: Vec<Texture>,
+    /// `None`: a default camera looking at the scene bounds.
+    pub camera: Option<Camera>,
+}
+
+/// A surface point reconstructed from a hit.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfacePoint {
+    pub p: Vec3,
+    /// Unit geometric normal from the winding (front face side).
+    pub ng: Vec3,
+    /// Unit shading normal, on the same side as `ng`.
+    pub ns: Vec3,
+    pub uv: Vec2,
+    pub material: u32,
+}
+
+/// A scene ready to render.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    positions: Vec<Vec3>,
+    triangles: Vec<[u32; 3]>,
+    normals: Vec<Vec3>,
+    uvs: Vec<Vec2>,
+    tri_material: Vec<u32>,
+    tri_normal: Vec<Vec3>,
+    tri_area: Vec<f32>,
+    materials: Vec<Material>,
+    textures: Vec<Texture>,
+    lights: LightSet,
+    camera: Camera,
+    bounds: (Vec3, Vec3),
+    ray_epsilon: f32,
+}
+
+const MEMORY: &str = "<memory>";
+
+impl Scene {
+    /// Loads a glTF 2.0 scene (`.gltf` with external or embedded buffers, or `.glb`).
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        crate::gltf_import::load(path)
+    }
+
+    /// Builds a scene from flat arrays, checking every index.
+    pub fn from_parts(parts: SceneParts) -> Result<Scene, SceneError> {
+        Scene::from_parts_named(parts, Path::new(MEMORY))
+    }
+
+    /// As [`Scene::from_parts`], naming `origin` in errors.
+    pub fn from_parts_named(parts: SceneParts, origin: &Path) -> Result<Scene, SceneError> {
+        let SceneParts { positions, triangles, normals, uvs, triangle_materials, materials, textures, camera } = parts;
+        let bad = |m: String| Err(SceneError::invalid(origin, m));
+        if triangles.is_empty() {
+            return bad("the scene has no triangles".into());
+        }
+        if positions.len() > u32::MAX as usize || triangles.len() > u32::MAX as usize {
+            return bad("the scene has more than 2^32 vertices or triangles".into());
+        }
+        if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
+            return bad(format!("vertex {i} has a non-finite position"));
+        }
+        if !normals.is_empty() && normals.len() != positions.len() {
+            return bad(format!("{} normals for {} vertices", normals.len(), positions.len()));
+        }
+        if !uvs.is_empty() && uvs.len() != positions.len() {
+            return bad(format!("{} texture coordinates for {} vertices", uvs.len(), positions.len()));
+        }
+        if triangle_materials.len() != triangles.len() {
+            return bad(format!("{} material ids for {} triangles", triangle_materials.len(), triangles.len()));
+        }
+        let nv = positions.len() as u32;
+        if let Some((i, t)) = triangles.iter().enumerate().find(|(_, t)| t.iter().any(|&k| k >= nv)) {
+            return bad(format!("triangle {i} {t:?} indexes past the {nv} vertices"));
+        }
+        if let Some((i, m)) = triangle_materials.iter().enumerate().find(|(_, &m)| m as usize >= materials.len()) {
+            return bad(format!("triangle {i} uses material {m} but there are {}", materials.len()));
+        }
+        for m in &materials {
+            for t in [m.base_color_texture, m.metallic_roughness_texture, m.emissive_texture].into_iter().flatten() {
+                if t as usize >= textures.len() {
+                    return bad(format!("material `{}` uses texture {t} but there are {}", m.name, textures.len()));
+                }
+            }
+            if !(m.base_color.is_finite() && m.emission.is_finite() && m.metallic.is_finite() && m.roughness.is_finite() && m.ior.is_finite()) {
+                return bad(format!("material `{}` has a non-finite parameter", m.name));
+            }
+        }
+
+        let mut tri_normal = Vec::with_capacity(triangles.len());
+        let mut tri_area = Vec::with_capacity(triangles.len());
+        for t in &triangles {
+            let [p0, p1, p2] = t.map(|i| positions[i as usize]);
+            let c = (p1 - p0).cross(p2 - p0);
+            let len = c.length();
+            tri_area.push(0.5 * len);
+            tri_normal.push(if len > 0.0 { c / len } else { Vec3::Z });
+        }
+        let mean_emission: Vec<Vec3> = materials.iter().map(|m| m.mean_emission(&textures)).collect();
+        let power: Vec<f64> =
+            triangle_materials.iter().zip(&tri_area).map(|(&m, &a)| triangle_power(mean_emission[m as usize], a)).collect();
+        let lights = LightSet::new(&power, &tri_area);
+
+        let (lo, hi) = positions.iter().fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        let scale = lo.abs().max(hi.abs()).max_element().max((hi - lo).max_element()).max(1e-3);
+        let camera = match camera {
+            Some(c) => c,
+            None => default_camera(lo, hi),
+        };
+        camera.validate().map_err(|m| SceneError::invalid(origin, m))?;
+        Ok(Scene {
+            positions,
+            triangles,
+            normals,
+            uvs,
+            tri_material: triangle_materials,
+            tri_normal,
+            tri_area,
+            materials,
+            textures,
+            lights,
+            camera,
+            bounds: (lo, hi),
+            ray_epsilon: 1e-5 * scale,
+        })
+    }
+
+    /// All vertices, world space.
+    pub fn positions(&self) -> &[Vec3] {
+        &self.positions
+    }
+
+    /// Index triples into [`Scene::positions`]; `Hit.prim` indexes this list.
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+
+    pub fn camera(&self) -> &Camera {
+        &self.camera
+    }
+
+    pub fn set_camera(&mut self, c: Camera) {
+        self.camera = c;
+    }
+
+    pub fn materials(&self) -> &[Material] {
+        &self.materials
+    }
+
+    pub fn textures(&self) -> &[Texture] {
+        &self.textures
+    }
+
+    /// Material id of each triangle.
+    pub fn triangle_materials(&self) -> &[u32] {
+        &self.tri_material
+    }
+
+    pub fn lights(&self) -> &LightSet {
+        &self.lights
+    }
+
+    /// Axis-aligned bounds `(min, max)` of all vertices.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        self.bounds
+    }
+
+    /// Distance by which secondary rays start off a surface, relative to the scene's size.
+    pub fn ray_epsilon(&self) -> f32 {
+        self.ray_epsilon
+    }
+
+    #[inline]
+    pub fn triangle_vertices(&self, prim: u32) -> [Vec3; 3] {
+        self.triangles[prim as usize].map(|i| self.positions[i as usize])
+    }
+
+    #[inline]
+    pub fn triangle_area(&self, prim: u32) -> f32 {
+        self.tri_area[prim as usize]
+    }
+
+    #[inline]
+    pub fn geometric_normal(&self, prim: u32) -> Vec3 {
+        self.tri_normal[prim as usize]
+    }
+
+    #[inline]
+    pub fn material_of(&self, prim: u32) -> &Material {
+        &self.materials[self.tri_material[prim as usize] as usize]
+    }
+
+    /// The surface at barycentrics `(u, v)` of triangle `prim` (Embree's convention).
+    #[inline]
+    pub fn surface(&self, prim: u32, u: f32, v: f32) -> SurfacePoint {
+        let [i0, i1, i2] = self.triangles[prim as usize].map(|i| i as usize);
+        let w = 1.0 - u - v;
+        let p = self.positions[i0] * w + self.positions[i1] * u + self.positions[i2] * v;
+        let ng = self.tri_normal[prim as usize];
+        let mut ns = ng;
+        if !self.normals.is_empty() {
+            let n = self.normals[i0] * w + self.normals[i1] * u + self.normals[i2] * v;
+            let len2 = n.length_squared();
+            if len2 > 1e-12 && len2.is_finite() {
+                ns = n / len2.sqrt();
+                if ns.dot(ng) < 0.0 {
+                    ns = -ns;
+                }
+            }
+        }
+        let uv = if self.uvs.is_empty() { Vec2::ZERO } else { self.uvs[i0] * w + self.uvs[i1] * u + self.uvs[i2] * v };
+        SurfacePoint { p, ng, ns, uv, material: self.tri_material[prim as usize] }
+    }
+}
+
+/// A camera looking at the bounds' centre from +Z (glTF's "front"), framing the bounding sphere.
+pub fn default_camera(lo: Vec3, hi: Vec3) -> Camera {
+    let centre = (lo + hi) * 0.5;
+    let radius = ((hi - lo).length() * 0.5).max(1e-3);
+    let vfov: f32 = 45.0;
+    let dist = radius / (vfov.to_radians() * 0.5).sin() * 1.05;
+    Camera { eye: centre + Vec3::Z * dist, target: centre, up: Vec3::Y, vfov_deg: vfov, width: 512, height: 512 }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn quad() -> SceneParts {
+        SceneParts {
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            triangle_materials: vec![0, 1],
+            materials: vec![Material::diffuse(Vec3::splat(0.5)), Material::emissive(Vec3::ZERO, Vec3::ONE)],
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn from_parts_precomputes_normals_areas_and_lights() {
+        let s = Scene::from_parts(quad()).unwrap();
+        assert_eq!(s.geometric_normal(0), Vec3::Z);
+        assert!((s.triangle_area(1) - 0.5).abs() < 1e-6);
+        assert_eq!(s.lights().len(), 1);
+        assert!((s.lights().pdf_area(1) - 2.0).abs() < 1e-6);
+        let sp = s.surface(0, 0.25, 0.5);
+        assert!((sp.p - Vec3::new(0.75, 0.5, 0.0)).length() < 1e-6);
+        // Default camera sees the whole quad from +Z.
+        assert!(s.camera().eye.z > 1.0);
+    }
+
+    #[test]
+    fn from_parts_rejects_bad_indices() {
+        let mut p = quad();
+        p.triangles[1] = [0, 2, 9];
+        let e = Scene::from_parts(p).unwrap_err().to_string();
+        assert!(e.contains("triangle 1") && e.contains("<memory>"), "{e}");
+        let mut p = quad();
+        p.triangle_materials[0] = 5;
+        assert!(Scene::from_parts(p).unwrap_err().to_string().contains("material 5"));
+        let mut p = quad();
+        p.normals = vec![Vec3::Z];
+        assert!(Scene::from_parts(p).is_err());
+    }
+}
