@@ -1,0 +1,426 @@
+//! The Embree backend: the only place in cvtrace with `unsafe` Embree calls.
+//!
+//! A [`Device`] wraps `RTCDevice` with an error callback installed once. Errors are
+//! collected there and checked after each build step, never per ray: a committed
+//! [`EmbreeScene`] is immutable, `Send + Sync`, and answers rays through the C shim
+//! (`shim.c`), which hides the Embree 3 / Embree 4 API differences.
+mod denormals;
+mod ffi;
+
+pub use denormals::{flush_denormals_enabled, set_flush_denormals};
+
+use cvtrace_render::{Hit, Intersector, Ray};
+use glam::Vec3;
+use std::ffi::{c_char, c_void, CStr};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+/// What can go wrong while creating a device or building a scene.
+#[derive(Debug, thiserror::Error)]
+pub enum EmbreeError {
+    #[error("could not create the Embree device: {message}")]
+    Device { message: String },
+    #[error("Embree failed in {call}: {message}")]
+    Api { call: &'static str, message: String },
+    #[error("invalid mesh: {0}")]
+    InvalidMesh(String),
+}
+
+/// How much time Embree spends on the BVH versus how fast it traverses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum BuildQuality {
+    Low,
+    Medium,
+    /// Spatial splits: slower to build, fastest to trace. Right for static scenes.
+    #[default]
+    High,
+}
+
+/// Scene build settings.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BuildOptions {
+    pub quality: BuildQuality,
+    /// Watertight-leaning intersection that avoids precision-reducing shortcuts:
+    /// fewer rays leaking through shared edges, at a few percent of speed.
+    pub robust: bool,
+    /// Smaller BVH memory footprint at some traversal cost.
+    pub compact: bool,
+}
+
+impl Default for BuildOptions {
+    fn default() -> Self {
+        BuildOptions { quality: BuildQuality::High, robust: true, compact: false }
+    }
+}
+
+/// The first error Embree reported through its callback since the last check.
+#[derive(Default)]
+struct ErrorSink {
+    message: Mutex<Option<String>>,
+}
+
+/// Called by Embree on any API error. It must not unwind into C, so it only logs and records.
+unsafe extern "C" fn on_embree_error(user: *mut c_void, code: ffi::RTCError, text: *const c_char) {
+    let detail = if text.is_null() { String::new() } else { CStr::from_ptr(text).to_string_lossy().into_owned() };
+    let message = format!("{} ({detail})", error_name(code));
+    tracing::error!("Embree: {message}");
+    if let Some(sink) = (user as *const ErrorSink).as_ref() {
+        if let Ok(mut slot) = sink.message.lock() {
+            slot.get_or_insert(message);
+        }
+    }
+}
+
+fn error_name(code: ffi::RTCError) -> &'static str {
+    match code {
+        ffi::RTCError::RTC_ERROR_NONE => "no error",
+        ffi::RTCError::RTC_ERROR_INVALID_ARGUMENT => "invalid argument",
+        ffi::RTCError::RTC_ERROR_INVALID_OPERATION => "invalid operation",
+        ffi::RTCError::RTC_ERROR_OUT_OF_MEMORY => "out of memory",
+        ffi::RTCError::RTC_ERROR_UNSUPPORTED_CPU => "unsupported CPU",
+        ffi::RTCError::RTC_ERROR_CANCELLED => "cancelled",
+        _ => "unknown error",
+    }
+}
+
+struct DeviceInner {
+    raw: ffi::RTCDevice,
+    // Boxed so its address, handed to Embree as the callback's user pointer, never moves.
+    // Dropped after `raw` is released (fields drop after `Drop::drop`).
+    sink: Box<ErrorSink>,
+}
+
+// SAFETY: Embree devices are thread-safe; the sink is behind a Mutex.
+unsafe impl Send for DeviceInner {}
+unsafe impl Sync for DeviceInner {}
+
+impl Drop for DeviceInner {
+    fn drop(&mut self) {
+        // SAFETY: `raw` came from rtcNewDevice and is released exactly once; scenes hold an Arc.
+        unsafe { ffi::rtcReleaseDevice(self.raw) };
+    }
+}
+
+/// An Embree device: one per process is plenty. Cheap to clone (shared handle).
+#[derive(Clone)]
+pub struct Device {
+    inner: Arc<DeviceInner>,
+}
+
+impl Device {
+    /// Creates a device with Embree's defaults and installs the error callback.
+    pub fn new() -> Result<Device, EmbreeError> {
+        // SAFETY: a null config string selects the defaults.
+        let raw = unsafe { ffi::rtcNewDevice(std::ptr::null()) };
+        if raw.is_null() {
+            // SAFETY: rtcGetDeviceError(NULL) reports the error of the failed device creation.
+            let code = unsafe { ffi::rtcGetDeviceError(std::ptr::null_mut()) };
+            return Err(EmbreeError::Device { message: error_name(code).to_string() });
+        }
+        let sink = Box::new(ErrorSink::default());
+        // SAFETY: the sink outlives the device (see DeviceInner), and the callback never unwinds.
+        unsafe {
+            ffi::rtcSetDeviceErrorFunction(raw, Some(on_embree_error), &*sink as *const ErrorSink as *mut c_void)
+        };
+        let device = Device { inner: Arc::new(DeviceInner { raw, sink }) };
+        // SAFETY: valid device; the property is a plain integer query.
+        let version = unsafe { ffi::rtcGetDeviceProperty(raw, ffi::RTCDeviceProperty::RTC_DEVICE_PROPERTY_VERSION) };
+        tracing::debug!(
+            "Embree {}.{}.{} device ({}; shim built for Embree {})",
+            version / 10000,
+            version / 100 % 100,
+            version % 100,
+            env!("CVTRACE_EMBREE_ORIGIN"),
+            // SAFETY: a constant-returning C function.
+            unsafe { ffi::cvt_embree_major() }
+        );
+        Ok(device)
+    }
+
+    /// Turns a pending Embree error (if any) into an `Err` naming the failed call.
+    fn check(&self, call: &'static str) -> Result<(), EmbreeError> {
+        // SAFETY: valid device; reading and clearing its sticky error code.
+        let code = unsafe { ffi::rtcGetDeviceError(self.inner.raw) };
+        let recorded = self.inner.sink.message.lock().ok().and_then(|mut m| m.take());
+        if code == ffi::RTCError::RTC_ERROR_NONE && recorded.is_none() {
+            return Ok(());
+        }
+        let message = recorded.unwrap_or_else(|| error_name(code).to_string());
+        Err(EmbreeError::Api { call, message })
+    }
+
+    /// Builds a BVH over one triangle mesh and commits it.
+    ///
+    /// `triangles[i]` indexes `positions`; the resulting hits report `prim = i`.
+    /// An empty mesh is allowed (every ray misses).
+    pub fn build_scene(&self, positions: &[Vec3], triangles: &[[u32; 3]], options: &BuildOptions) -> Result<EmbreeScene, EmbreeError> {
+        validate_mesh(positions, triangles)?;
+        let start = Instant::now();
+        // SAFETY: valid device.
+        let raw = unsafe { ffi::rtcNewScene(self.inner.raw) };
+        if raw.is_null() {
+            self.check("rtcNewScene")?;
+            return Err(EmbreeError::Api { call: "rtcNewScene", message: "returned no scene".into() });
+        }
+        // From here on the scene is released on every error path by EmbreeScene's Drop.
+        let mut scene = EmbreeScene { raw, device: self.clone(), triangle_count: triangles.len(), build_time: Duration::ZERO };
+        let mut flags = ffi::RTCSceneFlags::RTC_SCENE_FLAG_NONE;
+        if options.robust {
+            flags |= ffi::RTCSceneFlags::RTC_SCENE_FLAG_ROBUST;
+        }
+        if options.compact {
+            flags |= ffi::RTCSceneFlags::RTC_SCENE_FLAG_COMPACT;
+        }
+        let quality = match options.quality {
+            BuildQuality::Low => ffi::RTCBuildQuality::RTC_BUILD_QUALITY_LOW,
+            BuildQuality::Medium => ffi::RTCBuildQuality::RTC_BUILD_QUALITY_MEDIUM,
+            BuildQuality::High => ffi::RTCBuildQuality::RTC_BUILD_QUALITY_HIGH,
+        };
+        // SAFETY: valid scene handle.
+        unsafe {
+            ffi::rtcSetSceneFlags(raw, flags);
+            ffi::rtcSetSceneBuildQuality(raw, quality);
+        }
+        self.check("rtcSetSceneFlags/rtcSetSceneBuildQuality")?;
+        if !triangles.is_empty() {
+            self.attach_triangles(raw, positions, triangles, quality)?;
+        }
+        // SAFETY: valid scene; commit builds the BVH (Embree may use its own worker threads).
+        unsafe { ffi::rtcCommitScene(raw) };
+        self.check("rtcCommitScene")?;
+        scene.build_time = start.elapsed();
+        tracing::info!(
+            "BVH built: {} triangles in {:.1} ms ({:?} quality{})",
+            triangles.len(),
+            scene.build_time.as_secs_f64() * 1e3,
+            options.quality,
+            if options.robust { ", robust" } else { "" }
+        );
+        Ok(scene)
+    }
+
+    /// Creates the triangle geometry, copies the buffers into Embree-owned (padded) memory,
+    /// and attaches it to `scene` as geometry 0.
+    fn attach_triangles(
+        &self,
+        scene: ffi::RTCScene,
+        positions: &[Vec3],
+        triangles: &[[u32; 3]],
+        quality: ffi::RTCBuildQuality,
+    ) -> Result<(), EmbreeError> {
+        // SAFETY: valid device.
+        let geom = unsafe { ffi::rtcNewGeometry(self.inner.raw, ffi::RTCGeometryType::RTC_GEOMETRY_TYPE_TRIANGLE) };
+        if geom.is_null() {
+            self.check("rtcNewGeometry")?;
+            return Err(EmbreeError::Api { call: "rtcNewGeometry", message: "returned no geometry".into() });
+        }
+        // Releases our reference on every path; after attach the scene holds its own.
+        struct GeometryRef(ffi::RTCGeometry);
+        impl Drop for GeometryRef {
+            fn drop(&mut self) {
+                // SAFETY: created by rtcNewGeometry above and released exactly once.
+                unsafe { ffi::rtcReleaseGeometry(self.0) };
+            }
+        }
+        let geom = GeometryRef(geom);
+        let stride = 3 * std::mem::size_of::<f32>();
+        // SAFETY: valid geometry; Embree allocates `positions.len()` float3 items plus the
+        // padding its SIMD loads need, and returns null on failure.
+        let vertices = unsafe {
+            ffi::rtcSetNewGeometryBuffer(
+                geom.0,
+                ffi::RTCBufferType::RTC_BUFFER_TYPE_VERTEX,
+                0,
+                ffi::RTCFormat::RTC_FORMAT_FLOAT3,
+                stride,
+                positions.len(),
+            )
+        } as *mut f32;
+        if vertices.is_null() {
+            self.check("rtcSetNewGeometryBuffer(vertex)")?;
+            return Err(EmbreeError::Api { call: "rtcSetNewGeometryBuffer(vertex)", message: "returned no buffer".into() });
+        }
+        // SAFETY: the buffer holds at least 3 * positions.len() floats, exclusively ours until commit.
+        let dst = unsafe { std::slice::from_raw_parts_mut(vertices, 3 * positions.len()) };
+        for (d, p) in dst.chunks_exact_mut(3).zip(positions) {
+            d.copy_from_slice(&[p.x, p.y, p.z]);
+        }
+        // SAFETY: as above, for triangles.len() uint3 items.
+        let indices = unsafe {
+            ffi::rtcSetNewGeometryBuffer(
+                geom.0,
+                ffi::RTCBufferType::RTC_BUFFER_TYPE_INDEX,
+                0,
+                ffi::RTCFormat::RTC_FORMAT_UINT3,
+                3 * std::mem::size_of::<u32>(),
+                triangles.len(),
+            )
+        } as *mut u32;
+        if indices.is_null() {
+            self.check("rtcSetNewGeometryBuffer(index)")?;
+            return Err(EmbreeError::Api { call: "rtcSetNewGeometryBuffer(index)", message: "returned no buffer".into() });
+        }
+        // SAFETY: the buffer holds 3 * triangles.len() u32, exclusively ours until commit.
+        let dst = unsafe { std::slice::from_raw_parts_mut(indices, 3 * triangles.len()) };
+        for (d, t) in dst.chunks_exact_mut(3).zip(triangles) {
+            d.copy_from_slice(t);
+        }
+        // SAFETY: valid geometry and scene handles.
+        unsafe {
+            ffi::rtcSetGeometryBuildQuality(geom.0, quality);
+            ffi::rtcCommitGeometry(geom.0);
+            ffi::rtcAttachGeometry(scene, geom.0);
+        }
+        self.check("rtcCommitGeometry/rtcAttachGeometry")
+    }
+}
+
+/// Rejects what Embree would silently mis-handle: out-of-range indices (undefined
+/// behaviour inside Embree) and non-finite vertices (triangles silently dropped).
+fn validate_mesh(positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<(), EmbreeError> {
+    if positions.len() > u32::MAX as usize || triangles.len() > u32::MAX as usize {
+        return Err(EmbreeError::InvalidMesh(format!(
+            "{} vertices / {} triangles exceed Embree's 32-bit limits",
+            positions.len(),
+            triangles.len()
+        )));
+    }
+    if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
+        return Err(EmbreeError::InvalidMesh(format!("vertex {i} is not finite: {:?}", positions[i])));
+    }
+    let n = positions.len() as u32;
+    if let Some((i, t)) = triangles.iter().enumerate().find(|(_, t)| t.iter().any(|&v| v >= n)) {
+        return Err(EmbreeError::InvalidMesh(format!(
+            "triangle {i} references vertices {t:?} but the mesh has only {n} vertices"
+        )));
+    }
+    Ok(())
+}
+
+/// Embree wants 16-byte aligned ray structures; this guarantees it whatever bindgen emits.
+#[repr(C, align(16))]
+struct AlignedRayHit(ffi::RTCRayHit);
+
+#[repr(C, align(16))]
+struct AlignedRay(ffi::RTCRay);
+
+fn to_rtc_ray(ray: &Ray) -> ffi::RTCRay {
+    ffi::RTCRay {
+        org_x: ray.origin.x,
+        org_y: ray.origin.y,
+        org_z: ray.origin.z,
+        tnear: ray.tmin,
+        dir_x: ray.dir.x,
+        dir_y: ray.dir.y,
+        dir_z: ray.dir.z,
+        tfar: ray.tmax,
+        // A zero mask would match no geometry at all.
+        mask: u32::MAX,
+        ..Default::default()
+    }
+}
+
+/// A committed BVH: immutable, shareable across threads, released on drop.
+pub struct EmbreeScene {
+    raw: ffi::RTCScene,
+    /// Keeps the device (and its error callback's sink) alive as long as the scene.
+    device: Device,
+    triangle_count: usize,
+    build_time: Duration,
+}
+
+// SAFETY: after rtcCommitScene, Embree scenes are read-only and safe to query from any thread.
+unsafe impl Send for EmbreeScene {}
+unsafe impl Sync for EmbreeScene {}
+
+impl EmbreeScene {
+    /// Builds on a fresh device with default options: the one-liner for most callers.
+    pub fn build(positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<EmbreeScene, EmbreeError> {
+        Device::new()?.build_scene(positions, triangles, &BuildOptions::default())
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.triangle_count
+    }
+
+    /// Wall time of the BVH build (rtcCommitScene and buffer setup).
+    pub fn build_time(&self) -> Duration {
+        self.build_time
+    }
+
+    pub fn device(&self) -> &Device {
+        &self.device
+    }
+}
+
+impl Drop for EmbreeScene {
+    fn drop(&mut self) {
+        // SAFETY: `raw` came from rtcNewScene and is released exactly once.
+        unsafe { ffi::rtcReleaseScene(self.raw) };
+    }
+}
+
+impl Intersector for EmbreeScene {
+    #[inline]
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let mut rh = AlignedRayHit(ffi::RTCRayHit {
+            ray: to_rtc_ray(ray),
+            hit: ffi::RTCHit { geomID: ffi::RTC_INVALID_GEOMETRY_ID, ..Default::default() },
+        });
+        rh.0.hit.instID.fill(ffi::RTC_INVALID_GEOMETRY_ID);
+        // SAFETY: committed scene; `rh` is a properly initialised, 16-byte aligned RTCRayHit.
+        unsafe { ffi::cvt_intersect1(self.raw, &mut rh.0) };
+        let hit = &rh.0.hit;
+        // Embree sets tfar to the hit distance.
+        (hit.geomID != ffi::RTC_INVALID_GEOMETRY_ID).then(|| Hit { t: rh.0.ray.tfar, prim: hit.primID, u: hit.u, v: hit.v })
+    }
+
+    #[inline]
+    fn occluded(&self, ray: &Ray) -> bool {
+        let mut r = AlignedRay(to_rtc_ray(ray));
+        // SAFETY: committed scene; `r` is a properly initialised, 16-byte aligned RTCRay.
+        unsafe { ffi::cvt_occluded1(self.raw, &mut r.0) };
+        // Embree marks an occluded ray by setting tfar to -inf.
+        r.0.tfar == f32::NEG_INFINITY
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_indices_are_rejected_before_embree_sees_them() {
+        let p = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let e = EmbreeScene::build(&p, &[[0, 1, 3]]).err().expect("out-of-range index must fail").to_string();
+        assert!(e.contains("triangle 0") && e.contains("3 vertices"), "{e}");
+    }
+
+    #[test]
+    fn non_finite_vertex_is_rejected() {
+        let p = [Vec3::ZERO, Vec3::new(f32::NAN, 0.0, 0.0), Vec3::Y];
+        let e = EmbreeScene::build(&p, &[[0, 1, 2]]).err().expect("NaN vertex must fail").to_string();
+        assert!(e.contains("vertex 1"), "{e}");
+    }
+
+    #[test]
+    fn empty_scene_misses_everything() {
+        let s = EmbreeScene::build(&[], &[]).unwrap();
+        let r = Ray { origin: Vec3::ZERO, dir: Vec3::Z, tmin: 0.0, tmax: f32::INFINITY };
+        assert!(s.intersect(&r).is_none());
+        assert!(!s.occluded(&r));
+    }
+
+    #[test]
+    fn ray_structs_are_aligned() {
+        assert_eq!(std::mem::align_of::<AlignedRayHit>() % 16, 0);
+        assert_eq!(std::mem::align_of::<AlignedRay>() % 16, 0);
+    }
+
+    #[test]
+    fn shim_matches_bindings_major() {
+        // SAFETY: constant-returning C function.
+        let major = unsafe { ffi::cvt_embree_major() } as u32;
+        assert_eq!(major, ffi::RTC_VERSION_MAJOR);
+    }
+}
