@@ -11,7 +11,11 @@ pub enum EvalError {
     #[error("{label}: non-finite value {value} at pixel ({x}, {y}), channel {channel}")]
     NonFinite { label: String, x: usize, y: usize, channel: usize, value: f32 },
     #[error("{path}: {source}")]
-    Io { path: PathBuf, #[source] source: std::io::Error },
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
     #[error("{path}: not a valid cvtrace results file: {message}")]
     Json { path: PathBuf, message: String },
     #[error("{context}: {message}")]

@@ -8,7 +8,8 @@
 //! - [`results`]: the one JSON-able tree a study produces, plus headline ratios;
 //! - [`table`]: terminal, Markdown and CSV printers;
 //! - [`falsecolor`], [`plots`]: relMSE maps as PNG and convergence plots as SVG;
-//! - [`report`]: the static, offline HTML comparison viewer.
+//! - [`report`]: the static, offline HTML comparison viewer;
+//! - [`synthetic`]: a renderer-free synthetic study for tests, docs and trying the viewer.
 //!
 //! Nothing here renders or reconstructs; it depends only on `cvtrace-streams`.
 
@@ -18,14 +19,17 @@ pub mod metrics;
 pub mod palette;
 pub mod plots;
 pub mod reference_noise;
+pub mod report;
 pub mod results;
+mod rng;
 pub mod stats;
+pub mod synthetic;
 pub mod table;
-
-#[cfg(test)]
-mod test_rng;
 
 pub use error::EvalError;
 pub use metrics::{Metrics, Reference};
-pub use results::{keys, ConvergencePoint, ErrorMapScale, MethodResult, ReferenceInfo, SceneResult, StageTimes, StudyResults};
+pub use report::{write_report, ReportOptions};
+pub use results::{
+    keys, ConvergencePoint, ErrorMapScale, MethodResult, ReferenceInfo, SceneResult, StageTimes, StudyResults,
+};
 pub use stats::{SeedAccumulator, SeedStats};

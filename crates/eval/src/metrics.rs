@@ -156,13 +156,9 @@ pub fn ensure_same_size(a: &Image, a_label: &str, b: &Image, b_label: &str) -> R
 pub fn ensure_finite(img: &Image, label: &str) -> Result<(), EvalError> {
     match img.find_non_finite() {
         None => Ok(()),
-        Some((x, y, channel)) => Err(EvalError::NonFinite {
-            label: label.to_string(),
-            x,
-            y,
-            channel,
-            value: img.get(x, y)[channel],
-        }),
+        Some((x, y, channel)) => {
+            Err(EvalError::NonFinite { label: label.to_string(), x, y, channel, value: img.get(x, y)[channel] })
+        }
     }
 }
 

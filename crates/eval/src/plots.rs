@@ -4,7 +4,6 @@
 //! text extents, so no system fonts are needed. Colours match the viewer (dark theme).
 use crate::palette::method_color;
 use crate::results::{ConvergencePoint, SceneResult};
-use crate::table::fmt_num;
 use crate::EvalError;
 use plotters::prelude::*;
 use std::collections::BTreeMap;
@@ -47,13 +46,28 @@ fn lines(points: &[ConvergencePoint], label_of: &dyn Fn(&str) -> String) -> Vec<
         .collect()
 }
 
+/// Axis tick text: three significant digits, no trailing zeros (0.01, 2.5e-5, 128).
+fn tick(v: f64) -> String {
+    let rounded: f64 = format!("{v:.2e}").parse().unwrap_or(v);
+    let a = rounded.abs();
+    if a == 0.0 || (1e-4..1e6).contains(&a) {
+        format!("{rounded}")
+    } else {
+        format!("{rounded:e}")
+    }
+}
+
 fn plot_err(e: impl std::fmt::Display) -> EvalError {
     EvalError::invalid("convergence plot", e.to_string())
 }
 
 /// The SVG text of a convergence plot. `label_of` maps a method key to its legend label.
 /// A dashed grey guide shows the `1/spp` slope of an unbiased Monte Carlo estimator.
-pub fn convergence_svg(points: &[ConvergencePoint], title: &str, label_of: &dyn Fn(&str) -> String) -> Result<String, EvalError> {
+pub fn convergence_svg(
+    points: &[ConvergencePoint],
+    title: &str,
+    label_of: &dyn Fn(&str) -> String,
+) -> Result<String, EvalError> {
     let valid: Vec<ConvergencePoint> =
         points.iter().filter(|p| p.spp_total > 0 && p.relmse > 0.0 && p.relmse.is_finite()).cloned().collect();
     if valid.is_empty() {
@@ -84,8 +98,8 @@ pub fn convergence_svg(points: &[ConvergencePoint], title: &str, label_of: &dyn 
             .configure_mesh()
             .x_desc("total samples per pixel")
             .y_desc("relMSE")
-            .x_label_formatter(&|v| format!("{}", v.round()))
-            .y_label_formatter(&|v| fmt_num(*v))
+            .x_label_formatter(&|v| tick(*v))
+            .y_label_formatter(&|v| tick(*v))
             .axis_style(FOREGROUND.mix(0.8))
             .bold_line_style(GRID)
             .light_line_style(GRID.mix(0.4))
@@ -156,7 +170,12 @@ mod tests {
         let mut v = Vec::new();
         for (m, c) in [("pt", 1.0), ("ours", 0.2)] {
             for spp in [16u32, 64, 256] {
-                v.push(ConvergencePoint { method: m.into(), spp_total: spp, relmse: c / spp as f64, relmse_se: Some(0.1 * c / spp as f64) });
+                v.push(ConvergencePoint {
+                    method: m.into(),
+                    spp_total: spp,
+                    relmse: c / spp as f64,
+                    relmse_se: Some(0.1 * c / spp as f64),
+                });
             }
         }
         v
@@ -175,6 +194,15 @@ mod tests {
         assert!(svg.matches("<polyline").count() >= 2, "{svg}");
         assert!(svg.matches("<circle").count() >= 6);
         assert!(svg.contains("#59D98E") || svg.contains("#59d98e"), "ours keeps its viewer colour");
+    }
+
+    #[test]
+    fn ticks_are_short() {
+        assert_eq!(tick(0.01), "0.01");
+        assert_eq!(tick(0.010000000002), "0.01");
+        assert_eq!(tick(128.0), "128");
+        assert_eq!(tick(2.5e-5), "2.5e-5");
+        assert_eq!(tick(0.123456), "0.123");
     }
 
     #[test]

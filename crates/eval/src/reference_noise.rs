@@ -45,10 +45,10 @@ pub fn from_half_references(
     }
     let w = reference.weights();
     let mut sum = 0.0f64;
-    for i in 0..w.len() {
+    for ((pa, pb), w) in a.pixels.iter().zip(&b.pixels).zip(w) {
         for c in 0..3 {
-            let d = (a.pixels[i][c] as f64 - b.pixels[i][c] as f64) / 2.0;
-            sum += w[i] * d * d;
+            let d = (pa[c] as f64 - pb[c] as f64) / 2.0;
+            sum += w * d * d;
         }
     }
     Ok(ReferenceNoise { relmse: sum / (3 * w.len()).max(1) as f64, source: NoiseSource::HalfReferences })
@@ -69,11 +69,11 @@ pub fn from_batch_means(reference: &Reference, batches: &[Image], label: &str) -
     let w = reference.weights();
     let bf = count as f64;
     let mut sum = 0.0f64;
-    for i in 0..w.len() {
+    for (i, w) in w.iter().enumerate() {
         for c in 0..3 {
             let mean = batches.iter().map(|b| b.pixels[i][c] as f64).sum::<f64>() / bf;
             let var = batches.iter().map(|b| (b.pixels[i][c] as f64 - mean).powi(2)).sum::<f64>() / (bf - 1.0);
-            sum += w[i] * var / bf;
+            sum += w * var / bf;
         }
     }
     Ok(ReferenceNoise { relmse: sum / (3 * w.len()).max(1) as f64, source: NoiseSource::BatchMeans })
@@ -83,7 +83,9 @@ pub fn from_batch_means(reference: &Reference, batches: &[Image], label: &str) -
 pub fn from_variance_image(reference: &Reference, variance: &Image, label: &str) -> Result<ReferenceNoise, EvalError> {
     ensure_same_size(variance, label, &reference.image, &reference.label)?;
     ensure_finite(variance, label)?;
-    if let Some((i, c)) = variance.pixels.iter().enumerate().find_map(|(i, p)| p.iter().position(|v| *v < 0.0).map(|c| (i, c))) {
+    if let Some((i, c)) =
+        variance.pixels.iter().enumerate().find_map(|(i, p)| p.iter().position(|v| *v < 0.0).map(|c| (i, c)))
+    {
         return Err(EvalError::invalid(
             label,
             format!("negative variance at pixel ({}, {}), channel {c}", i % variance.width, i / variance.width),
@@ -98,7 +100,7 @@ pub fn from_variance_image(reference: &Reference, variance: &Image, label: &str)
 /// (smallest) method relMSE, with how many times more samples the reference needs.
 pub fn too_noisy_warning(noise_relmse: f64, best_method_relmse: f64) -> Option<String> {
     let limit = TOO_NOISY_FRACTION * best_method_relmse;
-    if !(noise_relmse > limit) {
+    if noise_relmse.is_nan() || noise_relmse <= limit {
         return None;
     }
     let factor = (noise_relmse / limit).ceil().max(2.0);
@@ -111,7 +113,7 @@ pub fn too_noisy_warning(noise_relmse: f64, best_method_relmse: f64) -> Option<S
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_rng::TestRng;
+    use crate::rng::Rng as TestRng;
 
     fn truth(w: usize, h: usize) -> Image {
         Image::from_fn(w, h, |x, y| {
@@ -169,13 +171,18 @@ mod tests {
         let (j, bf) = ((3 * n) as f64, count as f64);
         let target: f64 = (0..n).map(|i| 3.0 * w[i] * sigma_batch[i].powi(2) / bf).sum::<f64>() / j;
         // Var(s²/B) = 2σ⁴ / ((B−1) B²).
-        let sd: f64 = (0..n).map(|i| 3.0 * w[i] * w[i] * 2.0 * sigma_batch[i].powi(4) / ((bf - 1.0) * bf * bf)).sum::<f64>().sqrt() / j;
+        let sd: f64 = (0..n)
+            .map(|i| 3.0 * w[i] * w[i] * 2.0 * sigma_batch[i].powi(4) / ((bf - 1.0) * bf * bf))
+            .sum::<f64>()
+            .sqrt()
+            / j;
         assert!((est.relmse - target).abs() < 5.0 * sd, "{} vs {target} ± {sd}", est.relmse);
     }
 
     #[test]
     fn variance_image_is_weighted_like_relmse() {
-        let reference = Reference::new(Image::from_fn(2, 1, |x, _| if x == 0 { [1.0; 3] } else { [0.0; 3] }), "r").unwrap();
+        let reference =
+            Reference::new(Image::from_fn(2, 1, |x, _| if x == 0 { [1.0; 3] } else { [0.0; 3] }), "r").unwrap();
         let var = Image::from_fn(2, 1, |x, _| if x == 0 { [0.3; 3] } else { [0.001; 3] });
         let est = from_variance_image(&reference, &var, "var.exr").unwrap();
         let expected = (0.3 / 1.01 + 0.001 / 0.01) / 2.0;

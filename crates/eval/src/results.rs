@@ -178,7 +178,8 @@ pub struct Ratio {
 }
 
 /// The ratios the paper reports: ours/IDUW, ours/CV, ours/PT(2n).
-pub const HEADLINE_RATIOS: [(&str, &str); 3] = [(keys::OURS, keys::IDUW), (keys::OURS, keys::CV), (keys::OURS, keys::PT_2N)];
+pub const HEADLINE_RATIOS: [(&str, &str); 3] =
+    [(keys::OURS, keys::IDUW), (keys::OURS, keys::CV), (keys::OURS, keys::PT_2N)];
 
 impl SceneResult {
     pub fn method(&self, name: &str) -> Option<&MethodResult> {
@@ -192,7 +193,7 @@ impl SceneResult {
 
     pub fn ratio(&self, numerator: &str, denominator: &str) -> Option<Ratio> {
         let (a, b) = (self.method(numerator)?, self.method(denominator)?);
-        if !(b.relmse_mean > 0.0) {
+        if b.relmse_mean.is_nan() || b.relmse_mean <= 0.0 {
             return None;
         }
         let value = a.relmse_mean / b.relmse_mean;
@@ -203,11 +204,14 @@ impl SceneResult {
             let cov = |x: &[f64], mx: f64, y: &[f64], my: f64| {
                 x.iter().zip(y).map(|(x, y)| (x - mx) * (y - my)).sum::<f64>() / (n - 1.0) / n
             };
-            let rel_var = cov(pa, ma, pa, ma) / (ma * ma) + cov(pb, mb, pb, mb) / (mb * mb) - 2.0 * cov(pa, ma, pb, mb) / (ma * mb);
+            let rel_var = cov(pa, ma, pa, ma) / (ma * ma) + cov(pb, mb, pb, mb) / (mb * mb)
+                - 2.0 * cov(pa, ma, pb, mb) / (ma * mb);
             Some(value * rel_var.max(0.0).sqrt())
         } else {
             match (a.relmse_se, b.relmse_se) {
-                (Some(sa), Some(sb)) => Some(value * ((sa / a.relmse_mean).powi(2) + (sb / b.relmse_mean).powi(2)).sqrt()),
+                (Some(sa), Some(sb)) => {
+                    Some(value * ((sa / a.relmse_mean).powi(2) + (sb / b.relmse_mean).powi(2)).sqrt())
+                }
                 _ => None,
             }
         };
@@ -229,7 +233,11 @@ impl SceneResult {
 
 impl StudyResults {
     pub fn new(scenes: Vec<SceneResult>) -> Self {
-        StudyResults { schema_version: SCHEMA_VERSION, generator: format!("cvtrace {}", env!("CARGO_PKG_VERSION")), scenes }
+        StudyResults {
+            schema_version: SCHEMA_VERSION,
+            generator: format!("cvtrace {}", env!("CARGO_PKG_VERSION")),
+            scenes,
+        }
     }
 
     /// Geometric mean over scenes of each headline ratio (scenes lacking a method are skipped),
@@ -254,7 +262,10 @@ impl StudyResults {
         if self.schema_version != SCHEMA_VERSION {
             return Err(EvalError::invalid(
                 "results",
-                format!("schema version {} is not supported (this cvtrace reads version {SCHEMA_VERSION})", self.schema_version),
+                format!(
+                    "schema version {} is not supported (this cvtrace reads version {SCHEMA_VERSION})",
+                    self.schema_version
+                ),
             ));
         }
         let mut scene_names = BTreeSet::new();
@@ -326,11 +337,9 @@ impl StudyResults {
     /// Reads and validates a results JSON file.
     pub fn read_json(path: &Path) -> Result<Self, EvalError> {
         let bytes = std::fs::read(path).map_err(|e| EvalError::io(path, e))?;
-        let results: StudyResults =
-            serde_json::from_slice(&bytes).map_err(|e| EvalError::Json { path: path.to_path_buf(), message: e.to_string() })?;
-        results
-            .validate()
+        let results: StudyResults = serde_json::from_slice(&bytes)
             .map_err(|e| EvalError::Json { path: path.to_path_buf(), message: e.to_string() })?;
+        results.validate().map_err(|e| EvalError::Json { path: path.to_path_buf(), message: e.to_string() })?;
         Ok(results)
     }
 
@@ -364,7 +373,10 @@ pub fn check_relative_path(p: &str, ctx: &str) -> Result<(), EvalError> {
         || p.contains('\\')
         || path.components().any(|c| !matches!(c, std::path::Component::Normal(_)));
     if bad {
-        return Err(EvalError::invalid(ctx, format!("`{p}` must be a relative path inside the results folder (no `..`, `.` or `/` prefix)")));
+        return Err(EvalError::invalid(
+            ctx,
+            format!("`{p}` must be a relative path inside the results folder (no `..`, `.` or `/` prefix)"),
+        ));
     }
     Ok(())
 }

@@ -1,10 +1,11 @@
-//! A tiny deterministic RNG for the statistical tests (no extra dependency, fixed seeds).
+//! A tiny deterministic RNG (SplitMix64 + Box–Muller) for the synthetic study and the
+//! statistical tests: fixed seeds, no extra dependency.
 
-pub struct TestRng(u64);
+pub struct Rng(u64);
 
-impl TestRng {
+impl Rng {
     pub fn new(seed: u64) -> Self {
-        TestRng(seed ^ 0x9e37_79b9_7f4a_7c15)
+        Rng(seed ^ 0x9e37_79b9_7f4a_7c15)
     }
 
     /// SplitMix64.

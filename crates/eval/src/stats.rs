@@ -88,11 +88,7 @@ impl<'r> SeedAccumulator<'r> {
     /// The per-pixel mean over the seeds added so far.
     pub fn mean_image(&self) -> Image {
         let r = &self.reference.image;
-        Image {
-            width: r.width,
-            height: r.height,
-            pixels: self.mean.iter().map(|m| m.map(|v| v as f32)).collect(),
-        }
+        Image { width: r.width, height: r.height, pixels: self.mean.iter().map(|m| m.map(|v| v as f32)).collect() }
     }
 
     /// Per-pixel relMSE averaged over seeds (mean over channels); its pixel mean is
@@ -124,12 +120,12 @@ impl<'r> SeedAccumulator<'r> {
             let r = &self.reference.image.pixels;
             let w = self.reference.weights();
             let (mut b, mut v) = (0.0f64, 0.0f64);
-            for i in 0..r.len() {
+            for (((mean, m2), r), w) in self.mean.iter().zip(&self.m2).zip(r).zip(w) {
                 for c in 0..3 {
-                    let var = self.m2[i][c] / (sf - 1.0);
-                    let d = self.mean[i][c] - r[i][c] as f64;
-                    b += w[i] * (d * d - var / sf);
-                    v += w[i] * var;
+                    let var = m2[c] / (sf - 1.0);
+                    let d = mean[c] - r[c] as f64;
+                    b += w * (d * d - var / sf);
+                    v += w * var;
                 }
             }
             let n = (3 * r.len()).max(1) as f64;
@@ -158,7 +154,7 @@ pub fn mean_and_se(values: &[f64]) -> (f64, Option<f64>) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_rng::TestRng;
+    use crate::rng::Rng as TestRng;
 
     /// A reference with varied brightness so the relMSE weights differ across pixels.
     fn truth(w: usize, h: usize) -> Image {
@@ -197,14 +193,22 @@ mod tests {
                 b2 += w[i] * b * b;
                 v += w[i] * sg2;
                 // Var((m−r)²) + Var(s²/S); m and s² are independent for Gaussian noise.
-                vb += w[i] * w[i] * (2.0 * sg2 * sg2 / (s * s) + 4.0 * b * b * sg2 / s + 2.0 * sg2 * sg2 / ((s - 1.0) * s * s));
+                vb += w[i]
+                    * w[i]
+                    * (2.0 * sg2 * sg2 / (s * s) + 4.0 * b * b * sg2 / s + 2.0 * sg2 * sg2 / ((s - 1.0) * s * s));
                 vv += w[i] * w[i] * 2.0 * sg2 * sg2 / (s - 1.0);
             }
         }
         Truths { bias2: b2 / n, variance: v / n, bias2_sd: vb.sqrt() / n, variance_sd: vv.sqrt() / n }
     }
 
-    fn run(reference: &Reference, bias: &[[f64; 3]], sigma: &[[f64; 3]], seeds: usize, rng: &mut TestRng) -> (SeedStats, Vec<f32>, Image) {
+    fn run(
+        reference: &Reference,
+        bias: &[[f64; 3]],
+        sigma: &[[f64; 3]],
+        seeds: usize,
+        rng: &mut TestRng,
+    ) -> (SeedStats, Vec<f32>, Image) {
         let mut acc = SeedAccumulator::new(reference, "synthetic");
         for _ in 0..seeds {
             acc.add(&noisy(&reference.image, bias, sigma, rng)).unwrap();
@@ -225,8 +229,18 @@ mod tests {
         let (stats, _, _) = run(&reference, &bias, &sigma, seeds, &mut rng);
         let truths = true_values(&reference, &bias, &sigma, seeds as f64);
         let (b2, v) = (stats.bias2.unwrap(), stats.variance.unwrap());
-        assert!((b2 - truths.bias2).abs() < 5.0 * truths.bias2_sd, "bias² {b2} vs {} ± {}", truths.bias2, truths.bias2_sd);
-        assert!((v - truths.variance).abs() < 5.0 * truths.variance_sd, "variance {v} vs {} ± {}", truths.variance, truths.variance_sd);
+        assert!(
+            (b2 - truths.bias2).abs() < 5.0 * truths.bias2_sd,
+            "bias² {b2} vs {} ± {}",
+            truths.bias2,
+            truths.bias2_sd
+        );
+        assert!(
+            (v - truths.variance).abs() < 5.0 * truths.variance_sd,
+            "variance {v} vs {} ± {}",
+            truths.variance,
+            truths.variance_sd
+        );
         // bias² + variance is the mean per-seed relMSE, exactly.
         assert!((b2 + v - stats.relmse_mean).abs() < 1e-9 * stats.relmse_mean);
     }

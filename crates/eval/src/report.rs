@@ -1,0 +1,323 @@
+//! The static comparison viewer: one self-contained folder that works offline from file://.
+//!
+//! ```text
+//! out/index.html  viewer.css  viewer.js     the page (fixed assets, built into the crate)
+//! out/data.js                                window.CVTRACE_DATA = { results, per-scene view data }
+//! out/images/<scene>/*.png                  copies of the study's previews and relMSE maps
+//! out/plots/<scene>.svg                      convergence plots
+//! out/colorbar.png  results.json  results.csv
+//! ```
+//! The page builds itself from data.js (a plain script, so no server or fetch is needed);
+//! every number it shows comes from the results tree, formatted like the terminal table.
+use crate::falsecolor::write_colorbar_png;
+use crate::palette::{hex, method_color};
+use crate::plots::write_convergence_svg;
+use crate::results::{Ratio, SceneResult, StudyResults};
+use crate::table::write_csv;
+use crate::EvalError;
+use cvtrace_streams::atomic::write_atomically;
+use serde::Serialize;
+use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::path::{Path, PathBuf};
+
+const INDEX_HTML: &str = include_str!("../assets/index.html");
+const VIEWER_CSS: &str = include_str!("../assets/viewer.css");
+const VIEWER_JS: &str = include_str!("../assets/viewer.js");
+
+/// Options of [`write_report`].
+#[derive(Clone, Debug)]
+pub struct ReportOptions {
+    /// Shown in the page title.
+    pub title: String,
+    /// Replace an existing report in `out_dir` (its index.html); otherwise refuse.
+    pub overwrite: bool,
+}
+
+impl Default for ReportOptions {
+    fn default() -> Self {
+        ReportOptions { title: "cvtrace study".into(), overwrite: false }
+    }
+}
+
+/// What data.js holds besides the results.
+#[derive(Serialize)]
+struct ViewerData<'a> {
+    title: &'a str,
+    results: &'a StudyResults,
+    scenes: Vec<ViewerScene>,
+    geomean_ratios: Vec<Ratio>,
+    colorbar: &'a str,
+    files: BTreeMap<&'a str, &'a str>,
+}
+
+#[derive(Serialize)]
+struct ViewerScene {
+    /// HTML id and folder name of the scene.
+    slug: String,
+    plot: Option<String>,
+    ratios: Vec<Ratio>,
+    colors: BTreeMap<String, String>,
+}
+
+/// Writes the viewer for `results` into `out_dir` (created if needed) and returns the path
+/// of its index.html. Image paths in `results` are relative to `source_dir` (the study
+/// folder holding results.json); each must be a PNG of its scene's size.
+pub fn write_report(
+    results: &StudyResults,
+    source_dir: &Path,
+    out_dir: &Path,
+    options: &ReportOptions,
+) -> Result<PathBuf, EvalError> {
+    results.validate()?;
+    if results.scenes.is_empty() {
+        return Err(EvalError::invalid("results", "no scene to report"));
+    }
+    let index = out_dir.join("index.html");
+    if index.exists() && !options.overwrite {
+        return Err(cvtrace_streams::StreamError::AlreadyExists { path: index }.into());
+    }
+    std::fs::create_dir_all(out_dir).map_err(|e| EvalError::io(out_dir, e))?;
+
+    let mut out = results.clone();
+    let mut scenes = Vec::new();
+    let mut slugs = BTreeSet::new();
+    for scene in out.scenes.iter_mut() {
+        let slug = unique_slug(&scene.name, &mut slugs);
+        let mut copier = ImageCopier::new(source_dir, out_dir, &slug, scene);
+        if let Some(p) = scene.reference.image.as_mut() {
+            *p = copier.copy(p, &format!("scene `{}`, reference image", scene.name))?;
+        }
+        let name = scene.name.clone();
+        for m in scene.methods.iter_mut() {
+            for (field, what) in [(&mut m.image, "image"), (&mut m.error_map, "error_map")] {
+                if let Some(p) = field.as_mut() {
+                    *p = copier.copy(p, &format!("scene `{name}`, method `{}`, {what}", m.name))?;
+                }
+            }
+        }
+        let plot_rel = format!("plots/{slug}.svg");
+        std::fs::create_dir_all(out_dir.join("plots")).map_err(|e| EvalError::io(out_dir.join("plots"), e))?;
+        let plot = write_convergence_svg(scene, &out_dir.join(&plot_rel), true)?.then_some(plot_rel);
+        let colors = scene
+            .ordered_methods()
+            .iter()
+            .enumerate()
+            .map(|(i, m)| (m.name.clone(), hex(method_color(&m.name, i))))
+            .collect();
+        scenes.push(ViewerScene { slug, plot, ratios: scene.ratios(), colors });
+    }
+
+    write_colorbar_png(&out_dir.join("colorbar.png"), 256, 12, true)?;
+    out.write_json(&out_dir.join("results.json"), true)?;
+    write_csv(&out, &out_dir.join("results.csv"), true)?;
+    let data = ViewerData {
+        title: &options.title,
+        results: &out,
+        scenes,
+        geomean_ratios: out.geomean_ratios(),
+        colorbar: "colorbar.png",
+        files: BTreeMap::from([("results.json", "results.json"), ("results.csv", "results.csv")]),
+    };
+    let json = serde_json::to_string(&data).map_err(|e| EvalError::invalid("report data", e.to_string()))?;
+    write_text(&out_dir.join("data.js"), &format!("window.CVTRACE_DATA = {json};\n"))?;
+    write_text(&out_dir.join("viewer.css"), VIEWER_CSS)?;
+    write_text(&out_dir.join("viewer.js"), VIEWER_JS)?;
+    let title = html_escape(&options.title);
+    write_text(
+        &index,
+        &INDEX_HTML.replace(
+            "<title>cvtrace — estimator comparison</title>",
+            &format!("<title>{title} — estimator comparison</title>"),
+        ),
+    )?;
+    Ok(index)
+}
+
+fn write_text(path: &Path, text: &str) -> Result<(), EvalError> {
+    write_atomically(path, true, |tmp| std::fs::write(tmp, text.as_bytes()))?;
+    Ok(())
+}
+
+fn html_escape(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+}
+
+/// A file- and id-safe name for a scene, unique within the report.
+pub fn slug(name: &str) -> String {
+    let mut s = String::new();
+    for ch in name.chars() {
+        if ch.is_ascii_alphanumeric() {
+            s.push(ch.to_ascii_lowercase());
+        } else if !s.ends_with('-') {
+            s.push('-');
+        }
+    }
+    let s = s.trim_matches('-').to_string();
+    if s.is_empty() {
+        "scene".into()
+    } else {
+        s
+    }
+}
+
+fn unique_slug(name: &str, taken: &mut BTreeSet<String>) -> String {
+    let base = slug(name);
+    let mut s = base.clone();
+    let mut k = 2;
+    while !taken.insert(s.clone()) {
+        s = format!("{base}-{k}");
+        k += 1;
+    }
+    s
+}
+
+/// Copies one scene's images into `images/<slug>/`, checking each is a PNG of the scene's size.
+struct ImageCopier<'a> {
+    source_dir: &'a Path,
+    out_dir: &'a Path,
+    folder: String,
+    width: usize,
+    height: usize,
+    done: HashMap<String, String>,
+    names: BTreeSet<String>,
+}
+
+impl<'a> ImageCopier<'a> {
+    fn new(source_dir: &'a Path, out_dir: &'a Path, slug: &str, scene: &SceneResult) -> Self {
+        ImageCopier {
+            source_dir,
+            out_dir,
+            folder: format!("images/{slug}"),
+            width: scene.width,
+            height: scene.height,
+            done: HashMap::new(),
+            names: BTreeSet::new(),
+        }
+    }
+
+    /// Returns the copy's path relative to the report folder.
+    fn copy(&mut self, rel: &str, ctx: &str) -> Result<String, EvalError> {
+        if let Some(d) = self.done.get(rel) {
+            return Ok(d.clone());
+        }
+        let src = self.source_dir.join(rel);
+        let (w, h) = png_size(&src).map_err(|m| EvalError::invalid(ctx, format!("{}: {m}", src.display())))?;
+        if (w, h) != (self.width, self.height) {
+            return Err(EvalError::invalid(
+                ctx,
+                format!("{} is {w}x{h}, expected the scene size {}x{}", src.display(), self.width, self.height),
+            ));
+        }
+        let file =
+            Path::new(rel).file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_else(|| "image.png".into());
+        let mut name = file.clone();
+        let mut k = 2;
+        while !self.names.insert(name.clone()) {
+            name = format!("{k}-{file}");
+            k += 1;
+        }
+        let dir = self.out_dir.join(&self.folder);
+        std::fs::create_dir_all(&dir).map_err(|e| EvalError::io(&dir, e))?;
+        write_atomically(&dir.join(&name), true, |tmp| std::fs::copy(&src, tmp).map(|_| ()))?;
+        let dst = format!("{}/{name}", self.folder);
+        self.done.insert(rel.to_string(), dst.clone());
+        Ok(dst)
+    }
+}
+
+/// Width and height from a PNG's IHDR chunk, or why the file is not a PNG.
+pub fn png_size(path: &Path) -> Result<(usize, usize), String> {
+    use std::io::Read;
+    let mut f = std::fs::File::open(path).map_err(|e| format!("cannot open: {e}"))?;
+    let mut head = [0u8; 24];
+    f.read_exact(&mut head).map_err(|_| "too short to be a PNG".to_string())?;
+    if head[..8] != [0x89, b'P', b'N', b'G', 0x0d, 0x0a, 0x1a, 0x0a] || &head[12..16] != b"IHDR" {
+        return Err("not a PNG file".into());
+    }
+    let w = u32::from_be_bytes([head[16], head[17], head[18], head[19]]) as usize;
+    let h = u32::from_be_bytes([head[20], head[21], head[22], head[23]]) as usize;
+    Ok((w, h))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synthetic::{write_synthetic_study, SyntheticOptions};
+
+    fn study() -> (tempfile::TempDir, StudyResults) {
+        let dir = tempfile::tempdir().unwrap();
+        let results = write_synthetic_study(&dir.path().join("study"), &SyntheticOptions::small()).unwrap();
+        (dir, results)
+    }
+
+    #[test]
+    fn report_folder_is_self_contained() {
+        let (dir, results) = study();
+        let out = dir.path().join("report");
+        let index = write_report(&results, &dir.path().join("study"), &out, &ReportOptions::default()).unwrap();
+        assert_eq!(index, out.join("index.html"));
+        for f in ["index.html", "viewer.css", "viewer.js", "data.js", "colorbar.png", "results.json", "results.csv"] {
+            assert!(out.join(f).is_file(), "{f} missing");
+        }
+        let data = std::fs::read_to_string(out.join("data.js")).unwrap();
+        let json = data.trim().strip_prefix("window.CVTRACE_DATA = ").unwrap().strip_suffix(';').unwrap();
+        let v: serde_json::Value = serde_json::from_str(json).unwrap();
+        // Every image the page references exists inside the report folder.
+        let mut refs = Vec::new();
+        for s in v["results"]["scenes"].as_array().unwrap() {
+            refs.extend(s["reference"]["image"].as_str().map(String::from));
+            for m in s["methods"].as_array().unwrap() {
+                refs.extend(m["image"].as_str().map(String::from));
+                refs.extend(m["error_map"].as_str().map(String::from));
+            }
+        }
+        for s in v["scenes"].as_array().unwrap() {
+            refs.extend(s["plot"].as_str().map(String::from));
+        }
+        assert!(refs.len() >= 10, "{refs:?}");
+        for r in &refs {
+            assert!(!r.starts_with('/') && !r.contains(".."), "{r}");
+            assert!(out.join(r).is_file(), "{r} not copied");
+        }
+        // The copied results are valid and point at the copies.
+        let copied = StudyResults::read_json(&out.join("results.json")).unwrap();
+        assert_eq!(copied.scenes[0].methods.len(), results.scenes[0].methods.len());
+        let html = std::fs::read_to_string(&index).unwrap();
+        assert!(!html.contains("http://") && !html.contains("https://"), "must work offline");
+        // A second run without overwrite is refused; with it, it succeeds.
+        let again = write_report(&results, &dir.path().join("study"), &out, &ReportOptions::default());
+        assert!(again.unwrap_err().to_string().contains("already exists"));
+        let opts = ReportOptions { overwrite: true, ..Default::default() };
+        write_report(&results, &dir.path().join("study"), &out, &opts).unwrap();
+    }
+
+    #[test]
+    fn missing_or_wrong_images_name_the_file_and_method() {
+        let (dir, results) = study();
+        let src = dir.path().join("study");
+        let ours = results.scenes[0].method("ours").unwrap().image.clone().unwrap();
+        std::fs::remove_file(src.join(&ours)).unwrap();
+        let err =
+            write_report(&results, &src, &dir.path().join("r1"), &ReportOptions::default()).unwrap_err().to_string();
+        assert!(err.contains("`ours`") && err.contains(&ours), "{err}");
+        // A PNG of another size.
+        cvtrace_streams::preview::write_png(&src.join(&ours), &cvtrace_streams::Image::new(3, 2), 0.0, true).unwrap();
+        let err =
+            write_report(&results, &src, &dir.path().join("r2"), &ReportOptions::default()).unwrap_err().to_string();
+        assert!(err.contains("3x2") && err.contains("expected the scene size"), "{err}");
+        // Not a PNG at all.
+        std::fs::write(src.join(&ours), b"GIF89a........................").unwrap();
+        let err =
+            write_report(&results, &src, &dir.path().join("r3"), &ReportOptions::default()).unwrap_err().to_string();
+        assert!(err.contains("not a PNG"), "{err}");
+    }
+
+    #[test]
+    fn slugs_are_safe_and_unique() {
+        assert_eq!(slug("Cornell Box (96 spp)"), "cornell-box-96-spp");
+        assert_eq!(slug("../.."), "scene");
+        let mut taken = BTreeSet::new();
+        assert_eq!(unique_slug("a b", &mut taken), "a-b");
+        assert_eq!(unique_slug("a/b", &mut taken), "a-b-2");
+    }
+}

@@ -1,0 +1,260 @@
+//! The viewer in a real browser: build a report from a synthetic two-scene study, open its
+//! index.html from file:// in headless Chromium (no server), take a screenshot and dump the
+//! DOM after the scripts ran, then check that every image loaded and that the tables hold
+//! the numbers of the results JSON.
+//!
+//! Skipped, with a message, only when /usr/bin/chromium is absent (the setup script installs
+//! it for CI: `apt-get install chromium`).
+use cvtrace_eval::report::slug;
+use cvtrace_eval::synthetic::{write_synthetic_study, SyntheticOptions};
+use cvtrace_eval::{write_report, ReportOptions, StudyResults};
+use std::io::Read;
+use std::os::unix::process::CommandExt;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+const CHROMIUM: &str = "/usr/bin/chromium";
+const WINDOW: (u32, u32) = (1400, 1000);
+
+/// Two synthetic scenes in one study folder (`a/…`, `b/…`), so ids, slugs and the
+/// geometric-mean block are exercised too.
+fn two_scene_study(dir: &Path) -> StudyResults {
+    let mut scenes = Vec::new();
+    for (sub, name, w, h) in [("a", "synthetic box", 96, 72), ("b", "Wide box (2:1)", 80, 40)] {
+        let opts = SyntheticOptions { scene_name: name.into(), width: w, height: h, ..SyntheticOptions::small() };
+        let r = write_synthetic_study(&dir.join(sub), &opts).unwrap();
+        let mut scene = r.scenes.into_iter().next().unwrap();
+        let prefix = |p: &mut Option<String>| {
+            if let Some(s) = p.as_mut() {
+                *s = format!("{sub}/{s}");
+            }
+        };
+        prefix(&mut scene.reference.image);
+        for m in scene.methods.iter_mut() {
+            prefix(&mut m.image);
+            prefix(&mut m.error_map);
+        }
+        scenes.push(scene);
+    }
+    let results = StudyResults::new(scenes);
+    results.write_json(&dir.join("results.json"), true).unwrap();
+    // Round-trip through the file, as `cvtrace report` does.
+    StudyResults::read_json(&dir.join("results.json")).unwrap()
+}
+
+fn file_url(p: &Path) -> String {
+    let mut s = String::from("file://");
+    for b in p.to_str().expect("temp paths are UTF-8").bytes() {
+        match b {
+            b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'/' | b'-' | b'_' | b'.' | b'~' => s.push(b as char),
+            _ => s.push_str(&format!("%{b:02X}")),
+        }
+    }
+    s
+}
+
+/// Runs Chromium with the flags that keep it offline and quiet; kills its whole process
+/// group (and only it) on timeout. Returns stdout.
+fn chromium(profile: &Path, extra: &[String], url: &str) -> String {
+    let mut cmd = Command::new(CHROMIUM);
+    cmd.args([
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-quic",
+        "--no-first-run",
+        "--no-default-browser-check",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        "--disable-extensions",
+        "--disable-default-apps",
+        "--disable-dev-shm-usage",
+        "--metrics-recording-only",
+        "--mute-audio",
+        "--hide-scrollbars",
+        "--force-device-scale-factor=1",
+        "--virtual-time-budget=5000",
+    ])
+    .arg(format!("--user-data-dir={}", profile.display()))
+    .arg(format!("--window-size={},{}", WINDOW.0, WINDOW.1))
+    .args(extra)
+    .arg(url)
+    .stdin(Stdio::null())
+    .stdout(Stdio::piped())
+    .stderr(Stdio::piped())
+    .process_group(0);
+    let mut child = cmd.spawn().expect("start chromium");
+    let pid = child.id();
+    let mut stdout = child.stdout.take().unwrap();
+    let mut stderr = child.stderr.take().unwrap();
+    let out_thread = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = stdout.read_to_string(&mut s);
+        s
+    });
+    let err_thread = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = stderr.read_to_string(&mut s);
+        s
+    });
+    let start = Instant::now();
+    let status = loop {
+        if let Some(st) = child.try_wait().unwrap() {
+            break Some(st);
+        }
+        if start.elapsed() > Duration::from_secs(90) {
+            // Our own process group only (chromium spawns helpers into it).
+            let _ = Command::new("kill").args(["-KILL", "--", &format!("-{pid}")]).status();
+            let _ = child.wait();
+            break None;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let out = out_thread.join().unwrap();
+    let err = err_thread.join().unwrap();
+    match status {
+        Some(st) if st.success() => out,
+        Some(st) => panic!("chromium failed ({st}); stderr:\n{err}"),
+        None => panic!("chromium did not finish within 90 s; stderr:\n{err}"),
+    }
+}
+
+/// Text content right after the start tag carrying `data-key="key"`.
+fn cell(dom: &str, key: &str) -> Option<String> {
+    let at = dom.find(&format!("data-key=\"{key}\""))?;
+    let start = at + dom[at..].find('>')? + 1;
+    let end = start + dom[start..].find('<')?;
+    Some(dom[start..end].trim().to_string())
+}
+
+fn attr(dom: &str, tag_start: &str, name: &str) -> Option<String> {
+    let at = dom.find(tag_start)?;
+    let tag_end = at + dom[at..].find('>')?;
+    let tag = &dom[at..tag_end];
+    let k = tag.find(&format!("{name}=\""))? + name.len() + 2;
+    Some(tag[k..k + tag[k..].find('"')?].to_string())
+}
+
+/// The displayed text must be `value` to four significant digits, or "–" for none.
+fn assert_shows(dom: &str, key: &str, value: Option<f64>) {
+    let text = cell(dom, key).unwrap_or_else(|| panic!("no cell {key} in the DOM"));
+    match value {
+        None => assert_eq!(text, "–", "{key}"),
+        Some(v) => {
+            let shown: f64 = text.parse().unwrap_or_else(|_| panic!("{key}: `{text}` is not a number"));
+            assert!((shown - v).abs() <= 5e-4 * v.abs() + 1e-300, "{key}: shows {text}, JSON has {v}");
+        }
+    }
+}
+
+fn decode_png(p: &Path) -> (u32, u32, Vec<u8>, png::ColorType) {
+    let dec = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(p).unwrap()));
+    let mut reader = dec.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    buf.truncate(info.buffer_size());
+    (info.width, info.height, buf, info.color_type)
+}
+
+#[test]
+fn viewer_loads_every_image_and_shows_the_json_numbers() {
+    if !Path::new(CHROMIUM).exists() {
+        eprintln!("SKIPPED viewer_chromium: {CHROMIUM} not found. Install it (`apt-get install -y --no-install-recommends chromium`; the project's setup script does this for CI) to run the browser test.");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let study = dir.path().join("study");
+    let results = two_scene_study(&study);
+    let out = dir.path().join("report");
+    let index =
+        write_report(&results, &study, &out, &ReportOptions { title: "viewer test".into(), overwrite: false }).unwrap();
+    let url = file_url(&index);
+
+    // 1. Screenshot: exists, has the window size, and is not blank.
+    let shot: PathBuf =
+        std::env::var_os("CVTRACE_VIEWER_SCREENSHOT").map(PathBuf::from).unwrap_or_else(|| dir.path().join("shot.png"));
+    chromium(&dir.path().join("profile-1"), &[format!("--screenshot={}", shot.display())], &url);
+    assert!(shot.is_file(), "no screenshot written");
+    let (w, h, px, color) = decode_png(&shot);
+    assert_eq!((w, h), WINDOW);
+    let channels = match color {
+        png::ColorType::Rgba => 4,
+        png::ColorType::Rgb => 3,
+        other => panic!("unexpected screenshot colour type {other:?}"),
+    };
+    let colours: std::collections::HashSet<[u8; 3]> = px.chunks(channels).map(|p| [p[0], p[1], p[2]]).collect();
+    assert!(colours.len() > 500, "screenshot looks blank: only {} distinct colours", colours.len());
+    // The page margin (left 10 px, below the header) is the dark neutral background.
+    let at = |x: u32, y: u32| {
+        let i = ((y * w + x) as usize) * channels;
+        [px[i], px[i + 1], px[i + 2]]
+    };
+    for y in (60..h).step_by(10) {
+        for x in 0..10 {
+            let c = at(x, y);
+            let (mx, mn) = (*c.iter().max().unwrap(), *c.iter().min().unwrap());
+            assert!(mx < 48 && mx - mn < 12, "background at ({x}, {y}) is {c:?}, expected a dark neutral grey");
+        }
+    }
+
+    // 2. DOM after scripts: every <img> loaded, tables hold the JSON numbers.
+    let dom = chromium(&dir.path().join("profile-2"), &["--dump-dom".to_string()], &url);
+    assert!(dom.contains("<body"), "no DOM dumped");
+    let loaded = attr(&dom, "<body", "data-loaded").expect("body has no data-loaded: did viewer.js run?");
+    let (ok, total) =
+        loaded.split_once('/').map(|(a, b)| (a.parse::<usize>().unwrap(), b.parse::<usize>().unwrap())).unwrap();
+    let failed_src = attr(&dom, "<body", "data-failed-src").unwrap_or_default();
+    assert_eq!(ok, total, "only {ok} of {total} images loaded; failed: {failed_src}");
+    assert_eq!(attr(&dom, "<body", "data-ready").as_deref(), Some("1"));
+    // Expected images: per scene the previews, the reference, the maps, the ablation
+    // previews and the plot; plus one colour bar per scene legend.
+    let expected: usize = results
+        .scenes
+        .iter()
+        .map(|s| {
+            let photos = s.methods.iter().filter(|m| m.image.is_some()).count();
+            let maps = s.methods.iter().filter(|m| !m.ablation && m.error_map.is_some()).count();
+            photos + maps + usize::from(s.reference.image.is_some()) + usize::from(!s.convergence.is_empty()) + 1
+        })
+        .sum();
+    assert_eq!(total, expected, "number of <img> elements");
+    assert_eq!(dom.matches("<img").count(), expected);
+
+    for scene in &results.scenes {
+        let sl = slug(&scene.name);
+        assert!(dom.contains(&format!("id=\"{sl}\"")), "scene section {sl} missing");
+        for m in &scene.methods {
+            let k = |f: &str| format!("{sl}/{}/{f}", m.name);
+            assert_shows(&dom, &k("relmse_mean"), Some(m.relmse_mean));
+            assert_shows(&dom, &k("relmse_se"), m.relmse_se);
+            assert_shows(&dom, &k("bias2"), m.bias2);
+            assert_shows(&dom, &k("variance"), m.variance);
+            assert_shows(&dom, &k("mse_mean"), Some(m.mse_mean));
+            let t = cell(&dom, &k("time_total")).unwrap();
+            let shown: f64 = t.parse().unwrap();
+            assert!(
+                (shown - m.time_seconds.total()).abs() <= 5e-4 + 5e-3 * m.time_seconds.total(),
+                "{} time {t}",
+                m.name
+            );
+            let pt2n = scene.method("pt2n").unwrap().relmse_mean;
+            assert_shows(&dom, &k("over_pt2n"), Some(m.relmse_mean / pt2n));
+        }
+        let ratios = scene.ratios();
+        assert_eq!(ratios.len(), 3, "ours/IDUW, ours/CV, ours/PT(2n)");
+        for r in &ratios {
+            let key = format!("{sl}/ratio/{}/{}", r.numerator, r.denominator);
+            assert_shows(&dom, &key, Some(r.value));
+            assert_shows(&dom, &format!("{key}/se"), r.se);
+        }
+        let noise = scene.reference.noise.unwrap().relmse;
+        assert_shows(&dom, &format!("{sl}/reference/noise"), Some(noise));
+        let scale = scene.error_map_scale.as_ref().unwrap();
+        assert_shows(&dom, &format!("{sl}/error_map/min"), Some(10f64.powf(scale.log10_min)));
+    }
+    for r in results.geomean_ratios() {
+        assert_shows(&dom, &format!("geomean/{}/{}", r.numerator, r.denominator), Some(r.value));
+    }
+}
