@@ -48,6 +48,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     };
     check_external_files(&document, &base, path)?;
     let buffers = gltf::import_buffers(&document, Some(&base), blob).map_err(malformed)?;
+    check_accessors(&document, &buffers, path)?;
     let images = gltf::import_images(&document, Some(&base), &buffers).map_err(|e| SceneError::Invalid {
         path: path.to_path_buf(),
         message: format!("cannot decode an image: {e}"),
@@ -116,6 +117,53 @@ fn check_external_files(doc: &gltf::Document, base: &Path, path: &Path) -> Resul
         if let Some(file) = external_path(base, uri) {
             if let Err(e) = std::fs::metadata(&file) {
                 return Err(SceneError::MissingFile { path: path.to_path_buf(), file, message: e.to_string() });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Checks that every buffer view lies inside its buffer and every accessor inside its view:
+/// gltf's readers would otherwise silently truncate (or panic on) out-of-range data.
+fn check_accessors(doc: &gltf::Document, buffers: &[gltf::buffer::Data], path: &Path) -> Result<(), SceneError> {
+    let err = |m: String| Err(SceneError::Malformed { path: path.to_path_buf(), message: m });
+    for v in doc.views() {
+        let have = buffers.get(v.buffer().index()).map_or(0, |b| b.len());
+        if v.offset().checked_add(v.length()).is_none_or(|end| end > have) {
+            return err(format!(
+                "buffer view {} spans bytes {}..{} of buffer {}, which has {have}",
+                v.index(),
+                v.offset(),
+                v.offset().saturating_add(v.length()),
+                v.buffer().index()
+            ));
+        }
+    }
+    // Bytes needed by `count` elements of `size` bytes at `offset` with `stride`.
+    let span = |offset: usize, count: usize, size: usize, stride: usize| -> Option<usize> {
+        if count == 0 {
+            return Some(offset);
+        }
+        (count - 1).checked_mul(stride)?.checked_add(size)?.checked_add(offset)
+    };
+    for a in doc.accessors() {
+        if let Some(v) = a.view() {
+            let stride = v.stride().unwrap_or(a.size()).max(a.size());
+            if span(a.offset(), a.count(), a.size(), stride).is_none_or(|end| end > v.length()) {
+                return err(format!("accessor {} reads past the end of buffer view {}", a.index(), v.index()));
+            }
+        }
+        if let Some(sp) = a.sparse() {
+            let isz = match sp.indices().index_type() {
+                gltf::accessor::sparse::IndexType::U8 => 1,
+                gltf::accessor::sparse::IndexType::U16 => 2,
+                gltf::accessor::sparse::IndexType::U32 => 4,
+            };
+            let (iv, vv) = (sp.indices().view(), sp.values().view());
+            if span(sp.indices().offset(), sp.count(), isz, isz).is_none_or(|end| end > iv.length())
+                || span(sp.values().offset(), sp.count(), a.size(), a.size()).is_none_or(|end| end > vv.length())
+            {
+                return err(format!("sparse accessor {} reads past the end of its buffer views", a.index()));
             }
         }
     }

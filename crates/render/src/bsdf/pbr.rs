@@ -240,3 +240,180 @@ impl Bsdf {
         Some(BsdfSample { wi, weight: f / pdf, pdf, delta: false, eta })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampler::{StreamKind, StreamSampler};
+    use std::f32::consts::PI;
+
+    fn params(metallic: f32, roughness: f32, specular: f32, transmission: f32) -> PbrParams {
+        PbrParams { base_color: Vec3::ONE, metallic, roughness, specular, transmission, ..Default::default() }
+    }
+
+    fn wo_at(cos: f32) -> Vec3 {
+        Vec3::new((1.0 - cos * cos).sqrt(), 0.0, cos)
+    }
+
+    /// Mean and standard error of a scalar sample.
+    struct Stats {
+        n: f64,
+        sum: f64,
+        sum2: f64,
+    }
+    impl Stats {
+        fn new() -> Self {
+            Stats { n: 0.0, sum: 0.0, sum2: 0.0 }
+        }
+        fn add(&mut self, v: f64) {
+            self.n += 1.0;
+            self.sum += v;
+            self.sum2 += v * v;
+        }
+        fn mean(&self) -> f64 {
+            self.sum / self.n
+        }
+        fn se(&self) -> f64 {
+            let m = self.mean();
+            ((self.sum2 / self.n - m * m).max(0.0) / self.n).sqrt()
+        }
+    }
+
+    /// Importance-sampled ∫ f |cos| (max channel), the fraction of samples that are valid
+    /// non-delta directions, and the largest mismatch between the sampled weight and eval/pdf.
+    fn sample_stats(b: &Bsdf, n: u32, seed: u64) -> (Stats, Stats, f32) {
+        let st = StreamSampler::new(seed, StreamKind::Pt);
+        let (mut albedo, mut non_delta) = (Stats::new(), Stats::new());
+        let mut worst = 0.0f32;
+        for i in 0..n {
+            let s = st.sample(0, i);
+            let r = b.sample(s.get1d(0), s.get2d(1), s.get1d(3));
+            albedo.add(r.map(|r| r.weight.max_element() as f64).unwrap_or(0.0));
+            non_delta.add(r.is_some_and(|r| !r.delta) as u8 as f64);
+            if let Some(r) = r.filter(|r| !r.delta) {
+                let (f, pdf) = b.eval_pdf(r.wi);
+                assert!(pdf > 0.0, "sampled direction has zero pdf");
+                assert!((pdf - r.pdf).abs() <= 1e-3 * pdf, "pdf {pdf} vs sampled {}", r.pdf);
+                let rel = ((f / pdf - r.weight).abs().max_element()) / r.weight.max_element().max(1e-3);
+                worst = worst.max(rel);
+            }
+        }
+        (albedo, non_delta, worst)
+    }
+
+    /// Uniform-sphere MC estimates of ∫ pdf dω and ∫ f |cos| dω (max channel).
+    fn sphere_stats(b: &Bsdf, n: u32, seed: u64) -> (Stats, Stats) {
+        let st = StreamSampler::new(seed, StreamKind::Pt);
+        let (mut pdf_int, mut f_int) = (Stats::new(), Stats::new());
+        for i in 0..n {
+            let u = st.sample(1, i).get2d(0);
+            let z = 1.0 - 2.0 * u.x;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let phi = 2.0 * PI * u.y;
+            let wi = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+            let (f, pdf) = b.eval_pdf(wi);
+            pdf_int.add((pdf * 4.0 * PI) as f64);
+            f_int.add((f.max_element() * 4.0 * PI) as f64);
+        }
+        (pdf_int, f_int)
+    }
+
+    fn cases() -> Vec<(&'static str, PbrParams)> {
+        vec![
+            ("lambert", params(0.0, 1.0, 0.0, 0.0)),
+            ("plastic r0.5", params(0.0, 0.5, 1.0, 0.0)),
+            ("plastic r0.15", params(0.0, 0.15, 1.0, 0.0)),
+            ("metal r0.2", params(1.0, 0.2, 1.0, 0.0)),
+            ("metal r0.5", params(1.0, 0.5, 1.0, 0.0)),
+            ("metal r1", params(1.0, 1.0, 1.0, 0.0)),
+            ("half metal r0.4", params(0.5, 0.4, 1.0, 0.0)),
+            ("rough glass r0.4", params(0.0, 0.4, 1.0, 1.0)),
+            ("rough glass r0.7", params(0.0, 0.7, 1.0, 1.0)),
+            ("frosted mix", params(0.0, 0.5, 1.0, 0.5)),
+        ]
+    }
+
+    #[test]
+    fn white_furnace_conserves_energy_and_sampling_matches_eval() {
+        for (name, p) in cases() {
+            for cos in [0.95f32, 0.5, 0.15] {
+                let b = Bsdf::new(&p, Vec3::Z, Vec3::Z, wo_at(cos));
+                let (albedo, _, worst) = sample_stats(&b, 20_000, 7);
+                assert!(worst < 2e-3, "{name} cos {cos}: weight differs from eval/pdf by {worst}");
+                // From outside, refraction's 1/η² only lowers the integral, so ≤ 1 holds for all.
+                assert!(albedo.mean() <= 1.0 + 5.0 * albedo.se() + 1e-4, "{name} cos {cos}: albedo {} ± {}", albedo.mean(), albedo.se());
+                assert!(albedo.mean() > 0.3, "{name} cos {cos}: implausibly dark, albedo {}", albedo.mean());
+            }
+        }
+        // A pure Lambertian white surface reflects everything.
+        let b = Bsdf::new(&params(0.0, 1.0, 0.0, 0.0), Vec3::Z, Vec3::Z, wo_at(0.7));
+        let (albedo, _, _) = sample_stats(&b, 2_000, 1);
+        assert!((albedo.mean() - 1.0).abs() < 1e-5, "{}", albedo.mean());
+    }
+
+    #[test]
+    fn pdf_integrates_to_the_sampling_probability_and_eval_agrees_with_importance_sampling() {
+        // ∫ pdf dω over the sphere = P(a non-delta direction is produced); and ∫ f|cos| by uniform
+        // sampling must equal the importance-sampled estimate (a wrong pdf would bias the latter).
+        for (name, p) in cases() {
+            for cos in [0.9f32, 0.4] {
+                let b = Bsdf::new(&p, Vec3::Z, Vec3::Z, wo_at(cos));
+                let (albedo, valid, _) = sample_stats(&b, 40_000, 11);
+                let (pdf_int, f_int) = sphere_stats(&b, 200_000, 13);
+                let tol = |a: &Stats, b: &Stats| 5.0 * (a.se().powi(2) + b.se().powi(2)).sqrt() + 2e-3;
+                assert!(
+                    (pdf_int.mean() - valid.mean()).abs() < tol(&pdf_int, &valid),
+                    "{name} cos {cos}: ∫pdf {} ± {} vs P(valid) {} ± {}",
+                    pdf_int.mean(),
+                    pdf_int.se(),
+                    valid.mean(),
+                    valid.se()
+                );
+                assert!(
+                    (f_int.mean() - albedo.mean()).abs() < tol(&f_int, &albedo),
+                    "{name} cos {cos}: uniform ∫f|cos| {} ± {} vs importance {} ± {}",
+                    f_int.mean(),
+                    f_int.se(),
+                    albedo.mean(),
+                    albedo.se()
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn smooth_glass_splits_by_exact_fresnel() {
+        let eta = 1.5f32;
+        for cos in [0.9f32, 0.3] {
+            let b = Bsdf::new(&params(0.0, 0.0, 1.0, 1.0), Vec3::Z, Vec3::Z, wo_at(cos));
+            assert!(!b.has_non_delta());
+            let (albedo, valid, _) = sample_stats(&b, 20_000, 3);
+            assert_eq!(valid.mean(), 0.0, "smooth glass must only produce delta samples");
+            let r = super::super::fresnel::dielectric(cos, eta) as f64;
+            let expect = r + (1.0 - r) / (eta * eta) as f64;
+            // Each sample is 1 (reflect, prob r) or 1/η² (refract): binomial standard error.
+            let se = (r * (1.0 - r) / 20_000.0).sqrt() * (1.0 - 1.0 / (eta * eta) as f64);
+            assert!((albedo.mean() - expect).abs() < 5.0 * se + 1e-6, "cos {cos}: {} vs {expect}", albedo.mean());
+        }
+        // From inside beyond the critical angle everything reflects, with weight 1.
+        let b = Bsdf::new(&params(0.0, 0.0, 1.0, 1.0), Vec3::Z, Vec3::Z, -wo_at(0.3));
+        let (albedo, _, _) = sample_stats(&b, 1_000, 3);
+        assert!((albedo.mean() - 1.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn geometric_normal_blocks_light_leaks() {
+        // Shading normal tilted 30° from the geometric one: a direction below the geometric
+        // surface but above the shading hemisphere must not reflect.
+        let ng = Vec3::Z;
+        let ns = Vec3::new(0.5, 0.0, 0.75f32.sqrt());
+        let b = Bsdf::new(&params(0.0, 1.0, 0.0, 0.0), ns, ng, wo_at(0.8));
+        let leak = Vec3::new(0.99, 0.0, -0.1).normalize();
+        assert!(ns.dot(leak) > 0.0);
+        assert_eq!(b.eval(leak), Vec3::ZERO);
+        assert!(b.eval(Vec3::new(0.3, 0.0, 0.9).normalize()).max_element() > 0.0);
+        // Specular layer off and metallic 0 with black base: a black BSDF samples nothing.
+        let black = PbrParams { base_color: Vec3::ZERO, ..params(0.0, 1.0, 0.0, 0.0) };
+        assert!(Bsdf::new(&black, Vec3::Z, Vec3::Z, wo_at(0.5)).sample(0.5, glam::Vec2::splat(0.5), 0.5).is_none());
+    }
+}
