@@ -196,9 +196,9 @@
     const n = scene.spp_per_stream;
     const ref = scene.reference;
     const meta = el("div", { class: "meta" });
+    meta.append(el("b", { text: scene.width + "×" + scene.height }), " · ");
+    if (n > 0) meta.append("PT and CRN streams at ", el("b", { text: n + " spp" }), " each (", el("b", { text: 2 * n + " spp" }), " total) · ");
     meta.append(
-      el("b", { text: scene.width + "×" + scene.height }), " · PT and CRN streams at ",
-      el("b", { text: n + " spp" }), " each (", el("b", { text: 2 * n + " spp" }), " total) · ",
       el("b", { text: scene.seeds + (scene.seeds === 1 ? " seed" : " seeds") }), " · reference ",
       el("b", { text: ref.path }), ref.spp ? " (" + ref.spp + " spp)" : "",
       ref.noise ? " · reference noise relMSE " : "", ref.noise ? el("b", { text: fmt(ref.noise.relmse), "data-key": view.slug + "/reference/noise" }) : "");
@@ -236,7 +236,7 @@
     const main = methods.filter((m) => !m.ablation);
     const ablations = methods.filter((m) => m.ablation);
     const colors = view.colors || {};
-    const photoEntry = (m) => ({ key: m.name, label: m.label, src: m.image, photo: true, color: colors[m.name] || "#888", caption: "relMSE " + fmt(m.relmse_mean) + " · " + m.spp_total + " spp" });
+    const photoEntry = (m) => ({ key: m.name, label: m.label, src: m.image, photo: true, color: colors[m.name] || "#888", caption: "relMSE " + fmt(m.relmse_mean) + (m.spp_total ? " · " + m.spp_total + " spp" : "") });
     const photos = main.filter((m) => m.image).map(photoEntry);
     if (ref.image) photos.push({ key: "reference", label: "Reference", src: ref.image, photo: true, color: "#ffffff", caption: ref.spp ? ref.spp + " spp" : "" });
     const maps = main.filter((m) => m.error_map).map((m) => ({ key: m.name, label: m.label, src: m.error_map, photo: false, color: colors[m.name] || "#888", caption: "relMSE " + fmt(m.relmse_mean) }));
@@ -355,7 +355,7 @@
       const t = m.time_seconds || { render: null, reconstruct: null };
       tbody.appendChild(el("tr", { "data-method": m.name },
         el("td", {}, el("span", { class: "swatch", style: "background:" + (colors[m.name] || "#888") + ";margin-right:7px" }), m.label),
-        el("td", { class: "dim", text: String(m.spp_total) }),
+        el("td", { class: "dim", text: m.spp_total ? String(m.spp_total) : "?" }),
         rel,
         el("td", { class: "dim", text: fmt(m.relmse_se), "data-key": k("relmse_se") }),
         el("td", { text: pt2n && pt2n.relmse_mean > 0 ? fmt(m.relmse_mean / pt2n.relmse_mean) : "–", "data-key": k("over_pt2n") }),

@@ -7,12 +7,14 @@
 //! - [`reference_noise`]: how much relMSE the reference's own noise adds, with a warning;
 //! - [`results`]: the one JSON-able tree a study produces, plus headline ratios;
 //! - [`table`]: terminal, Markdown and CSV printers;
+//! - [`compare`]: metrics of loose EXR files against a reference (`cvtrace compare`);
 //! - [`falsecolor`], [`plots`]: relMSE maps as PNG and convergence plots as SVG;
 //! - [`report`]: the static, offline HTML comparison viewer;
 //! - [`synthetic`]: a renderer-free synthetic study for tests, docs and trying the viewer.
 //!
 //! Nothing here renders or reconstructs; it depends only on `cvtrace-streams`.
 
+pub mod compare;
 pub mod error;
 pub mod falsecolor;
 pub mod metrics;

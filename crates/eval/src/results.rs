@@ -47,6 +47,7 @@ pub struct SceneResult {
     pub width: usize,
     pub height: usize,
     /// `n`: samples per pixel of *each* input stream; the estimators use `2n` in total.
+    /// 0 when unknown (e.g. `cvtrace compare` on loose files).
     pub spp_per_stream: u32,
     /// Independent seeds evaluated.
     pub seeds: u32,
@@ -83,7 +84,7 @@ pub struct MethodResult {
     pub name: String,
     /// Display label, e.g. "Ours (imperfect CV)".
     pub label: String,
-    /// Total samples per pixel the method consumed (n for PT/CRN, 2n for the rest).
+    /// Total samples per pixel the method consumed (n for PT/CRN, 2n for the rest); 0 if unknown.
     pub spp_total: u32,
     pub relmse_mean: f64,
     #[serde(default)]
@@ -277,8 +278,8 @@ impl StudyResults {
             if !scene_names.insert(scene.name.as_str()) {
                 return Err(EvalError::invalid(&ctx, "appears twice"));
             }
-            if scene.width == 0 || scene.height == 0 || scene.spp_per_stream == 0 || scene.seeds == 0 {
-                return Err(EvalError::invalid(&ctx, "width, height, spp_per_stream and seeds must be positive"));
+            if scene.width == 0 || scene.height == 0 || scene.seeds == 0 {
+                return Err(EvalError::invalid(&ctx, "width, height and seeds must be positive"));
             }
             if scene.methods.is_empty() {
                 return Err(EvalError::invalid(&ctx, "has no methods"));

@@ -77,7 +77,7 @@ fn rows(scene: &SceneResult, ablation: bool) -> Vec<[String; 10]> {
         .map(|m: &MethodResult| {
             [
                 m.label.clone(),
-                m.spp_total.to_string(),
+                if m.spp_total > 0 { m.spp_total.to_string() } else { "?".into() },
                 fmt_num(m.relmse_mean),
                 fmt_opt(m.relmse_se),
                 fmt_opt(pt2n.map(|p| m.relmse_mean / p)),
@@ -93,8 +93,9 @@ fn rows(scene: &SceneResult, ablation: bool) -> Vec<[String; 10]> {
 
 fn scene_title(scene: &SceneResult) -> String {
     let n = scene.spp_per_stream;
+    let spp = if n > 0 { format!("{n}+{n} spp, ") } else { String::new() };
     let mut t = format!(
-        "{} — {}x{}, {n}+{n} spp, {} seed{}, reference {}",
+        "{} — {}x{}, {spp}{} seed{}, reference {}",
         scene.name,
         scene.width,
         scene.height,
