@@ -55,7 +55,8 @@ fn file_url(p: &Path) -> String {
 }
 
 /// Runs Chromium with the flags that keep it offline and quiet; kills its whole process
-/// group (and only it) on timeout. Returns stdout.
+/// group (and only it) on timeout. Returns stdout; fails on any uncaught script error
+/// (console messages go to stderr with --enable-logging).
 fn chromium(profile: &Path, extra: &[String], url: &str) -> String {
     let mut cmd = Command::new(CHROMIUM);
     cmd.args([
@@ -76,6 +77,8 @@ fn chromium(profile: &Path, extra: &[String], url: &str) -> String {
         "--hide-scrollbars",
         "--force-device-scale-factor=1",
         "--virtual-time-budget=5000",
+        "--enable-logging=stderr",
+        "--v=0",
     ])
     .arg(format!("--user-data-dir={}", profile.display()))
     .arg(format!("--window-size={},{}", WINDOW.0, WINDOW.1))
@@ -114,6 +117,8 @@ fn chromium(profile: &Path, extra: &[String], url: &str) -> String {
     };
     let out = out_thread.join().unwrap();
     let err = err_thread.join().unwrap();
+    let script_errors: Vec<&str> = err.lines().filter(|l| l.contains("Uncaught") || l.contains("viewer.js")).collect();
+    assert!(script_errors.is_empty(), "script errors in the viewer:\n{}", script_errors.join("\n"));
     match status {
         Some(st) if st.success() => out,
         Some(st) => panic!("chromium failed ({st}); stderr:\n{err}"),
@@ -257,4 +262,45 @@ fn viewer_loads_every_image_and_shows_the_json_numbers() {
     for r in results.geomean_ratios() {
         assert_shows(&dom, &format!("geomean/{}/{}", r.numerator, r.denominator), Some(r.value));
     }
+}
+
+#[test]
+fn viewer_copes_with_minimal_results() {
+    if !Path::new(CHROMIUM).exists() {
+        eprintln!("SKIPPED viewer_chromium: {CHROMIUM} not found.");
+        return;
+    }
+    // What `cvtrace compare` produces: one seed, no images, no maps, no plot, unknown spp.
+    let dir = tempfile::tempdir().unwrap();
+    let study = dir.path().join("study");
+    let full =
+        write_synthetic_study(&study, &SyntheticOptions { convergence_spp: vec![], ..SyntheticOptions::small() })
+            .unwrap();
+    let mut scene = full.scenes[0].clone();
+    scene.spp_per_stream = 0;
+    scene.seeds = 1;
+    scene.reference.image = None;
+    scene.reference.noise = None;
+    scene.error_map_scale = None;
+    scene.methods.retain(|m| m.name == "pt" || m.name == "ours");
+    for m in scene.methods.iter_mut() {
+        m.image = None;
+        m.error_map = None;
+        m.relmse_se = None;
+        m.bias2 = None;
+        m.variance = None;
+        m.spp_total = 0;
+    }
+    let results = StudyResults::new(vec![scene]);
+    let out = dir.path().join("report");
+    let index = write_report(&results, &study, &out, &ReportOptions::default()).unwrap();
+    let dom = chromium(&dir.path().join("profile"), &["--dump-dom".to_string()], &file_url(&index));
+    assert_eq!(attr(&dom, "<body", "data-loaded").as_deref(), Some("0/0"));
+    assert_eq!(attr(&dom, "<body", "data-ready").as_deref(), Some("1"), "viewer.js did not finish");
+    let sl = slug(&results.scenes[0].name);
+    for m in &results.scenes[0].methods {
+        assert_shows(&dom, &format!("{sl}/{}/relmse_mean", m.name), Some(m.relmse_mean));
+        assert_shows(&dom, &format!("{sl}/{}/bias2", m.name), None);
+    }
+    assert!(dom.contains("No convergence data"));
 }
