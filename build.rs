@@ -49,10 +49,7 @@ fn find_embree() -> Result<Embree, Vec<String>> {
             }
             None => {
                 // An explicit EMBREE_DIR that is wrong is an error, not something to silently skip.
-                eprintln!(
-                    "error: EMBREE_DIR={} has neither include/embree4/rtcore.h nor include/embree3/rtcore.h",
-                    dir.display()
-                );
+                eprintln!("error: EMBREE_DIR={} has neither include/embree4/rtcore.h nor include/embree3/rtcore.h", dir.display());
                 std::process::exit(1);
             }
         }

@@ -119,9 +119,7 @@ impl Device {
         }
         let sink = Box::new(ErrorSink::default());
         // SAFETY: the sink outlives the device (see DeviceInner), and the callback never unwinds.
-        unsafe {
-            ffi::rtcSetDeviceErrorFunction(raw, Some(on_embree_error), &*sink as *const ErrorSink as *mut c_void)
-        };
+        unsafe { ffi::rtcSetDeviceErrorFunction(raw, Some(on_embree_error), &*sink as *const ErrorSink as *mut c_void) };
         let device = Device { inner: Arc::new(DeviceInner { raw, sink }) };
         // SAFETY: valid device; the property is a plain integer query.
         let version = unsafe { ffi::rtcGetDeviceProperty(raw, ffi::RTCDeviceProperty::RTC_DEVICE_PROPERTY_VERSION) };
@@ -290,9 +288,7 @@ fn validate_mesh(positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<(), Embre
     }
     let n = positions.len() as u32;
     if let Some((i, t)) = triangles.iter().enumerate().find(|(_, t)| t.iter().any(|&v| v >= n)) {
-        return Err(EmbreeError::InvalidMesh(format!(
-            "triangle {i} references vertices {t:?} but the mesh has only {n} vertices"
-        )));
+        return Err(EmbreeError::InvalidMesh(format!("triangle {i} references vertices {t:?} but the mesh has only {n} vertices")));
     }
     Ok(())
 }

@@ -1,0 +1,145 @@
+//! Embree wrapper basics: exact hits on a single triangle, misses, ray-interval limits,
+//! occlusion, and sharing one committed scene between threads.
+use cvtrace::{BuildOptions, BuildQuality, Device, EmbreeScene};
+use cvtrace_render::{Intersector, Ray};
+use glam::Vec3;
+
+/// The triangle (0,0,0), (1,0,0), (0,1,0) in the z = 0 plane: the barycentrics of
+/// vertices 1 and 2 of a point (x, y, 0) are exactly (u, v) = (x, y).
+fn unit_triangle() -> EmbreeScene {
+    EmbreeScene::build(&[Vec3::ZERO, Vec3::X, Vec3::Y], &[[0, 1, 2]]).expect("valid triangle")
+}
+
+fn ray(origin: Vec3, dir: Vec3) -> Ray {
+    Ray { origin, dir, tmin: 0.0, tmax: f32::INFINITY }
+}
+
+/// `a` within a few float ulps of `b` (Embree computes (u, v) as ratios).
+fn close(a: f32, b: f32) -> bool {
+    (a - b).abs() <= 4.0 * f32::EPSILON * b.abs().max(1.0)
+}
+
+#[test]
+fn single_triangle_hit_has_exact_distance_and_barycentrics() {
+    let s = unit_triangle();
+    assert_eq!(s.triangle_count(), 1);
+    for (x, y, z) in [(0.25f32, 0.5f32, 1.0f32), (0.1, 0.1, 3.0), (0.6, 0.3, 0.5)] {
+        let h = s.intersect(&ray(Vec3::new(x, y, z), Vec3::NEG_Z)).unwrap_or_else(|| panic!("ray at ({x}, {y}) must hit"));
+        assert!(close(h.t, z), "t = {} for a ray starting {z} above the plane", h.t);
+        assert!(close(h.u, x) && close(h.v, y), "(u, v) = ({}, {}) at ({x}, {y})", h.u, h.v);
+        assert_eq!(h.prim, 0);
+    }
+    // From below: Embree does not cull back faces.
+    let h = s.intersect(&ray(Vec3::new(0.2, 0.3, -2.0), Vec3::Z)).expect("back face hit");
+    assert!(close(h.t, 2.0) && close(h.u, 0.2) && close(h.v, 0.3), "{h:?}");
+    // Direction need not be normalised: t is in units of `dir`.
+    let h = s.intersect(&ray(Vec3::new(0.2, 0.3, 1.0), Vec3::new(0.0, 0.0, -4.0))).expect("hit");
+    assert!(close(h.t, 0.25), "t = {}", h.t);
+    // An oblique ray.
+    let o = Vec3::new(1.0, 1.0, 2.0);
+    let target = Vec3::new(0.2, 0.4, 0.0);
+    let h = s.intersect(&ray(o, target - o)).expect("oblique hit");
+    assert!((h.t - 1.0).abs() < 1e-6 && (h.u - 0.2).abs() < 1e-6 && (h.v - 0.4).abs() < 1e-6, "{h:?}");
+}
+
+#[test]
+fn misses_outside_the_triangle_behind_the_ray_and_outside_the_interval() {
+    let s = unit_triangle();
+    // Beyond the hypotenuse u + v = 1.
+    assert!(s.intersect(&ray(Vec3::new(0.6, 0.6, 1.0), Vec3::NEG_Z)).is_none());
+    // Outside the legs.
+    assert!(s.intersect(&ray(Vec3::new(-0.1, 0.5, 1.0), Vec3::NEG_Z)).is_none());
+    // Pointing away.
+    assert!(s.intersect(&ray(Vec3::new(0.2, 0.2, 1.0), Vec3::Z)).is_none());
+    // Parallel to the plane, above it.
+    assert!(s.intersect(&ray(Vec3::new(-1.0, 0.2, 0.5), Vec3::X)).is_none());
+    // The hit at t = 1 lies outside [tmin, tmax] in both of these.
+    let r = ray(Vec3::new(0.2, 0.2, 1.0), Vec3::NEG_Z);
+    assert!(s.intersect(&Ray { tmax: 0.999, ..r }).is_none());
+    assert!(s.intersect(&Ray { tmin: 1.001, ..r }).is_none());
+    assert!(s.intersect(&Ray { tmax: 1.001, ..r }).is_some());
+}
+
+#[test]
+fn nearest_of_two_triangles_is_reported_with_its_index() {
+    // Two parallel triangles at z = 0 (index 0) and z = -1 (index 1).
+    let p = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(0.0, 0.0, -1.0), Vec3::new(1.0, 0.0, -1.0), Vec3::new(0.0, 1.0, -1.0)];
+    let s = EmbreeScene::build(&p, &[[3, 4, 5], [0, 1, 2]]).unwrap();
+    let h = s.intersect(&ray(Vec3::new(0.2, 0.2, 1.0), Vec3::NEG_Z)).unwrap();
+    assert_eq!(h.prim, 1, "the z = 0 triangle is listed second");
+    assert!(close(h.t, 1.0));
+    let h = s.intersect(&ray(Vec3::new(0.2, 0.2, -3.0), Vec3::Z)).unwrap();
+    assert_eq!(h.prim, 0);
+    assert!(close(h.t, 2.0));
+}
+
+#[test]
+fn occlusion_respects_the_ray_interval() {
+    let s = unit_triangle();
+    let r = ray(Vec3::new(0.2, 0.2, 1.0), Vec3::NEG_Z);
+    assert!(s.occluded(&Ray { tmax: 2.0, ..r }));
+    assert!(s.occluded(&Ray { tmax: f32::INFINITY, ..r }));
+    assert!(!s.occluded(&Ray { tmax: 0.99, ..r }), "blocker beyond tmax");
+    assert!(!s.occluded(&Ray { tmin: 1.01, tmax: 5.0, ..r }), "blocker before tmin");
+    assert!(!s.occluded(&ray(Vec3::new(0.8, 0.8, 1.0), Vec3::NEG_Z)), "passes beside the triangle");
+}
+
+#[test]
+fn every_build_option_gives_the_same_answers() {
+    let s0 = unit_triangle();
+    let device = Device::new().unwrap();
+    let r = ray(Vec3::new(0.3, 0.1, 2.0), Vec3::NEG_Z);
+    let expected = s0.intersect(&r).unwrap();
+    for quality in [BuildQuality::Low, BuildQuality::Medium, BuildQuality::High] {
+        for robust in [false, true] {
+            for compact in [false, true] {
+                let s =
+                    device.build_scene(&[Vec3::ZERO, Vec3::X, Vec3::Y], &[[0, 1, 2]], &BuildOptions { quality, robust, compact }).unwrap();
+                assert_eq!(s.intersect(&r), Some(expected), "{quality:?} robust={robust} compact={compact}");
+            }
+        }
+    }
+}
+
+#[test]
+fn one_scene_serves_many_threads() {
+    fn assert_send_sync<T: Send + Sync>() {}
+    assert_send_sync::<EmbreeScene>();
+
+    // A 32x32 grid of triangles; each thread casts the same rays and must get the same hits.
+    let n = 32;
+    let mut p = Vec::new();
+    let mut t = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            let base = p.len() as u32;
+            let (x, y) = (i as f32, j as f32);
+            p.extend([Vec3::new(x, y, 0.0), Vec3::new(x + 1.0, y, 0.0), Vec3::new(x, y + 1.0, 0.0)]);
+            t.push([base, base + 1, base + 2]);
+        }
+    }
+    let s = EmbreeScene::build(&p, &t).unwrap();
+    let rays: Vec<Ray> = (0..4096)
+        .map(|k| {
+            let (i, j) = (k % n, (k / n) % n);
+            ray(Vec3::new(i as f32 + 0.25, j as f32 + 0.25 + (k / (n * n)) as f32 * 0.1, 5.0), Vec3::NEG_Z)
+        })
+        .collect();
+    let reference: Vec<_> = rays.iter().map(|r| s.intersect(r)).collect();
+    for (k, h) in reference.iter().enumerate() {
+        let h = h.unwrap_or_else(|| panic!("ray {k} must hit"));
+        assert_eq!(h.prim as usize, (k / n % n) * n + k % n);
+    }
+    std::thread::scope(|scope| {
+        let handles: Vec<_> =
+            (0..4).map(|_| scope.spawn(|| rays.iter().map(|r| (s.intersect(r), s.occluded(r))).collect::<Vec<_>>())).collect();
+        for h in handles {
+            for (k, (hit, occ)) in h.join().unwrap().into_iter().enumerate() {
+                assert_eq!(hit, reference[k], "ray {k}");
+                assert!(occ);
+            }
+        }
+    });
+    // The scene can also move to another thread and be dropped there.
+    std::thread::spawn(move || drop(s)).join().unwrap();
+}
