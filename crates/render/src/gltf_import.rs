@@ -5,7 +5,8 @@
 //! warning), `POSITION`, `NORMAL`, `TEXCOORD_0`; metallic-roughness materials with their
 //! textures, `KHR_materials_specular`, `KHR_materials_transmission`, `KHR_materials_ior`,
 //! `KHR_materials_emissive_strength`; the perspective camera of the first node (depth-first
-//! from the scene roots) that has one. Unsupported *required* extensions are an error; other
+//! from the scene roots) that has one, with the resolution from `asset.extras.defaultResolution`
+//! if given, else 512 on the long side of the camera's aspect ratio. Unsupported *required* extensions are an error; other
 //! unsupported extensions are ignored with a warning. Every error names the file.
 use crate::camera::Camera;
 use crate::material::Material;
@@ -38,6 +39,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
             tracing::warn!("{}: ignoring glTF extension {ext}", path.display());
         }
     }
+    let resolution = default_resolution(&json);
     // Checked above; gltf's own validator does not know every extension cvtrace reads.
     json.extensions_required.clear();
     let document = gltf::Document::from_json(json).map_err(malformed)?;
@@ -66,7 +68,21 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
             })
         }
     };
+    let mut parts = parts;
+    if let (Some((w, h)), Some(cam)) = (resolution, parts.camera.as_mut()) {
+        (cam.width, cam.height) = (w, h);
+    }
     Scene::from_parts_named(parts, path)
+}
+
+/// `asset.extras.defaultResolution: [width, height]`, cvtrace's own hint for the render size
+/// (glTF cameras only carry an aspect ratio).
+fn default_resolution(json: &gltf::json::Root) -> Option<(u32, u32)> {
+    let raw = json.asset.extras.as_ref()?;
+    let v: gltf::json::Value = gltf::json::deserialize::from_str(raw.get()).ok()?;
+    let r = v.get("defaultResolution")?.as_array()?;
+    let side = |i: usize| r.get(i)?.as_u64().filter(|&x| (1..=16384).contains(&x)).map(|x| x as u32);
+    Some((side(0)?, side(1)?))
 }
 
 /// Percent-decodes a relative URI (glTF URIs are RFC 3986 encoded).

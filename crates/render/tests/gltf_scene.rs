@@ -191,3 +191,29 @@ fn base_colour_texture_is_decoded_from_srgb_and_a_missing_one_is_named() {
     let msg = Scene::load(&p).unwrap_err().to_string();
     assert!(msg.contains("tex.gltf") && msg.contains("albedo.png"), "{msg}");
 }
+
+#[test]
+fn default_resolution_hint_sets_the_camera_size() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = gltf_json(&embedded_uri(), "", "")
+        .replace(r#""asset": {"version": "2.0"}"#, r#""asset": {"version": "2.0", "extras": {"defaultResolution": [300, 200]}}"#);
+    let p = write(dir.path(), "res.gltf", &text);
+    let cam = Scene::load(&p).unwrap().camera().clone();
+    assert_eq!((cam.width, cam.height), (300, 200));
+}
+
+#[test]
+fn repository_cornell_box_loads() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box/scene.gltf");
+    let scene = Scene::load(&path).unwrap();
+    assert_eq!(scene.triangles().len(), 36);
+    // One quad light facing down, emitting (17, 12, 4).
+    assert_eq!(scene.lights().len(), 2);
+    let light = (0..36u32).find(|&i| scene.lights().pdf_area(i) > 0.0).unwrap();
+    assert!((scene.material_of(light).emission - Vec3::new(17.0, 12.0, 4.0)).length() < 1e-3);
+    assert!(scene.geometric_normal(light).y < -0.99);
+    let cam = scene.camera();
+    assert_eq!((cam.width, cam.height), (256, 256));
+    assert!((cam.eye - Vec3::new(278.0, 273.0, -800.0)).length() < 1e-3);
+    assert!((cam.target - cam.eye).normalize().z > 0.999);
+}
