@@ -1,4 +1,4 @@
-//! The `cvtrace` command line: render, reconstruct, and (later) study/compare/report.
+//! The `cvtrace` command line: render, reconstruct, study, compare, report.
 mod cli;
 
 use clap::{Parser, Subcommand};
@@ -22,6 +22,12 @@ enum Command {
     Render(cli::render::RenderArgs),
     /// Reconstruct an image from a stream file with one or all estimators.
     Reconstruct(cli::reconstruct::ReconstructArgs),
+    /// Render, reconstruct and score every estimator over seeds (the paper's protocol).
+    Study(cli::study::StudyArgs),
+    /// Score finished images against a reference: a table, CSV or JSON.
+    Compare(cli::compare::CompareArgs),
+    /// Write the static HTML comparison viewer from study folders.
+    Report(cli::report::ReportArgs),
 }
 
 fn main() -> std::process::ExitCode {
@@ -39,6 +45,9 @@ fn main() -> std::process::ExitCode {
     let result = match cli.command {
         Command::Render(a) => cli::render::run(a),
         Command::Reconstruct(a) => cli::reconstruct::run(a),
+        Command::Study(a) => cli::study::run(a),
+        Command::Compare(a) => cli::compare::run(a),
+        Command::Report(a) => cli::report::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

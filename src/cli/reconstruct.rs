@@ -6,7 +6,7 @@ use cvtrace_reconstruct::{
 use cvtrace_streams::exr_io::{read_rgb, write_rgb, AttrValue};
 use cvtrace_streams::iduw_layout::{parse_iduw_name, read_iduw};
 use cvtrace_streams::preview::write_png;
-use cvtrace_streams::{atomic, Image, StreamSet};
+use cvtrace_streams::{atomic, StreamSet};
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
@@ -232,14 +232,4 @@ fn print_summary(rows: &[(&str, Option<f64>, cvtrace_reconstruct::Diagnostics)])
         let extra: Vec<String> = diag.entries.iter().map(|(k, v)| format!("{k}={v}")).collect();
         println!("{name:<8} {rel:>12} {:>9.3}  {}", diag.seconds, extra.join(" "));
     }
-}
-
-/// The image a method produces, for callers (study) that need it in memory.
-pub fn reconstruct_one(set: &StreamSet, reference: Option<&Image>, method: Method, options: &Options) -> Result<Output> {
-    let e = build(method, options)?;
-    let mut input = Input::new(set);
-    if let Some(r) = reference {
-        input = input.with_reference(r);
-    }
-    Ok(e.reconstruct(&input)?)
 }

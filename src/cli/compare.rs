@@ -1,0 +1,51 @@
+//! `cvtrace compare`: error of finished images against one reference, as a table
+//! (terminal, and optionally CSV/JSON).
+use anyhow::{bail, Result};
+use cvtrace_eval::compare::compare_files;
+use cvtrace_eval::{table, StudyResults};
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub struct CompareArgs {
+    /// Ground-truth EXR (channels R, G, B).
+    #[arg(long)]
+    pub reference: PathBuf,
+    /// Images to score (EXR, channels R, G, B), e.g. the outputs of `cvtrace reconstruct --method all`.
+    #[arg(required = true)]
+    pub images: Vec<PathBuf>,
+    /// Also write the table as CSV.
+    #[arg(long)]
+    pub csv: Option<PathBuf>,
+    /// Also write the results as JSON (the study's schema).
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Replace existing CSV/JSON files.
+    #[arg(long)]
+    pub force: bool,
+}
+
+pub fn run(args: CompareArgs) -> Result<()> {
+    for p in args.csv.iter().chain(args.json.iter()) {
+        cvtrace_streams::atomic::check_writable(p, args.force)?;
+    }
+    // A PNG preview next to an EXR is an easy slip with `out/*`: skip it with a note.
+    let (images, skipped): (Vec<PathBuf>, Vec<PathBuf>) =
+        args.images.iter().cloned().partition(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")));
+    for p in &skipped {
+        tracing::warn!("{}: not an EXR file, skipped", p.display());
+    }
+    if images.is_empty() {
+        bail!("no EXR images to compare among the {} paths given", args.images.len());
+    }
+    let images: Vec<PathBuf> = images.into_iter().filter(|p| *p != args.reference).collect();
+    let scene = compare_files(&args.reference, &images)?;
+    let results = StudyResults::new(vec![scene]);
+    print!("{}", table::terminal_report(&results));
+    if let Some(p) = &args.csv {
+        table::write_csv(&results, p, args.force)?;
+    }
+    if let Some(p) = &args.json {
+        results.write_json(p, args.force)?;
+    }
+    Ok(())
+}

@@ -1,0 +1,86 @@
+//! `cvtrace report`: the static HTML comparison viewer from one or more study folders.
+use anyhow::{bail, Context, Result};
+use cvtrace_eval::{write_report, ReportOptions, StudyResults};
+use std::path::{Path, PathBuf};
+
+#[derive(clap::Args, Debug)]
+pub struct ReportArgs {
+    /// Study folders (each holding results.json), or a folder whose sub-folders are studies.
+    #[arg(required = true)]
+    pub studies: Vec<PathBuf>,
+    /// Output folder for index.html and its files.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Page title.
+    #[arg(long, default_value = "cvtrace")]
+    pub title: String,
+    /// Replace an existing report.
+    #[arg(long)]
+    pub force: bool,
+}
+
+/// The folders holding results.json among `paths` and their immediate sub-folders.
+fn find_studies(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut found = Vec::new();
+    for p in paths {
+        if p.join("results.json").is_file() {
+            found.push(p.clone());
+            continue;
+        }
+        if !p.is_dir() {
+            bail!("{}: not a study folder (no such directory)", p.display());
+        }
+        let mut subs: Vec<PathBuf> = std::fs::read_dir(p)
+            .with_context(|| format!("{}: cannot list", p.display()))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|d| d.join("results.json").is_file())
+            .collect();
+        if subs.is_empty() {
+            bail!("{}: no results.json in it or its sub-folders (run `cvtrace study` first)", p.display());
+        }
+        subs.sort();
+        found.extend(subs);
+    }
+    Ok(found)
+}
+
+/// The deepest folder containing every path.
+fn common_root(dirs: &[PathBuf]) -> PathBuf {
+    let abs: Vec<PathBuf> = dirs.iter().map(|d| std::path::absolute(d).unwrap_or_else(|_| d.clone())).collect();
+    let mut root = abs[0].clone();
+    while !abs.iter().all(|d| d.starts_with(&root)) {
+        if !root.pop() {
+            break;
+        }
+    }
+    root
+}
+
+fn rebase(p: &mut Option<String>, prefix: &Path) {
+    if let Some(s) = p.as_mut() {
+        *s = prefix.join(&*s).to_string_lossy().into_owned();
+    }
+}
+
+pub fn run(args: ReportArgs) -> Result<()> {
+    let dirs = find_studies(&args.studies)?;
+    let root = common_root(&dirs);
+    let mut scenes = Vec::new();
+    for d in &dirs {
+        let r = StudyResults::read_json(&d.join("results.json"))?;
+        let abs = std::path::absolute(d).unwrap_or_else(|_| d.clone());
+        let prefix = abs.strip_prefix(&root).unwrap_or(Path::new("")).to_path_buf();
+        for mut s in r.scenes {
+            rebase(&mut s.reference.image, &prefix);
+            for m in &mut s.methods {
+                rebase(&mut m.image, &prefix);
+                rebase(&mut m.error_map, &prefix);
+            }
+            scenes.push(s);
+        }
+    }
+    let results = StudyResults::new(scenes);
+    let index = write_report(&results, &root, &args.output, &ReportOptions { title: args.title.clone(), overwrite: args.force })?;
+    println!("report: {}", index.display());
+    Ok(())
+}

@@ -1,0 +1,374 @@
+//! `cvtrace study`: the paper's protocol on one scene, in one command.
+//!
+//! For every requested spp `n` and seed, it renders the paired PT/CRN streams (`n` spp each)
+//! and a real PT render with `2n` spp, reconstructs with every estimator, and scores each
+//! against the reference: relMSE mean ± standard error, bias² and variance over seeds, time
+//! per stage. A missing reference is rendered first. The folder is resumable: every render is
+//! a file written atomically, so an interrupted study keeps its finished seeds and only
+//! re-runs the (cheap) reconstructions.
+use crate::cli::reconstruct::{read_input, EstimatorArgs};
+use crate::cli::render::{self as render_cli, RenderArgs};
+use anyhow::{bail, Context, Result};
+use cvtrace_eval::falsecolor::{scale_for_maps, write_false_color_png};
+use cvtrace_eval::reference_noise::{from_variance_image, too_noisy_warning};
+use cvtrace_eval::results::{keys, ConvergencePoint, MethodResult, ReferenceInfo, SceneResult, StageTimes, StudyResults};
+use cvtrace_eval::{table, Reference, SeedAccumulator};
+use cvtrace_reconstruct::{build, ErrorEstimate, Estimator, Input, Method, Options, Penalty, Selection};
+use cvtrace_streams::exr_io::{read_rgb, take_rgb, AttrValue, ExrChannels};
+use cvtrace_streams::preview::write_png;
+use cvtrace_streams::{Image, StreamSet};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Seed offset of the PT(2n) renders, so they never share random numbers with a stream.
+const PT2N_SEED_OFFSET: u64 = 1 << 32;
+/// Seed of a reference rendered by the study (distinct from every stream seed).
+const REFERENCE_SEED: u64 = 0x7265_6665_7265_6e63;
+
+#[derive(clap::Args, Debug)]
+pub struct StudyArgs {
+    /// glTF 2.0 scene.
+    pub scene: PathBuf,
+    /// Samples per pixel of each stream; a list (e.g. 8,16,32) also gives convergence plots.
+    /// Tables and images are for the largest value.
+    #[arg(long, value_delimiter = ',', default_value = "96")]
+    pub spp: Vec<u32>,
+    /// Independent seeds per spp value.
+    #[arg(long, default_value_t = 8)]
+    pub seeds: u32,
+    /// First seed; seed i uses `seed + i` for its streams.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Batches per stream (must divide every spp value).
+    #[arg(long, default_value_t = 16)]
+    pub batches: u32,
+    /// Reference EXR; rendered (PT, --reference-spp) when the file does not exist.
+    #[arg(long)]
+    pub reference: PathBuf,
+    /// Samples per pixel of a reference the study renders itself.
+    #[arg(long, default_value_t = 4096)]
+    pub reference_spp: u32,
+    /// Study folder (created; reused to resume).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Also run the supplement's ablations of `ours` (penalty, oracle errors, selection).
+    #[arg(long)]
+    pub ablations: bool,
+    /// Name of the scene in tables and the viewer (default: the scene's folder name).
+    #[arg(long)]
+    pub name: Option<String>,
+    #[arg(long)]
+    pub width: Option<u32>,
+    #[arg(long)]
+    pub height: Option<u32>,
+    #[arg(long, default_value_t = -1, allow_negative_numbers = true)]
+    pub max_depth: i32,
+    #[arg(long, default_value_t = 5)]
+    pub rr_depth: u32,
+    /// Camera override, as for `cvtrace render`.
+    #[arg(long, value_name = "EYE:TARGET:FOV")]
+    pub camera: Option<String>,
+    #[command(flatten)]
+    pub options: EstimatorArgs,
+}
+
+/// One column of the study: a key, a label, how to make the image, and whether it is an ablation.
+struct Entry {
+    key: String,
+    label: String,
+    source: Source,
+    ablation: bool,
+}
+
+enum Source {
+    /// An estimator on the stream set.
+    Estimator(Box<dyn Estimator>),
+    /// The real PT render with 2n spp.
+    Pt2n,
+}
+
+fn entries(options: &Options, ablations: bool) -> Result<Vec<Entry>> {
+    let mut list = Vec::new();
+    let labels = [
+        (Method::Pt, "PT (n)"),
+        (Method::Crn, "CRN (n)"),
+        (Method::Average, "Average"),
+        (Method::Iduw, "IDUW"),
+        (Method::Cv, "CV (baseline)"),
+        (Method::Ours, "Ours"),
+    ];
+    for (m, label) in labels {
+        list.push(Entry { key: m.name().into(), label: label.into(), source: Source::Estimator(build(m, options)?), ablation: false });
+    }
+    list.push(Entry { key: keys::PT_2N.into(), label: "PT (2n)".into(), source: Source::Pt2n, ablation: false });
+    if ablations {
+        let variants: [(&str, &str, fn(&mut Options)); 6] = [
+            ("ours-no-penalty", "Ours, no penalty (CBF errors)", |o| o.ours.penalty = Penalty::None),
+            ("ours-oracle", "Ours, oracle errors", |o| o.ours.errors = ErrorEstimate::Oracle),
+            ("ours-oracle-no-penalty", "Ours, oracle errors, no penalty", |o| {
+                o.ours.errors = ErrorEstimate::Oracle;
+                o.ours.penalty = Penalty::None;
+            }),
+            ("ours-window", "Ours, 5×5 window selection", |o| {
+                o.ours.select = Selection::Window;
+                o.ours.search_window = 5;
+            }),
+            ("ours-random", "Ours, random selection", |o| o.ours.select = Selection::Random),
+            ("ours-gbuffer", "Ours, G-buffer selection", |o| o.ours.select = Selection::Gbuffer),
+        ];
+        for (key, label, edit) in variants {
+            let mut o = options.clone();
+            edit(&mut o);
+            list.push(Entry { key: key.into(), label: label.into(), source: Source::Estimator(build(Method::Ours, &o)?), ablation: true });
+        }
+    }
+    Ok(list)
+}
+
+pub fn run(args: StudyArgs) -> Result<()> {
+    let mut spps = args.spp.clone();
+    spps.sort_unstable();
+    spps.dedup();
+    if spps.is_empty() || spps[0] == 0 {
+        bail!("--spp needs positive values");
+    }
+    if args.seeds == 0 {
+        bail!("--seeds must be at least 1");
+    }
+    if let Some(bad) = spps.iter().find(|&&n| n % args.batches != 0) {
+        bail!("--batches {} does not divide --spp {bad}; every spp value must be a multiple of the batch count", args.batches);
+    }
+    if !args.scene.is_file() {
+        bail!("{}: scene file not found", args.scene.display());
+    }
+    let options = args.options.to_options();
+    let list = entries(&options, args.ablations)?;
+    std::fs::create_dir_all(&args.output).with_context(|| format!("{}: cannot create the study folder", args.output.display()))?;
+
+    // The reference: reuse the file, or render it (resumable through render's checkpoint).
+    if !args.reference.exists() {
+        tracing::info!("{} does not exist: rendering a {} spp reference first", args.reference.display(), args.reference_spp);
+        render_cli::run(render_args(&args, args.reference_spp, None, REFERENCE_SEED, &args.reference, true))?;
+    }
+    let mut ref_file = ExrChannels::read(&args.reference)?;
+    let reference = Reference::new(take_rgb(&mut ref_file, &args.reference, "")?, args.reference.display().to_string())?;
+    let reference_spp = match ref_file.attr("cvtrace.spp") {
+        Some(AttrValue::Int(v)) if *v > 0 => Some(*v as u32),
+        _ => None,
+    };
+    if let Some(seed) = ref_file.attr("cvtrace.seed").and_then(|v| v.as_text().parse::<u64>().ok()) {
+        let uses = |s: u64| (args.seed..args.seed + args.seeds as u64).any(|x| x == s || x + PT2N_SEED_OFFSET == s);
+        if uses(seed) {
+            bail!(
+                "{}: rendered with seed {seed}, which this study also uses: its noise would correlate with the PT renders; pick another --seed",
+                args.reference.display()
+            );
+        }
+    }
+
+    let mut convergence = Vec::new();
+    let mut main = None;
+    for (si, &n) in spps.iter().enumerate() {
+        let last = si + 1 == spps.len();
+        let r = run_spp(&args, &list, &reference, n, last)?;
+        for (e, acc) in list.iter().zip(&r.accs) {
+            if e.ablation {
+                continue;
+            }
+            let s = acc.finish()?;
+            convergence.push(ConvergencePoint { method: e.key.clone(), spp_total: spp_total(&e.key, n), relmse: s.relmse_mean, relmse_se: s.relmse_se });
+        }
+        if last {
+            main = Some(r);
+        }
+    }
+    let main = main.expect("at least one spp value");
+    let n = *spps.last().unwrap();
+
+    // Images of the first seed and false-colour maps of the mean relMSE over seeds.
+    let maps: Vec<Vec<f32>> = main.accs.iter().map(|a| a.mean_rel_mse_map()).collect();
+    let scale = scale_for_maps(&maps.iter().map(|m| m.as_slice()).collect::<Vec<_>>());
+    let mut methods = Vec::new();
+    for (i, e) in list.iter().enumerate() {
+        let stats = main.accs[i].finish()?;
+        let mut m = MethodResult::from_stats(&e.key, &e.label, spp_total(&e.key, n), &stats);
+        m.time_seconds = main.times[i];
+        m.ablation = e.ablation;
+        let image = format!("{}.png", e.key);
+        write_png(&args.output.join(&image), &main.first_images[i], 0.0, true)?;
+        m.image = Some(image);
+        let map = format!("{}.relmse.png", e.key);
+        write_false_color_png(&args.output.join(&map), &maps[i], reference.width(), reference.height(), &scale, true)?;
+        m.error_map = Some(map);
+        methods.push(m);
+    }
+    write_png(&args.output.join("reference.png"), &reference.image, 0.0, true)?;
+
+    // The reference's own noise, from the PT streams' batch variance scaled to its spp.
+    let noise = match (reference_spp, &main.pt_variance) {
+        (Some(rspp), Some(var)) if rspp > 0 => {
+            let scale = n as f32 / rspp as f32;
+            let v = Image { width: var.width, height: var.height, pixels: var.pixels.iter().map(|p| p.map(|x| x * scale)).collect() };
+            Some(from_variance_image(&reference, &v, "reference noise")?)
+        }
+        _ => None,
+    };
+    let name = args.name.clone().unwrap_or_else(|| scene_name(&args.scene));
+    let mut scene = SceneResult {
+        name,
+        width: reference.width(),
+        height: reference.height(),
+        spp_per_stream: n,
+        seeds: args.seeds,
+        reference: ReferenceInfo {
+            path: args.reference.display().to_string(),
+            spp: reference_spp,
+            image: Some("reference.png".into()),
+            noise,
+        },
+        methods,
+        convergence: if spps.len() > 1 { convergence } else { Vec::new() },
+        error_map_scale: Some(scale),
+        warnings: Vec::new(),
+    };
+    if let (Some(noise), Some(best)) = (noise, scene.best_relmse()) {
+        if let Some(w) = too_noisy_warning(noise.relmse, best) {
+            tracing::warn!("{w}");
+            scene.warnings.push(w);
+        }
+    }
+    let results = StudyResults::new(vec![scene]);
+    results.write_json(&args.output.join("results.json"), true)?;
+    table::write_csv(&results, &args.output.join("results.csv"), true)?;
+    print!("{}", table::terminal_report(&results));
+    println!("study written to {} (make a viewer with: cvtrace report {} -o report/)", args.output.display(), args.output.display());
+    Ok(())
+}
+
+/// PT and CRN alone use `n` samples; everything else uses `2n`.
+fn spp_total(key: &str, n: u32) -> u32 {
+    if key == keys::PT || key == keys::CRN {
+        n
+    } else {
+        2 * n
+    }
+}
+
+struct SppRun<'r> {
+    accs: Vec<SeedAccumulator<'r>>,
+    times: Vec<StageTimes>,
+    first_images: Vec<Image>,
+    /// Per-pixel variance of the PT stream mean (from its batches), averaged over seeds.
+    pt_variance: Option<Image>,
+}
+
+fn run_spp<'r>(args: &StudyArgs, list: &[Entry], reference: &'r Reference, n: u32, keep_images: bool) -> Result<SppRun<'r>> {
+    let dir = args.output.join(format!("spp{n:05}"));
+    std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+    let mut accs: Vec<SeedAccumulator> = list.iter().map(|e| SeedAccumulator::new(reference, e.key.clone())).collect();
+    let mut times = vec![StageTimes::default(); list.len()];
+    let mut first_images = Vec::new();
+    let mut pt_variance: Option<Image> = None;
+    let seeds = args.seeds as f64;
+    for i in 0..args.seeds as u64 {
+        let seed = args.seed + i;
+        let streams_path = dir.join(format!("seed-{i:03}.streams.exr"));
+        let pt2n_path = dir.join(format!("seed-{i:03}.pt2n.exr"));
+        let t_streams = ensure_rendered(&streams_path, || render_args(args, n, Some(args.batches), seed, &streams_path, false))?;
+        let t_pt2n = ensure_rendered(&pt2n_path, || render_args(args, 2 * n, None, seed + PT2N_SEED_OFFSET, &pt2n_path, true))?;
+        let set = read_input(&streams_path)?;
+        if !set.pt.mean.same_size(&reference.image) {
+            bail!(
+                "{}: reference is {}x{} but the renders are {}x{}; render the reference at the study's size",
+                reference.label, reference.width(), reference.height(), set.width, set.height
+            );
+        }
+        accumulate_variance(&mut pt_variance, &set, args.seeds);
+        let pt2n = read_rgb(&pt2n_path)?;
+        let streams_name = streams_path.display().to_string();
+        let input = Input::new(&set).named(&streams_name, &reference.label).with_reference(&reference.image);
+        for (k, e) in list.iter().enumerate() {
+            let (img, t) = match &e.source {
+                Source::Estimator(est) => {
+                    let out = est.reconstruct(&input)?;
+                    // PT and CRN alone need only their own stream: half the pair's render time.
+                    let render = if e.key == keys::PT || e.key == keys::CRN { t_streams / 2.0 } else { t_streams };
+                    (out.image, StageTimes { render, reconstruct: out.diagnostics.seconds })
+                }
+                Source::Pt2n => (pt2n.clone(), StageTimes { render: t_pt2n, reconstruct: 0.0 }),
+            };
+            accs[k].add_labelled(&img, &format!("{} ({streams_name})", e.key))?;
+            times[k].render += t.render / seeds;
+            times[k].reconstruct += t.reconstruct / seeds;
+            if keep_images && i == 0 {
+                first_images.push(img);
+            }
+        }
+        tracing::info!("spp {n}, seed {} of {}: done", i + 1, args.seeds);
+    }
+    Ok(SppRun { accs, times, first_images, pt_variance })
+}
+
+/// Renders `path` unless a finished file is already there; returns the render's seconds
+/// (recorded in a sidecar so that resumed studies still report real times).
+fn ensure_rendered(path: &Path, make_args: impl FnOnce() -> RenderArgs) -> Result<f64> {
+    let timing = path.with_extension("seconds");
+    if path.exists() {
+        if let Some(t) = std::fs::read_to_string(&timing).ok().and_then(|s| s.trim().parse::<f64>().ok()) {
+            tracing::info!("reusing {}", path.display());
+            return Ok(t);
+        }
+    }
+    let t = Instant::now();
+    render_cli::run(make_args())?;
+    let secs = t.elapsed().as_secs_f64();
+    cvtrace_streams::atomic::write_atomically(&timing, true, |tmp| std::fs::write(tmp, format!("{secs}\n")))?;
+    Ok(secs)
+}
+
+fn render_args(args: &StudyArgs, spp: u32, batches: Option<u32>, seed: u64, output: &Path, reference: bool) -> RenderArgs {
+    RenderArgs {
+        scene: args.scene.clone(),
+        output: output.to_path_buf(),
+        width: args.width,
+        height: args.height,
+        spp,
+        batches,
+        seed,
+        max_depth: args.max_depth,
+        rr_depth: args.rr_depth,
+        camera: args.camera.clone(),
+        reference,
+        pass_spp: if reference { spp.clamp(1, 256) } else { 64 },
+        force: true,
+        stop_after_passes: None,
+    }
+}
+
+/// Adds this seed's per-pixel variance of the PT mean (batch variance / B) / seeds.
+fn accumulate_variance(acc: &mut Option<Image>, set: &StreamSet, seeds: u32) {
+    let b = set.pt.batches.len();
+    if b < 2 {
+        return;
+    }
+    let acc = acc.get_or_insert_with(|| Image::new(set.width, set.height));
+    let norm = 1.0 / ((b - 1) as f64 * b as f64 * seeds as f64);
+    for (i, out) in acc.pixels.iter_mut().enumerate() {
+        let m = set.pt.mean.pixels[i];
+        for c in 0..3 {
+            let ss: f64 = set.pt.batches.iter().map(|im| (im.pixels[i][c] as f64 - m[c] as f64).powi(2)).sum();
+            out[c] += (ss * norm) as f32;
+        }
+    }
+}
+
+fn scene_name(scene: &Path) -> String {
+    let stem = scene.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    if stem == "scene" {
+        if let Some(dir) = scene.parent().and_then(|p| p.file_name()) {
+            return dir.to_string_lossy().into_owned();
+        }
+    }
+    stem
+}
+
