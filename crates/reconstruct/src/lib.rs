@@ -1,1 +1,56 @@
-//! Reconstruction estimators (work in progress).
+//! Reconstruction of one image from two paired renders: PT (independent random numbers per
+//! pixel) and CRN (common random numbers: sample `s` of every pixel shares its random vector).
+//!
+//! Every method implements [`Estimator`]; [`build`] makes one from a [`Method`] and
+//! [`Options`]. The input is a borrowed [`cvtrace_streams::StreamSet`] (stream means, batch
+//! means, optional features) wrapped in an [`Input`], so a caller with buffers from any
+//! renderer can reconstruct without files:
+//!
+//! ```
+//! use cvtrace_reconstruct::{build, Input, Method, Options};
+//! use cvtrace_reconstruct::synthetic::{RenderSpec, SoftShadowScene};
+//!
+//! let set = SoftShadowScene::default()
+//!     .render(&RenderSpec { width: 32, height: 32, spp: 16, batches: 8, seed: 1 })
+//!     .unwrap();
+//! let ours = build(Method::Ours, &Options::default()).unwrap();
+//! let out = ours.reconstruct(&Input::new(&set)).unwrap();
+//! assert_eq!(out.image.width, 32);
+//! println!("{}", out.diagnostics);
+//! ```
+//!
+//! Methods and their defaults are documented, with measurements, in `docs/estimators.md`.
+
+mod batch_stats;
+pub mod control_variate;
+mod cv_pass;
+mod diagnostics;
+mod error;
+mod estimator;
+pub mod estimators;
+mod fast_exp;
+mod input;
+mod method;
+pub mod metrics;
+mod named;
+mod panel;
+mod penalty;
+mod pt_error;
+mod rng;
+mod selection;
+mod simd;
+mod solve;
+pub mod synthetic;
+mod window;
+
+pub use batch_stats::variance_of_mean;
+pub use diagnostics::{DiagValue, Diagnostics};
+pub use error::{ParseNameError, ReconError};
+pub use estimator::{Estimator, Output};
+pub use estimators::{CvOptions, IduwOptions, OursOptions, GAMMA_GRID};
+pub use input::{BatchNeed, Input, Needs};
+pub use method::{build, Method, MethodChoice, Options};
+pub use penalty::Penalty;
+pub use pt_error::{CbfOptions, ErrorEstimate};
+pub use selection::{Selection, MAX_SEARCH_WINDOW};
+pub use solve::{MAX_BATCHES, MAX_K};

@@ -1,0 +1,21 @@
+//! Times each estimator on one synthetic stream set (default 1280×720, B = 16):
+//! `cargo run --release -p cvtrace-reconstruct --example timing -- [width height batches methods]`.
+use cvtrace_reconstruct::synthetic::{RenderSpec, SoftShadowScene};
+use cvtrace_reconstruct::{build, Input, MethodChoice, Options};
+use std::time::Instant;
+
+fn main() {
+    let a: Vec<String> = std::env::args().skip(1).collect();
+    let arg = |i: usize, d: usize| a.get(i).and_then(|s| s.parse().ok()).unwrap_or(d);
+    let (w, h, b) = (arg(0, 1280), arg(1, 720), arg(2, 16));
+    let methods: MethodChoice = a.get(3).map(|s| s.parse().unwrap()).unwrap_or(MethodChoice::All);
+    let t = Instant::now();
+    let set = SoftShadowScene::default().render(&RenderSpec { width: w, height: h, spp: b as u32, batches: b, seed: 1 }).unwrap();
+    println!("rendered {w}x{h} B={b} in {:.2}s on {} threads", t.elapsed().as_secs_f64(), rayon::current_num_threads());
+    for m in methods.methods() {
+        let e = build(m, &Options::default()).unwrap();
+        let out = e.reconstruct(&Input::new(&set)).unwrap();
+        let s = out.diagnostics.seconds;
+        println!("{:<8} {:>7.3} s  {:>7.2} Mpix/s", m.name(), s, (w * h) as f64 / s / 1e6);
+    }
+}

@@ -1,0 +1,114 @@
+//! Statistics of the batch means of a stream.
+//!
+//! A stream stores `B` batch means per pixel over fixed sample ranges (the same range in
+//! every pixel, so CRN batch `b` of all pixels shares its random numbers). Their deviations
+//! from the batch average give unbiased covariances of the pixel means:
+//! `Cov(ḡ_i, ḡ_j) ≈ Σ_b (g_i^b − ḡ_i)(g_j^b − ḡ_j) / (B(B−1))`.
+use cvtrace_streams::{Image, Stream};
+use rayon::prelude::*;
+
+/// Per pixel and channel, the deviations of the `B` batch means from their average,
+/// laid out `[(pixel·3 + channel)·stride + batch]` so that one pixel's data is contiguous.
+/// A `stride` above `B` pads every row with zeros, so that fixed-width kernels can copy
+/// whole rows.
+pub(crate) struct BatchCube {
+    pub batches: usize,
+    pub stride: usize,
+    pub data: Vec<f32>,
+}
+
+impl BatchCube {
+    pub fn deviations(stream: &Stream, stride: usize) -> Self {
+        let b = stream.batches.len();
+        assert!(stride >= b);
+        let n = stream.mean.pixels.len();
+        let mut data = vec![0.0f32; n * 3 * stride];
+        if b > 0 {
+            data.par_chunks_mut(3 * stride * 1024).enumerate().for_each(|(chunk, out)| {
+                for (local, px) in out.chunks_mut(3 * stride).enumerate() {
+                    let i = chunk * 1024 + local;
+                    for ch in 0..3 {
+                        let mean = stream.batches.iter().map(|im| im.pixels[i][ch] as f64).sum::<f64>() / b as f64;
+                        for (slot, im) in px[ch * stride..ch * stride + b].iter_mut().zip(&stream.batches) {
+                            *slot = (im.pixels[i][ch] as f64 - mean) as f32;
+                        }
+                    }
+                }
+            });
+        }
+        BatchCube { batches: b, stride, data }
+    }
+
+    /// The deviations of pixel `i` in channel `ch`.
+    #[inline]
+    pub fn row(&self, i: usize, ch: usize) -> &[f32] {
+        let at = (i * 3 + ch) * self.stride;
+        &self.data[at..at + self.batches]
+    }
+
+    /// The zero-padded row of pixel `i` in channel `ch`; needs `stride == P`.
+    #[inline(always)]
+    pub fn row_padded<const P: usize>(&self, i: usize, ch: usize) -> &[f32; P] {
+        debug_assert_eq!(self.stride, P);
+        let at = (i * 3 + ch) * P;
+        self.data[at..at + P].try_into().expect("cube stride is P")
+    }
+
+    /// All three channels of pixel `i` (3·B values); needs `stride == B`.
+    #[inline]
+    pub fn pixel(&self, i: usize) -> &[f32] {
+        debug_assert_eq!(self.stride, self.batches);
+        let b = self.batches;
+        &self.data[i * 3 * b..(i + 1) * 3 * b]
+    }
+}
+
+/// The estimated variance of each pixel mean, `Σ_b (x^b − x̄)² / (B(B−1))`; zero for `B < 2`.
+pub fn variance_of_mean(stream: &Stream) -> Vec<[f32; 3]> {
+    let b = stream.batches.len();
+    let n = stream.mean.pixels.len();
+    if b < 2 {
+        return vec![[0.0; 3]; n];
+    }
+    let norm = 1.0 / (b * (b - 1)) as f64;
+    (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let mut out = [0.0f32; 3];
+            for (ch, o) in out.iter_mut().enumerate() {
+                let mean = stream.batches.iter().map(|im| im.pixels[i][ch] as f64).sum::<f64>() / b as f64;
+                let ss: f64 = stream.batches.iter().map(|im| (im.pixels[i][ch] as f64 - mean).powi(2)).sum();
+                *o = (ss * norm) as f32;
+            }
+            out
+        })
+        .collect()
+}
+
+/// Means of `groups` equal runs of consecutive batches (IDUW's sub-buffers).
+/// The caller guarantees that the batch count is a multiple of `groups`.
+pub fn group_means(stream: &Stream, groups: usize) -> Vec<Image> {
+    let per = stream.batches.len() / groups;
+    (0..groups).map(|g| Image::mean_of(&stream.batches[g * per..(g + 1) * per])).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn deviations_and_variance_by_hand() {
+        // One pixel, batches 1, 2, 6 in R: mean 3, deviations -2, -1, 3, Σd² = 14,
+        // variance of the mean 14 / (3·2) = 7/3.
+        let batches = [1.0f32, 2.0, 6.0].iter().map(|&v| Image::from_fn(1, 1, |_, _| [v, 0.0, v * 2.0])).collect();
+        let s = Stream::from_batches(batches);
+        let cube = BatchCube::deviations(&s, 3);
+        assert_eq!(cube.row(0, 0), &[-2.0, -1.0, 3.0]);
+        assert_eq!(cube.row(0, 2), &[-4.0, -2.0, 6.0]);
+        let v = variance_of_mean(&s);
+        assert!((v[0][0] - 7.0 / 3.0).abs() < 1e-6 && v[0][1] == 0.0 && (v[0][2] - 28.0 / 3.0).abs() < 1e-5);
+        let g = group_means(&Stream::from_batches(vec![s.batches[0].clone(), s.batches[1].clone(), s.batches[2].clone(), s.batches[2].clone()]), 2);
+        assert_eq!(g[0].pixels[0][0], 1.5);
+        assert_eq!(g[1].pixels[0][0], 6.0);
+    }
+}

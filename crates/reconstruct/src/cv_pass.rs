@@ -1,0 +1,241 @@
+//! The image pass shared by `ours` and the `cv` baseline: per pixel, select the control
+//! variates, gather their CRN batch deviations, solve for β (per channel or shared) and
+//! combine `F̂_c = f̄_c − Σ β_i (ḡ_i − h̄_i)`.
+//!
+//! Rows run in parallel; each task owns its buffers, so nothing is allocated per pixel, and
+//! every pixel's arithmetic is independent of the others, so the image is bit-identical for
+//! any thread count. Statistics are kept per row and summed in row order for the same reason.
+//!
+//! Per-channel solves with fewer batches than control variates (the default) use the
+//! fixed-width [`Panel`] kernel, compiled a second time with AVX2 and picked at run time.
+//! Without FMA contraction both builds do the same IEEE operations, so they agree bit for bit.
+use crate::batch_stats::BatchCube;
+use crate::control_variate::combine;
+use crate::panel::Panel;
+use crate::penalty::Penalty;
+use crate::selection::{SelectScratch, Selector};
+use crate::simd::{Portable, Simd};
+use crate::solve::{Form, Outcome, Workspace, MAX_BATCHES, MAX_K};
+use cvtrace_streams::{Image, StreamSet};
+use rayon::prelude::*;
+
+pub(crate) struct CvPass<'a> {
+    pub set: &'a StreamSet,
+    pub selector: Selector<'a>,
+    /// Largest set size the selector returns.
+    pub k: usize,
+    /// PT error estimates (`V_h` diagonal); `None` treats the PT means as exact (the baseline).
+    pub errors: Option<&'a [[f32; 3]]>,
+    pub penalty: Penalty,
+    pub ridge: f64,
+    pub shared: bool,
+    /// Whether the selector puts the centre first in the set (ours) or leaves it out (cv).
+    pub include_centre: bool,
+}
+
+/// Sums over pixel-channel solves.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct PassStats {
+    pub solves: u64,
+    pub centre_weight: f64,
+    pub beta_sum: f64,
+    pub regularised: u64,
+    pub degenerate: u64,
+    pub failed: u64,
+    pub set_size: u64,
+    pub pixels: u64,
+}
+
+impl PassStats {
+    fn add(&mut self, o: &PassStats) {
+        self.solves += o.solves;
+        self.centre_weight += o.centre_weight;
+        self.beta_sum += o.beta_sum;
+        self.regularised += o.regularised;
+        self.degenerate += o.degenerate;
+        self.failed += o.failed;
+        self.set_size += o.set_size;
+        self.pixels += o.pixels;
+    }
+
+    fn record(&mut self, outcome: Outcome, beta: &mut [f64], include_centre: bool) {
+        match outcome {
+            Outcome::Solved => {}
+            Outcome::Regularised => self.regularised += 1,
+            Outcome::Degenerate => self.degenerate += 1,
+            Outcome::Failed => {
+                self.failed += 1;
+                // Nothing to trust: the plain average of the two inputs when the centre is
+                // in the set, the CRN value otherwise.
+                beta.fill(0.0);
+                if include_centre {
+                    beta[0] = 0.5;
+                }
+            }
+        }
+        self.solves += 1;
+        self.centre_weight += if include_centre { beta[0] } else { 0.0 };
+        self.beta_sum += beta.iter().sum::<f64>();
+    }
+}
+
+/// Per-task buffers. `P = 0` means the general f64 workspace (shared coefficients, or at
+/// least as many batches as control variates).
+struct Scratch<const P: usize> {
+    select: SelectScratch,
+    idx: [u32; MAX_K],
+    gs: [f64; MAX_K],
+    hs: [f64; MAX_K],
+    panel: Option<Box<Panel<P>>>,
+    ws: Option<Box<Workspace>>,
+}
+
+impl<const P: usize> Scratch<P> {
+    fn new() -> Self {
+        Scratch {
+            select: SelectScratch::new(),
+            idx: [0; MAX_K],
+            gs: [0.0; MAX_K],
+            hs: [0.0; MAX_K],
+            panel: (P > 0).then(Panel::<P>::boxed),
+            ws: (P == 0).then(Workspace::boxed),
+        }
+    }
+}
+
+impl CvPass<'_> {
+    pub fn run(&self) -> (Image, PassStats) {
+        let b = self.set.batch_count();
+        debug_assert!((2..=MAX_BATCHES).contains(&b));
+        let crn = &self.set.crn;
+        if self.shared || b >= self.k {
+            return self.run_width::<0>(&BatchCube::deviations(crn, b));
+        }
+        match b {
+            0..=8 => self.run_width::<8>(&BatchCube::deviations(crn, 8)),
+            9..=16 => self.run_width::<16>(&BatchCube::deviations(crn, 16)),
+            17..=32 => self.run_width::<32>(&BatchCube::deviations(crn, 32)),
+            _ => self.run_width::<64>(&BatchCube::deviations(crn, 64)),
+        }
+    }
+
+    fn run_width<const P: usize>(&self, cube: &BatchCube) -> (Image, PassStats) {
+        let (w, h) = (self.set.width, self.set.height);
+        let mut image = Image::new(w, h);
+        let mut rows = vec![PassStats::default(); h];
+        image.pixels.par_chunks_mut(w).zip(rows.par_iter_mut()).enumerate().for_each_init(Scratch::<P>::new, |sc, (y, (row, st))| {
+            #[cfg(target_arch = "x86_64")]
+            if std::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU supports AVX2 (checked just above).
+                unsafe { self.row_avx2::<P>(cube, y, row, sc, st) };
+                return;
+            }
+            self.row::<P, Portable>(cube, y, row, sc, st);
+        });
+        let mut total = PassStats::default();
+        for r in &rows {
+            total.add(r);
+        }
+        (image, total)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn row_avx2<const P: usize>(&self, cube: &BatchCube, y: usize, row: &mut [[f32; 3]], sc: &mut Scratch<P>, st: &mut PassStats) {
+        self.row::<P, crate::simd::Avx2>(cube, y, row, sc, st);
+    }
+
+    #[inline(always)]
+    fn row<const P: usize, S: Simd>(&self, cube: &BatchCube, y: usize, row: &mut [[f32; 3]], sc: &mut Scratch<P>, st: &mut PassStats) {
+        for (x, px) in row.iter_mut().enumerate() {
+            *px = self.pixel::<P, S>(cube, x, y, sc, st);
+        }
+    }
+
+    /// `W` for control variate `i` of centre `c` in channel `ch` (summed over channels when shared).
+    #[inline(always)]
+    fn weight(&self, i: usize, c: usize, ch: usize) -> f64 {
+        let Some(e) = self.errors else { return 0.0 };
+        let (g, hm) = (&self.set.crn.mean.pixels, &self.set.pt.mean.pixels);
+        let one = |ch: usize| {
+            let (ei, ec) = (e[i][ch] as f64, e[c][ch] as f64);
+            if i == c {
+                ei
+            } else {
+                let r = (hm[i][ch] - hm[c][ch]) as f64 - (g[i][ch] - g[c][ch]) as f64;
+                self.penalty.apply(ei, ec, r)
+            }
+        };
+        if self.shared {
+            one(0) + one(1) + one(2)
+        } else {
+            one(ch)
+        }
+    }
+
+    #[inline(always)]
+    fn pixel<const P: usize, S: Simd>(&self, cube: &BatchCube, x: usize, y: usize, sc: &mut Scratch<P>, st: &mut PassStats) -> [f32; 3] {
+        let c = y * self.set.width + x;
+        let n = self.selector.select(x, y, &mut sc.select, &mut sc.idx);
+        let idx = &sc.idx[..n];
+        let g = &self.set.crn.mean.pixels;
+        let hm = &self.set.pt.mean.pixels;
+        let b = cube.batches;
+        let s = 1.0 / (b * (b - 1)) as f64;
+        st.pixels += 1;
+        st.set_size += n as u64;
+        let mut out = g[c];
+        if n == 0 {
+            return out;
+        }
+        if let Some(p) = sc.panel.as_deref_mut() {
+            for (j, &i) in idx.iter().enumerate() {
+                for ch in 0..3 {
+                    p.d[ch][j] = *cube.row_padded::<P>(i as usize, ch);
+                    p.w[ch][j] = self.weight(i as usize, c, ch);
+                }
+            }
+            for ch in 0..3 {
+                p.dc[ch] = *cube.row_padded::<P>(c, ch);
+            }
+            let outcomes = p.solve::<S>(n, s, self.ridge);
+            for ch in 0..3 {
+                let beta = &mut p.beta[ch][..n];
+                st.record(outcomes[ch], beta, self.include_centre);
+                for (j, &i) in idx.iter().enumerate() {
+                    sc.gs[j] = g[i as usize][ch] as f64;
+                    sc.hs[j] = hm[i as usize][ch] as f64;
+                }
+                out[ch] = combine(g[c][ch] as f64, &sc.gs[..n], &sc.hs[..n], beta) as f32;
+            }
+            return out;
+        }
+        let ws = sc.ws.as_deref_mut().expect("general workspace");
+        let channels: &[usize] = if self.shared { &[0] } else { &[0, 1, 2] };
+        for &ch in channels {
+            let m = if self.shared { 3 * b } else { b };
+            let source = |i: usize| if self.shared { cube.pixel(i) } else { cube.row(i, ch) };
+            for (j, &i) in idx.iter().enumerate() {
+                for (dst, v) in ws.d[j * m..(j + 1) * m].iter_mut().zip(source(i as usize)) {
+                    *dst = *v as f64;
+                }
+                ws.w[j] = self.weight(i as usize, c, ch);
+            }
+            for (dst, v) in ws.dc[..m].iter_mut().zip(source(c)) {
+                *dst = *v as f64;
+            }
+            let outcome = ws.solve(n, m, s, self.ridge, Form::Auto);
+            let beta = &mut ws.beta[..n];
+            st.record(outcome, beta, self.include_centre);
+            let out_channels: &[usize] = if self.shared { &[0, 1, 2] } else { std::slice::from_ref(&ch) };
+            for &oc in out_channels {
+                for (j, &i) in idx.iter().enumerate() {
+                    sc.gs[j] = g[i as usize][oc] as f64;
+                    sc.hs[j] = hm[i as usize][oc] as f64;
+                }
+                out[oc] = combine(g[c][oc] as f64, &sc.gs[..n], &sc.hs[..n], beta) as f32;
+            }
+        }
+        out
+    }
+}

@@ -1,0 +1,182 @@
+//! What an estimator reads: a borrowed stream set, an optional reference image and the
+//! names to use for both in error messages (file paths for the CLI, anything for a library
+//! caller holding buffers from another renderer).
+use crate::ReconError;
+use cvtrace_streams::stream_set::batch_prefix;
+use cvtrace_streams::{Image, StreamSet};
+use rayon::prelude::*;
+
+/// The input of every estimator.
+#[derive(Clone, Copy, Debug)]
+pub struct Input<'a> {
+    pub streams: &'a StreamSet,
+    /// Ground truth, used only by analysis options (`--errors oracle`).
+    pub reference: Option<&'a Image>,
+    /// Names the stream set in errors (typically its file path).
+    pub streams_name: &'a str,
+    /// Names the reference in errors (typically its file path).
+    pub reference_name: &'a str,
+}
+
+impl<'a> Input<'a> {
+    pub fn new(streams: &'a StreamSet) -> Self {
+        Input { streams, reference: None, streams_name: "<stream set>", reference_name: "<reference>" }
+    }
+
+    pub fn with_reference(mut self, reference: &'a Image) -> Self {
+        self.reference = Some(reference);
+        self
+    }
+
+    /// Names for error messages, e.g. the file paths the data came from.
+    pub fn named(mut self, streams_name: &'a str, reference_name: &'a str) -> Self {
+        self.streams_name = streams_name;
+        self.reference_name = reference_name;
+        self
+    }
+
+    pub fn width(&self) -> usize {
+        self.streams.width
+    }
+
+    pub fn height(&self) -> usize {
+        self.streams.height
+    }
+
+    /// Checks everything `needs` asks for and that every value the method reads is finite.
+    /// Called by each estimator before any work, so that errors come early and clearly.
+    pub fn check(&self, method: &'static str, needs: &Needs) -> Result<(), ReconError> {
+        let s = self.streams;
+        let origin = || self.streams_name.to_string();
+        let (w, h) = (s.width, s.height);
+        if w == 0 || h == 0 {
+            return Err(ReconError::EmptyImage { origin: origin(), width: w, height: h });
+        }
+        let batches_needed = needs.batches != BatchNeed::None;
+        let mut layers: Vec<(String, &Image)> = vec![("pt.".into(), &s.pt.mean), ("crn.".into(), &s.crn.mean)];
+        if batches_needed {
+            let (bp, bc) = (s.pt.batches.len(), s.crn.batches.len());
+            if bp != bc {
+                return Err(ReconError::BatchCountMismatch { origin: origin(), pt: bp, crn: bc });
+            }
+            needs.batches.check(origin(), method, bp)?;
+            for (name, stream) in [("pt", &s.pt), ("crn", &s.crn)] {
+                layers.extend(stream.batches.iter().enumerate().map(|(b, im)| (batch_prefix(name, b), im)));
+            }
+        }
+        for (prefix, im) in &layers {
+            if im.width != w || im.height != h || im.pixels.len() != w * h {
+                return Err(ReconError::SizeMismatch {
+                    origin: origin(),
+                    layer: format!("{prefix}RGB"),
+                    width: im.width,
+                    height: im.height,
+                    expected_width: w,
+                    expected_height: h,
+                });
+            }
+        }
+        if let Some((i, (x, y, c, v))) =
+            layers.par_iter().map(|(_, im)| first_non_finite(im)).collect::<Vec<_>>().into_iter().enumerate().find_map(|(i, r)| r.map(|r| (i, r)))
+        {
+            return Err(ReconError::NonFinite { origin: origin(), channel: format!("{}{}", layers[i].0, RGB[c]), value: v, x, y });
+        }
+        if needs.spp && s.meta.spp == 0 {
+            return Err(ReconError::MissingSpp { origin: origin(), method });
+        }
+        if let Some(why) = needs.features {
+            let f = s.features.as_ref().ok_or(ReconError::MissingFeatures { origin: origin(), method, why })?;
+            for (name, im) in [("albedo.", &f.albedo), ("normal.", &f.normal)] {
+                if !im.same_size(&s.pt.mean) || im.pixels.len() != w * h {
+                    return Err(ReconError::SizeMismatch {
+                        origin: origin(),
+                        layer: format!("{name}*"),
+                        width: im.width,
+                        height: im.height,
+                        expected_width: w,
+                        expected_height: h,
+                    });
+                }
+                if let Some((x, y, c, v)) = first_non_finite(im) {
+                    let channel = if name == "normal." { ["X", "Y", "Z"][c] } else { RGB[c] };
+                    return Err(ReconError::NonFinite { origin: origin(), channel: format!("{name}{channel}"), value: v, x, y });
+                }
+            }
+        }
+        if needs.reference {
+            let r = self.reference.ok_or(ReconError::MissingReference { method })?;
+            if r.width != w || r.height != h || r.pixels.len() != w * h {
+                return Err(ReconError::ReferenceSize {
+                    reference: self.reference_name.to_string(),
+                    origin: origin(),
+                    width: r.width,
+                    height: r.height,
+                    expected_width: w,
+                    expected_height: h,
+                });
+            }
+            if let Some((x, y, c, v)) = first_non_finite(r) {
+                return Err(ReconError::NonFinite { origin: self.reference_name.to_string(), channel: RGB[c].to_string(), value: v, x, y });
+            }
+        }
+        Ok(())
+    }
+}
+
+const RGB: [&str; 3] = ["R", "G", "B"];
+
+fn first_non_finite(im: &Image) -> Option<(usize, usize, usize, f32)> {
+    let w = im.width.max(1);
+    im.pixels.iter().enumerate().find_map(|(i, p)| p.iter().position(|v| !v.is_finite()).map(|c| (i % w, i / w, c, p[c])))
+}
+
+/// What an estimator needs from its input, so a caller (the CLI) knows what to load and
+/// can refuse early.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Needs {
+    pub batches: BatchNeed,
+    /// `Some(why)` when first-hit features are required (e.g. "with --select gbuffer").
+    pub features: Option<&'static str>,
+    /// A reference image (analysis options only).
+    pub reference: bool,
+    /// The samples per pixel of each stream (`StreamMeta::spp`).
+    pub spp: bool,
+}
+
+impl Needs {
+    /// Only the stream means.
+    pub const MEANS: Needs = Needs { batches: BatchNeed::None, features: None, reference: false, spp: false };
+}
+
+/// How many batches per stream a method can work with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BatchNeed {
+    /// Batches are not read.
+    None,
+    /// At least `min` and at most `max` batches.
+    Range { min: usize, max: usize },
+    /// A positive multiple of the value.
+    MultipleOf(usize),
+}
+
+impl BatchNeed {
+    fn check(self, origin: String, method: &'static str, found: usize) -> Result<(), ReconError> {
+        let fail = |requirement: String, hint: String| Err(ReconError::BatchCount { origin: origin.clone(), method, requirement, found, hint });
+        match self {
+            BatchNeed::None => Ok(()),
+            BatchNeed::Range { min, .. } if found < min => fail(
+                format!("at least {min}"),
+                "batch covariances need several batch means; re-render with more batches (cvtrace render --batches 16)".into(),
+            ),
+            BatchNeed::Range { max, .. } if found > max => fail(
+                format!("at most {max}"),
+                format!("merge neighbouring batches into at most {max} (each batch is a mean of a fixed sample range)"),
+            ),
+            BatchNeed::MultipleOf(m) if found == 0 || found % m != 0 => fail(
+                format!("a positive multiple of {m}"),
+                format!("it forms {m} sub-buffers from consecutive batches; re-render with a batch count divisible by {m}"),
+            ),
+            _ => Ok(()),
+        }
+    }
+}

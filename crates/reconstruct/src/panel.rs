@@ -1,0 +1,239 @@
+//! The fast per-channel solve: the Woodbury form of [`crate::solve`] on fixed-width rows,
+//! for the three colour channels of one pixel at once.
+//!
+//! With `P` (8, 16, 32 or 64) a compile-time row width ≥ `B`, every loop has a fixed length
+//! and runs on whole vectors (see [`crate::simd`]). Batches beyond `B` are zero columns: they
+//! add an identity block to `G = I + s·Dᵀ·W⁻¹·D`, which changes nothing in β. Because `G` is
+//! the identity plus a positive semi-definite matrix, its Cholesky pivots are ≥ 1 in exact
+//! arithmetic; a pivot below 1/2 means the data are numerically broken and that channel is
+//! retried with more ridge.
+//!
+//! The factorisation and the substitutions are chains of dependent square roots, divisions
+//! and dot products; the three channels' chains are independent, so they are interleaved
+//! step by step to keep the core busy while each waits on its latencies.
+//!
+//! Precision: the deviations are stored in f32 anyway, so `G` is accumulated in f32 (twice
+//! the SIMD width; `G`'s entries are O(k) sums and its eigenvalues ≥ 1, so the relative error
+//! of β stays near 1e-6) and factorised and solved in f64.
+use crate::simd::Simd;
+use crate::solve::{Outcome, MAX_K};
+
+pub(crate) struct Panel<const P: usize> {
+    /// Per channel, row `j`: the CRN batch deviations of control variate `j`, zero-padded to `P`.
+    pub d: [[[f32; P]; MAX_K]; 3],
+    /// Per channel, the centre's deviations.
+    pub dc: [[f32; P]; 3],
+    /// Per channel, the diagonal `W` (≥ 0).
+    pub w: [[f64; MAX_K]; 3],
+    pub beta: [[f64; MAX_K]; 3],
+    g: [[[f64; P]; P]; 3],
+    /// 1 / L_ii, so that the substitutions multiply instead of divide.
+    inv_diag: [[f64; P]; 3],
+    winv: [[f64; MAX_K]; 3],
+    c32: [[f32; MAX_K]; 3],
+}
+
+impl<const P: usize> Panel<P> {
+    pub fn boxed() -> Box<Self> {
+        Box::new(Panel {
+            d: [[[0.0; P]; MAX_K]; 3],
+            dc: [[0.0; P]; 3],
+            w: [[0.0; MAX_K]; 3],
+            beta: [[0.0; MAX_K]; 3],
+            g: [[[0.0; P]; P]; 3],
+            inv_diag: [[0.0; P]; 3],
+            winv: [[0.0; MAX_K]; 3],
+            c32: [[0.0; MAX_K]; 3],
+        })
+    }
+
+    /// β of each channel for `k` control variates; per channel the same contract as
+    /// [`crate::solve::Workspace::solve`].
+    #[inline(always)]
+    pub fn solve<S: Simd>(&mut self, k: usize, s: f64, ridge: f64) -> [Outcome; 3] {
+        let mut out = [Outcome::Solved; 3];
+        let mut pending = [false; 3];
+        let mut lambda = [0.0; 3];
+        let mut scale = [0.0; 3];
+        for ch in 0..3 {
+            let mut sc = 0.0;
+            for j in 0..k {
+                sc += s * S::dot32(&self.d[ch][j], &self.d[ch][j]) as f64 + self.w[ch][j];
+            }
+            sc /= k.max(1) as f64;
+            if k == 0 || !(sc > 0.0 && sc.is_finite()) {
+                self.beta[ch][..k].fill(0.0);
+                out[ch] = if sc.is_finite() || k == 0 { Outcome::Degenerate } else { Outcome::Failed };
+            } else {
+                pending[ch] = true;
+                scale[ch] = sc;
+                lambda[ch] = ridge * sc;
+            }
+        }
+        for attempt in 0..8 {
+            if !pending.iter().any(|p| *p) {
+                break;
+            }
+            let ok = self.try_solve::<S>(k, s, lambda, pending);
+            for ch in 0..3 {
+                if !pending[ch] {
+                    continue;
+                }
+                if ok[ch] {
+                    out[ch] = if attempt == 0 { Outcome::Solved } else { Outcome::Regularised };
+                    pending[ch] = false;
+                } else {
+                    lambda[ch] = (lambda[ch] * 10.0).max(1e-7 * scale[ch]);
+                }
+            }
+        }
+        for ch in 0..3 {
+            if pending[ch] {
+                self.beta[ch][..k].fill(0.0);
+                out[ch] = Outcome::Failed;
+            }
+        }
+        out
+    }
+
+    #[inline(always)]
+    fn try_solve<S: Simd>(&mut self, k: usize, s: f64, lambda: [f64; 3], active: [bool; 3]) -> [bool; 3] {
+        let mut ok = active;
+        for ch in 0..3 {
+            if !ok[ch] {
+                continue;
+            }
+            for j in 0..k {
+                let wi = 1.0 / (self.w[ch][j] + lambda[ch]);
+                ok[ch] &= wi.is_finite();
+                self.winv[ch][j] = wi;
+                self.c32[ch][j] = (s * wi) as f32;
+            }
+            if !ok[ch] {
+                continue;
+            }
+            // G = I + s·Σ_j D_j·D_jᵀ / w_j in 4×8 blocks, accumulators in registers while the
+            // k rows of D stream past.
+            let g = &mut self.g[ch];
+            for a0 in (0..P).step_by(4) {
+                for b0 in (0..P).step_by(8) {
+                    let acc = S::gram_block(&self.d[ch][..k], &self.c32[ch][..k], a0, b0);
+                    for q in 0..4 {
+                        for l in 0..8 {
+                            g[a0 + q][b0 + l] = acc[q][l] as f64;
+                        }
+                    }
+                }
+                for q in 0..4 {
+                    g[a0 + q][a0 + q] += 1.0;
+                }
+            }
+        }
+        // Right-looking Cholesky on full rows, channels interleaved; L ends up in the lower
+        // triangle.
+        for j in 0..P {
+            for ch in 0..3 {
+                if !ok[ch] {
+                    continue;
+                }
+                let g = &mut self.g[ch];
+                let pivot = g[j][j];
+                if !(pivot > 0.5 && pivot.is_finite()) {
+                    ok[ch] = false;
+                    continue;
+                }
+                let ljj = pivot.sqrt();
+                let inv = 1.0 / ljj;
+                self.inv_diag[ch][j] = inv;
+                let mut col = [0.0; P];
+                for i in j + 1..P {
+                    col[i] = g[i][j] * inv;
+                }
+                for i in j + 1..P {
+                    let lij = col[i];
+                    S::axpy(&mut g[i], -lij, &col);
+                    g[i][j] = lij;
+                }
+                g[j][j] = ljj;
+            }
+        }
+        for ch in 0..3 {
+            if ok[ch] {
+                for (i, row) in self.g[ch].iter_mut().enumerate() {
+                    row[i + 1..].fill(0.0);
+                }
+            }
+        }
+        // L·y = d_c, then Lᵀ·z = y (row-oriented, so both run over full rows).
+        let mut y = [[0.0; P]; 3];
+        for i in 0..P {
+            for ch in 0..3 {
+                if ok[ch] {
+                    y[ch][i] = (self.dc[ch][i] as f64 - S::dot(&self.g[ch][i], &y[ch])) * self.inv_diag[ch][i];
+                }
+            }
+        }
+        let mut z = [[0.0f32; P]; 3];
+        for i in (0..P).rev() {
+            for ch in 0..3 {
+                if ok[ch] {
+                    let zi = y[ch][i] * self.inv_diag[ch][i];
+                    z[ch][i] = zi as f32;
+                    S::axpy(&mut y[ch], -zi, &self.g[ch][i]);
+                }
+            }
+        }
+        for ch in 0..3 {
+            if ok[ch] {
+                for j in 0..k {
+                    self.beta[ch][j] = s * self.winv[ch][j] * S::dot32(&self.d[ch][j], &z[ch]) as f64;
+                }
+            }
+        }
+        ok
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::{hash4, uniform};
+    use crate::simd::Portable;
+    use crate::solve::{Form, Workspace};
+
+    #[test]
+    fn panel_matches_the_general_solver() {
+        for (k, b, ridge, wscale) in [(25usize, 16usize, 1e-3, 0.01), (24, 16, 0.1, 0.0), (25, 5, 1e-3, 1.0), (40, 30, 0.0, 0.05)] {
+            let mut p = Panel::<32>::boxed();
+            let s = 1.0 / (b * (b - 1)) as f64;
+            let mut want = vec![];
+            for ch in 0..3 {
+                let mut ws = Workspace::boxed();
+                for j in 0..k {
+                    for c in 0..b {
+                        let v = (uniform(hash4(1 + ch as u64, j as u64, c as u64, 0)) - 0.5) as f32;
+                        p.d[ch][j][c] = v;
+                        ws.d[j * b + c] = v as f64;
+                    }
+                    let w = wscale * uniform(hash4(2 + ch as u64, j as u64, 0, 0));
+                    p.w[ch][j] = w;
+                    ws.w[j] = w;
+                }
+                for c in 0..b {
+                    p.dc[ch][c] = p.d[ch][0][c];
+                    ws.dc[c] = p.d[ch][0][c] as f64;
+                }
+                let o = ws.solve(k, b, s, ridge, Form::Woodbury);
+                want.push((o, ws.beta[..k].to_vec()));
+            }
+            let got = p.solve::<Portable>(k, s, ridge);
+            for ch in 0..3 {
+                assert_eq!(got[ch], want[ch].0, "k={k} b={b} ch={ch}");
+                for j in 0..k {
+                    let (a, w) = (p.beta[ch][j], want[ch].1[j]);
+                    assert!((a - w).abs() < 1e-5 * (1.0 + w.abs()), "k={k} b={b} ch={ch} j={j}: {a} vs {w}");
+                }
+            }
+        }
+    }
+}

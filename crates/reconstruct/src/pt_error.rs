@@ -1,0 +1,253 @@
+//! Per-pixel error estimates of the PT means `h̄_i`: the diagonal `V_h` of `ours`.
+//!
+//! The target is `Var(h̄_i)`, the squared error a PT pixel mean makes on average. The raw
+//! batch variance is unbiased for it but noisy (a χ² with `B − 1` degrees of freedom) and
+//! correlated with the pixel's own realised error, which biases the weights: a PT pixel that
+//! came out low also tends to report a low variance and gets trusted more. Averaging the
+//! variance over similar pixels with a cross-bilateral filter removes most of both effects.
+use crate::batch_stats::variance_of_mean;
+use crate::fast_exp::exp_neg;
+use crate::named::named_enum;
+use crate::ReconError;
+use cvtrace_streams::{Image, StreamSet};
+use rayon::prelude::*;
+
+named_enum! {
+    /// Where the PT error estimates come from.
+    pub enum ErrorEstimate: "error estimate" {
+        /// The batch variance of `h̄`, smoothed by a cross-bilateral filter guided by the
+        /// CRN image and the features (our design; see [`CbfOptions`]).
+        Cbf => "cbf",
+        /// The raw per-pixel batch variance of `h̄`.
+        Variance => "variance",
+        /// Realised squared errors `(h̄ − reference)²`: analysis only, needs a reference.
+        Oracle => "oracle",
+    }
+}
+
+/// The cross-bilateral filter that smooths the PT batch variance.
+///
+/// Weight of neighbour `j` for centre `c` (one weight for all three channels):
+/// `exp(−|Δp|²/(2σ_s²) − δ_rgb/(2σ_c²) − ‖Δa‖²/(2σ_a²) − ‖Δn‖²/(2σ_n²))` with the *relative*
+/// CRN colour distance `δ_rgb = Σ(ḡ_c − ḡ_j)² / (ε + Σ(ḡ_c² + ḡ_j²)/2)`, σ_s = radius. The CRN
+/// image is the guide because its noise is shared by neighbours, so its local structure is far
+/// cleaner than the PT image's; the relative distance makes the filter independent of exposure.
+/// Feature terms are used when the stream set has features.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CbfOptions {
+    /// Window radius in pixels (window side 2·radius + 1).
+    pub radius: usize,
+    /// Tolerance of the relative CRN colour difference.
+    pub sigma_colour: f32,
+    /// Tolerance of the albedo difference (absolute).
+    pub sigma_albedo: f32,
+    /// Tolerance of the shading-normal difference (absolute).
+    pub sigma_normal: f32,
+    /// Leave a pixel's own variance out of its estimate, so that the estimate is independent
+    /// of the pixel's own PT samples.
+    pub exclude_centre: bool,
+}
+
+/// Largest supported filter radius.
+pub const MAX_RADIUS: usize = 15;
+
+impl Default for CbfOptions {
+    fn default() -> Self {
+        CbfOptions { radius: 5, sigma_colour: 0.25, sigma_albedo: 0.1, sigma_normal: 0.2, exclude_centre: true }
+    }
+}
+
+impl CbfOptions {
+    pub fn validate(&self) -> Result<(), ReconError> {
+        if self.radius == 0 || self.radius > MAX_RADIUS {
+            return Err(ReconError::option("cbf-radius", self.radius, format!("must be between 1 and {MAX_RADIUS} pixels")));
+        }
+        for (name, v) in [("cbf-sigma-colour", self.sigma_colour), ("cbf-sigma-albedo", self.sigma_albedo), ("cbf-sigma-normal", self.sigma_normal)] {
+            if !(v > 0.0 && v.is_finite()) {
+                return Err(ReconError::option(name, v, "must be a positive finite number"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The error estimate of every PT pixel mean, per channel. The caller has validated the input
+/// (a reference of the right size is present for `Oracle`).
+pub fn pt_errors(kind: ErrorEstimate, set: &StreamSet, reference: Option<&Image>, cbf: &CbfOptions) -> Vec<[f32; 3]> {
+    match kind {
+        ErrorEstimate::Variance => variance_of_mean(&set.pt),
+        ErrorEstimate::Cbf => cross_bilateral(&variance_of_mean(&set.pt), set, cbf),
+        ErrorEstimate::Oracle => {
+            let r = reference.expect("oracle errors need a reference (checked by Input::check)");
+            set.pt.mean.pixels.iter().zip(&r.pixels).map(|(h, r)| std::array::from_fn(|c| (h[c] - r[c]) * (h[c] - r[c]))).collect()
+        }
+    }
+}
+
+/// Smooths per-pixel values with the cross-bilateral filter described in [`CbfOptions`].
+pub fn cross_bilateral(values: &[[f32; 3]], set: &StreamSet, o: &CbfOptions) -> Vec<[f32; 3]> {
+    let (w, h) = (set.width, set.height);
+    let g = &set.crn.mean.pixels;
+    let mean_sq = g.iter().map(|p| p.iter().map(|v| (*v as f64).powi(2)).sum::<f64>()).sum::<f64>() / g.len().max(1) as f64;
+    let planes = Planes::new(values, set, (1e-3 * mean_sq).max(1e-30) as f32);
+    let r = o.radius;
+    let k = Gains {
+        colour: 0.5 / (o.sigma_colour * o.sigma_colour),
+        albedo: 0.5 / (o.sigma_albedo * o.sigma_albedo),
+        normal: 0.5 / (o.sigma_normal * o.sigma_normal),
+    };
+    let spatial: Vec<f32> = (0..=2 * r).map(|i| (i as f32 - r as f32).powi(2) * 0.5 / (r as f32 * r as f32)).collect();
+    let mut out = vec![[0.0f32; 3]; w * h];
+    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        #[cfg(target_arch = "x86_64")]
+        if std::is_x86_feature_detected!("avx2") {
+            // SAFETY: AVX2 support was just checked.
+            unsafe { cbf_row_avx2(&planes, &k, &spatial, r, o.exclude_centre, y, row) };
+            return;
+        }
+        cbf_row(&planes, &k, &spatial, r, o.exclude_centre, y, row);
+    });
+    out
+}
+
+/// Guide and value planes, one contiguous slice per quantity, so that a window row is a
+/// contiguous run the compiler can vectorise.
+struct Planes {
+    w: usize,
+    h: usize,
+    g: [Vec<f32>; 3],
+    /// `1 / (ε + |ḡ|²/2)`-style normaliser input: `|ḡ|²` and ε.
+    g2: Vec<f32>,
+    eps: f32,
+    features: Option<([Vec<f32>; 3], [Vec<f32>; 3])>,
+    v: [Vec<f32>; 3],
+}
+
+impl Planes {
+    fn new(values: &[[f32; 3]], set: &StreamSet, eps: f32) -> Self {
+        let plane = |im: &[[f32; 3]], c: usize| im.iter().map(|p| p[c]).collect::<Vec<f32>>();
+        let g = &set.crn.mean.pixels;
+        Planes {
+            w: set.width,
+            h: set.height,
+            g: std::array::from_fn(|c| plane(g, c)),
+            g2: g.iter().map(|p| p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).collect(),
+            eps,
+            features: set.features.as_ref().map(|f| {
+                (std::array::from_fn(|c| plane(&f.albedo.pixels, c)), std::array::from_fn(|c| plane(&f.normal.pixels, c)))
+            }),
+            v: std::array::from_fn(|c| plane(values, c)),
+        }
+    }
+}
+
+struct Gains {
+    colour: f32,
+    albedo: f32,
+    normal: f32,
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn cbf_row_avx2(p: &Planes, k: &Gains, spatial: &[f32], r: usize, exclude: bool, y: usize, row: &mut [[f32; 3]]) {
+    cbf_row(p, k, spatial, r, exclude, y, row)
+}
+
+#[inline(always)]
+fn cbf_row(p: &Planes, k: &Gains, spatial: &[f32], r: usize, exclude: bool, y: usize, row: &mut [[f32; 3]]) {
+    let (w, h) = (p.w, p.h);
+    let mut tbuf = [0.0f32; 2 * MAX_RADIUS + 1];
+    for (x, out) in row.iter_mut().enumerate() {
+        let c = y * w + x;
+        let (gc, g2c) = ([p.g[0][c], p.g[1][c], p.g[2][c]], p.g2[c]);
+        let mut acc = [[0.0f32; 8]; 4];
+        let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(w));
+        for yy in y.saturating_sub(r)..(y + r + 1).min(h) {
+            let dy2 = spatial[yy + r - y];
+            let (a, b) = (yy * w + x0, yy * w + x1);
+            let sp = &spatial[x0 + r - x..x1 + r - x];
+            let (g0, g1, g2, n2) = (&p.g[0][a..b], &p.g[1][a..b], &p.g[2][a..b], &p.g2[a..b]);
+            let (v0, v1, v2) = (&p.v[0][a..b], &p.v[1][a..b], &p.v[2][a..b]);
+            let n = b - a;
+            // Exponents first (element-wise, vectorises), then weights, then the sums.
+            let t = &mut tbuf[..n];
+            for j in 0..n {
+                let d = [gc[0] - g0[j], gc[1] - g1[j], gc[2] - g2[j]];
+                t[j] = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) / (p.eps + 0.5 * (g2c + n2[j])) * k.colour + (sp[j] + dy2);
+            }
+            if let Some((al, nm)) = &p.features {
+                let (ac, nc) = ([al[0][c], al[1][c], al[2][c]], [nm[0][c], nm[1][c], nm[2][c]]);
+                let (a0, a1, a2) = (&al[0][a..b], &al[1][a..b], &al[2][a..b]);
+                let (m0, m1, m2) = (&nm[0][a..b], &nm[1][a..b], &nm[2][a..b]);
+                for j in 0..n {
+                    let da = [ac[0] - a0[j], ac[1] - a1[j], ac[2] - a2[j]];
+                    let dn = [nc[0] - m0[j], nc[1] - m1[j], nc[2] - m2[j]];
+                    t[j] += (da[0] * da[0] + da[1] * da[1] + da[2] * da[2]) * k.albedo + (dn[0] * dn[0] + dn[1] * dn[1] + dn[2] * dn[2]) * k.normal;
+                }
+            }
+            for tj in t.iter_mut() {
+                *tj = exp_neg(-*tj);
+            }
+            for j in 0..n {
+                let (l, wt) = (j % 8, t[j]);
+                acc[0][l] += wt;
+                acc[1][l] += wt * v0[j];
+                acc[2][l] += wt * v1[j];
+                acc[3][l] += wt * v2[j];
+            }
+        }
+        let sum = |a: &[f32; 8]| ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]));
+        let (mut ws, mut s) = (sum(&acc[0]), [sum(&acc[1]), sum(&acc[2]), sum(&acc[3])]);
+        if exclude {
+            // The centre's own weight is exactly exp(0) = 1.
+            ws -= 1.0;
+            for ch in 0..3 {
+                s[ch] -= p.v[ch][c];
+            }
+        }
+        *out = if ws > 1e-6 { [s[0] / ws, s[1] / ws, s[2] / ws] } else { [p.v[0][c], p.v[1][c], p.v[2][c]] };
+    }
+}
+
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use cvtrace_streams::{Stream, StreamMeta};
+
+    fn flat_set(crn: Image) -> StreamSet {
+        StreamSet {
+            width: crn.width,
+            height: crn.height,
+            pt: Stream { mean: crn.clone(), batches: vec![] },
+            crn: Stream { mean: crn, batches: vec![] },
+            features: None,
+            meta: StreamMeta::default(),
+        }
+    }
+
+    #[test]
+    fn filter_averages_within_regions_and_keeps_edges() {
+        // Two CRN regions of very different colour; values alternate 0/2 in a checker within
+        // each region (mean 1 left, mean 10 right). The filter should return ≈ the region mean
+        // and not mix the regions.
+        let crn = Image::from_fn(16, 16, |x, _| if x < 8 { [0.1; 3] } else { [5.0; 3] });
+        let set = flat_set(crn);
+        let vals: Vec<[f32; 3]> = (0..256)
+            .map(|i| {
+                let (x, y) = (i % 16, i / 16);
+                let base = if x < 8 { 1.0 } else { 10.0 };
+                [if (x + y) % 2 == 0 { 0.0 } else { 2.0 * base }; 3]
+            })
+            .collect();
+        let o = CbfOptions { radius: 3, ..Default::default() };
+        let f = cross_bilateral(&vals, &set, &o);
+        for y in 3..13 {
+            for x in [2usize, 5, 10, 13] {
+                let want = if x < 8 { 1.0 } else { 10.0 };
+                let got = f[y * 16 + x][0];
+                assert!((got - want).abs() < 0.2 * want, "({x},{y}) {got} vs {want}");
+            }
+        }
+    }
+}

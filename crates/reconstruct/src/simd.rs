@@ -1,0 +1,174 @@
+//! The few vector kernels of the per-pixel solve, in two builds with identical arithmetic.
+//!
+//! The compiler does not reliably vectorise these fixed-size loops at full width, so the
+//! AVX2 build uses explicit intrinsics. The portable build performs the same IEEE operations
+//! in the same order per element (no fused multiply-add anywhere, fixed lane structure for
+//! sums), so both produce bit-identical results and the output does not depend on the CPU.
+
+/// Vector kernels over fixed-width rows (`P` a multiple of 8).
+pub(crate) trait Simd {
+    /// For `q < 4`, `l < 8`: `Σ_j (c_j · d_j[a0+q]) · d_j[b0+l]` over `j < k`, summed in `j` order.
+    fn gram_block<const P: usize>(d: &[[f32; P]], c: &[f32], a0: usize, b0: usize) -> [[f32; 8]; 4];
+    /// `y[l] += a · x[l]`.
+    fn axpy<const P: usize>(y: &mut [f64; P], a: f64, x: &[f64; P]);
+    /// `Σ a[l]·b[l]` with four lane sums combined as `(s0 + s1) + (s2 + s3)`.
+    fn dot<const P: usize>(a: &[f64; P], b: &[f64; P]) -> f64;
+    /// `Σ a[l]·b[l]` with eight lane sums combined pairwise.
+    fn dot32<const P: usize>(a: &[f32; P], b: &[f32; P]) -> f32;
+}
+
+pub(crate) struct Portable;
+
+impl Simd for Portable {
+    #[inline(always)]
+    fn gram_block<const P: usize>(d: &[[f32; P]], c: &[f32], a0: usize, b0: usize) -> [[f32; 8]; 4] {
+        let mut acc = [[0.0f32; 8]; 4];
+        for (r, &cj) in d.iter().zip(c) {
+            for q in 0..4 {
+                let ra = cj * r[a0 + q];
+                for l in 0..8 {
+                    acc[q][l] += ra * r[b0 + l];
+                }
+            }
+        }
+        acc
+    }
+
+    #[inline(always)]
+    fn axpy<const P: usize>(y: &mut [f64; P], a: f64, x: &[f64; P]) {
+        for l in 0..P {
+            y[l] += a * x[l];
+        }
+    }
+
+    #[inline(always)]
+    fn dot<const P: usize>(a: &[f64; P], b: &[f64; P]) -> f64 {
+        let mut acc = [0.0f64; 4];
+        for i in (0..P).step_by(4) {
+            for l in 0..4 {
+                acc[l] += a[i + l] * b[i + l];
+            }
+        }
+        (acc[0] + acc[1]) + (acc[2] + acc[3])
+    }
+
+    #[inline(always)]
+    fn dot32<const P: usize>(a: &[f32; P], b: &[f32; P]) -> f32 {
+        let mut acc = [0.0f32; 8];
+        for i in (0..P).step_by(8) {
+            for l in 0..8 {
+                acc[l] += a[i + l] * b[i + l];
+            }
+        }
+        ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]))
+    }
+}
+
+/// AVX2 build; only used after `is_x86_feature_detected!("avx2")`, from functions compiled
+/// with `#[target_feature(enable = "avx2")]`.
+#[cfg(target_arch = "x86_64")]
+pub(crate) struct Avx2;
+
+#[cfg(target_arch = "x86_64")]
+impl Simd for Avx2 {
+    #[inline(always)]
+    fn gram_block<const P: usize>(d: &[[f32; P]], c: &[f32], a0: usize, b0: usize) -> [[f32; 8]; 4] {
+        use std::arch::x86_64::*;
+        assert!(a0 + 4 <= P && b0 + 8 <= P);
+        // SAFETY: AVX2 is available (see the type's contract); loads stay inside each row
+        // (asserted above).
+        unsafe {
+            let mut acc = [_mm256_setzero_ps(); 4];
+            for (r, &cj) in d.iter().zip(c) {
+                let p = r.as_ptr();
+                let rb = _mm256_loadu_ps(p.add(b0));
+                for (q, a) in acc.iter_mut().enumerate() {
+                    let ra = _mm256_set1_ps(cj * *p.add(a0 + q));
+                    *a = _mm256_add_ps(*a, _mm256_mul_ps(ra, rb));
+                }
+            }
+            let mut out = [[0.0f32; 8]; 4];
+            for (o, a) in out.iter_mut().zip(acc) {
+                _mm256_storeu_ps(o.as_mut_ptr(), a);
+            }
+            out
+        }
+    }
+
+    #[inline(always)]
+    fn axpy<const P: usize>(y: &mut [f64; P], a: f64, x: &[f64; P]) {
+        use std::arch::x86_64::*;
+        // SAFETY: AVX2 is available; P is a multiple of 4, so every load/store is in bounds.
+        unsafe {
+            let av = _mm256_set1_pd(a);
+            for i in (0..P).step_by(4) {
+                let yp = y.as_mut_ptr().add(i);
+                let t = _mm256_mul_pd(av, _mm256_loadu_pd(x.as_ptr().add(i)));
+                _mm256_storeu_pd(yp, _mm256_add_pd(_mm256_loadu_pd(yp), t));
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn dot<const P: usize>(a: &[f64; P], b: &[f64; P]) -> f64 {
+        use std::arch::x86_64::*;
+        // SAFETY: AVX2 is available; P is a multiple of 4.
+        unsafe {
+            let mut acc = _mm256_setzero_pd();
+            for i in (0..P).step_by(4) {
+                acc = _mm256_add_pd(acc, _mm256_mul_pd(_mm256_loadu_pd(a.as_ptr().add(i)), _mm256_loadu_pd(b.as_ptr().add(i))));
+            }
+            let mut l = [0.0f64; 4];
+            _mm256_storeu_pd(l.as_mut_ptr(), acc);
+            (l[0] + l[1]) + (l[2] + l[3])
+        }
+    }
+
+    #[inline(always)]
+    fn dot32<const P: usize>(a: &[f32; P], b: &[f32; P]) -> f32 {
+        use std::arch::x86_64::*;
+        // SAFETY: AVX2 is available; P is a multiple of 8.
+        unsafe {
+            let mut acc = _mm256_setzero_ps();
+            for i in (0..P).step_by(8) {
+                acc = _mm256_add_ps(acc, _mm256_mul_ps(_mm256_loadu_ps(a.as_ptr().add(i)), _mm256_loadu_ps(b.as_ptr().add(i))));
+            }
+            let mut l = [0.0f32; 8];
+            _mm256_storeu_ps(l.as_mut_ptr(), acc);
+            ((l[0] + l[1]) + (l[2] + l[3])) + ((l[4] + l[5]) + (l[6] + l[7]))
+        }
+    }
+}
+
+#[cfg(all(test, target_arch = "x86_64"))]
+mod tests {
+    use super::*;
+    use crate::rng::{hash4, uniform};
+
+    #[target_feature(enable = "avx2")]
+    fn avx_results(d: &[[f32; 16]], c: &[f32], x: &[f64; 16], y: &[f64; 16]) -> ([[f32; 8]; 4], [f64; 16], f64, f32) {
+        let mut yy = *y;
+        Avx2::axpy(&mut yy, -0.37, x);
+        (Avx2::gram_block(d, c, 4, 8), yy, Avx2::dot(x, y), Avx2::dot32(&d[0], &d[1]))
+    }
+
+    #[test]
+    fn avx2_and_portable_agree_bit_for_bit() {
+        if !std::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let u = |a: u64, b: u64| uniform(hash4(5, a, b, 0)) - 0.5;
+        let d: Vec<[f32; 16]> = (0..25).map(|j| std::array::from_fn(|b| u(j, b as u64) as f32)).collect();
+        let c: Vec<f32> = (0..25).map(|j| u(99, j) as f32 + 1.0).collect();
+        let x: [f64; 16] = std::array::from_fn(|i| u(7, i as u64) * 1e3);
+        let y: [f64; 16] = std::array::from_fn(|i| u(8, i as u64) * 1e-3);
+        // SAFETY: AVX2 detected above.
+        let (g, yy, dt, d32) = unsafe { avx_results(&d, &c, &x, &y) };
+        let mut py = y;
+        Portable::axpy(&mut py, -0.37, &x);
+        assert_eq!(g, Portable::gram_block(&d, &c, 4, 8));
+        assert_eq!(yy, py);
+        assert_eq!(dt.to_bits(), Portable::dot(&x, &y).to_bits());
+        assert_eq!(d32.to_bits(), Portable::dot32(&d[0], &d[1]).to_bits());
+    }
+}
