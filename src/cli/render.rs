@@ -1,7 +1,536 @@
-//! `cvtrace render` (work in progress).
-#[derive(clap::Args)]
-pub struct RenderArgs {}
+//! `cvtrace render`: a glTF scene → a PT/CRN stream file, or (`--reference`) a progressive,
+//! resumable PT-only reference image.
+//!
+//! Everything that can be checked cheaply (flags, output path, scene) is checked before the
+//! render starts, so a long render never fails at the end for a reason known at the start.
+//! Outputs are written atomically: an error or interruption never leaves a partial file.
+use anyhow::{bail, Context, Result};
+use cvtrace::{set_flush_denormals, EmbreeScene};
+use cvtrace_render::{render_reference_pass, render_streams, Camera, ReferenceAccum, RenderSettings, Scene};
+use cvtrace_streams::atomic::check_writable;
+use cvtrace_streams::exr_io::{write_rgb, AttrValue, ExrChannels};
+use glam::Vec3;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
 
-pub fn run(_args: RenderArgs) -> anyhow::Result<()> {
-    anyhow::bail!("render is not implemented yet")
+/// Image width used when neither --width nor --height is given.
+const DEFAULT_WIDTH: u32 = 256;
+
+#[derive(clap::Args, Debug)]
+pub struct RenderArgs {
+    /// glTF 2.0 scene (.gltf with its buffers, or .glb).
+    pub scene: PathBuf,
+    /// Output: a stream file (e.g. cbox.streams.exr), or with --reference an RGB EXR.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Image width (default 256, or from --height and the camera's aspect ratio).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height (default: from the width and the camera's aspect ratio).
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Samples per pixel of each stream (or of the reference).
+    #[arg(long, default_value_t = 64)]
+    pub spp: u32,
+    /// Batches per stream (must divide --spp; default 8). Not used with --reference.
+    #[arg(long)]
+    pub batches: Option<u32>,
+    /// Random seed: the same seed and settings give bit-identical output.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Longest path in segments from the camera (Mitsuba convention), -1 for unlimited.
+    #[arg(long, default_value_t = -1, allow_negative_numbers = true)]
+    pub max_depth: i32,
+    /// Path depth at which Russian roulette starts.
+    #[arg(long, default_value_t = 5)]
+    pub rr_depth: u32,
+    /// Override the scene camera: "ex,ey,ez:tx,ty,tz:vfov_degrees" (eye, target, vertical FOV; up stays).
+    #[arg(long, value_name = "EYE:TARGET:FOV")]
+    pub camera: Option<String>,
+    /// Render a PT-only reference image, progressively, resumable from a checkpoint next to the output.
+    #[arg(long)]
+    pub reference: bool,
+    /// With --reference: samples per pixel per pass; a checkpoint is saved after every pass.
+    #[arg(long, default_value_t = 64)]
+    pub pass_spp: u32,
+    /// Replace an existing output file.
+    #[arg(long)]
+    pub force: bool,
+    /// Testing aid: with --reference, stop (keeping the checkpoint) after this many passes.
+    #[arg(long, hide = true)]
+    pub stop_after_passes: Option<u32>,
+}
+
+pub fn run(args: RenderArgs) -> Result<()> {
+    // Cheap checks first: flags, then whether the output can be written at all.
+    let batches = match (args.reference, args.batches) {
+        (true, Some(_)) => bail!("--batches does not apply to --reference renders (they have a single PT stream)"),
+        (true, None) => 1,
+        (false, b) => b.unwrap_or(8),
+    };
+    if args.reference && args.pass_spp == 0 {
+        bail!("--pass-spp must be at least 1");
+    }
+    let provisional = RenderSettings {
+        width: args.width.unwrap_or(DEFAULT_WIDTH),
+        height: args.height.unwrap_or(DEFAULT_WIDTH),
+        spp: args.spp,
+        batches,
+        seed: args.seed,
+        max_depth: args.max_depth,
+        rr_depth: args.rr_depth,
+    };
+    provisional.validate().map_err(flat)?;
+    let camera_override = args.camera.as_deref().map(parse_camera).transpose()?;
+    check_writable(&args.output, args.force).map_err(flat)?;
+    let checkpoint = checkpoint_path(&args.output);
+    if args.reference {
+        if checkpoint.is_dir() {
+            bail!("{}: the checkpoint path is a directory", checkpoint.display());
+        }
+        // The checkpoint is replaced after every pass, so its location must be writable too.
+        check_writable(&checkpoint, true).map_err(flat)?;
+    }
+
+    // Denormal flushing in this thread too, for any work rayon runs on the caller.
+    set_flush_denormals();
+
+    let t = Instant::now();
+    let mut scene = Scene::load(&args.scene).map_err(flat)?;
+    tracing::info!(
+        "loaded {} in {:.1} ms: {} triangles, {} materials",
+        args.scene.display(),
+        ms(t),
+        scene.triangles().len(),
+        scene.materials().len()
+    );
+    if let Some(view) = camera_override {
+        let c = scene.camera().clone();
+        let camera = Camera { eye: view.eye, target: view.target, vfov_deg: view.vfov_deg, ..c };
+        camera.validate().map_err(|m| anyhow::anyhow!("--camera: {m}"))?;
+        scene.set_camera(camera);
+    }
+    let (width, height) = image_size(args.width, args.height, scene.camera());
+    let settings = RenderSettings { width, height, ..provisional };
+    settings.validate().map_err(flat)?;
+
+    let tracer = EmbreeScene::build(scene.positions(), scene.triangles()).context("building the Embree BVH")?;
+    // FTZ/DAZ in every render thread (Embree's advice), whatever the thread count: a local
+    // pool of the configured size (the global one follows --threads) with a start handler.
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(rayon::current_num_threads())
+        .thread_name(|i| format!("cvtrace-render-{i}"))
+        .start_handler(|_| set_flush_denormals())
+        .build()
+        .context("starting the render threads")?;
+
+    if args.reference {
+        render_reference(&args, &scene, &tracer, &settings, &checkpoint, &pool)
+    } else {
+        render_stream_file(&args, &scene, &tracer, &settings, &pool)
+    }
+}
+
+fn render_stream_file(args: &RenderArgs, scene: &Scene, tracer: &EmbreeScene, s: &RenderSettings, pool: &rayon::ThreadPool) -> Result<()> {
+    let total = s.width as u64 * s.height as u64 * s.spp as u64 * 2;
+    tracing::info!(
+        "rendering {}x{}, {} spp x 2 streams ({} batches), max depth {}, seed {} on {} threads",
+        s.width,
+        s.height,
+        s.spp,
+        s.batches,
+        s.max_depth,
+        s.seed,
+        pool.current_num_threads()
+    );
+    let bar = progress_bar(total, 0);
+    let t = Instant::now();
+    let result = pool.install(|| render_streams(scene, tracer, s, &|k| bar.inc(k)));
+    bar.finish_and_clear();
+    let mut set = result.map_err(flat)?;
+    log_rate("render", total, t);
+    set.meta.scene = args.scene.to_string_lossy().into_owned();
+    let t = Instant::now();
+    set.write(&args.output, args.force).map_err(flat)?;
+    tracing::info!("wrote {} in {:.1} ms", args.output.display(), ms(t));
+    Ok(())
+}
+
+fn render_reference(
+    args: &RenderArgs,
+    scene: &Scene,
+    tracer: &EmbreeScene,
+    s: &RenderSettings,
+    checkpoint: &Path,
+    pool: &rayon::ThreadPool,
+) -> Result<()> {
+    let identity = CheckpointIdentity::new(scene, s);
+    let mut accum = match load_checkpoint(checkpoint, &identity)? {
+        Some(a) => {
+            tracing::info!("resuming from {} at {} of {} spp", checkpoint.display(), a.samples_done, s.spp);
+            a
+        }
+        None => ReferenceAccum::new(s),
+    };
+    if accum.samples_done > s.spp {
+        bail!(
+            "{}: the checkpoint already holds {} spp, more than --spp {}; render with --spp {} or delete it",
+            checkpoint.display(),
+            accum.samples_done,
+            s.spp,
+            accum.samples_done
+        );
+    }
+    let pixels = s.width as u64 * s.height as u64;
+    tracing::info!(
+        "rendering a reference {}x{}, {} spp in passes of {}, max depth {}, seed {} on {} threads",
+        s.width,
+        s.height,
+        s.spp,
+        args.pass_spp,
+        s.max_depth,
+        s.seed,
+        pool.current_num_threads()
+    );
+    let bar = progress_bar(pixels * s.spp as u64, pixels * accum.samples_done as u64);
+    let t = Instant::now();
+    let start_samples = accum.samples_done;
+    let mut passes = 0;
+    while accum.samples_done < s.spp {
+        let range = accum.samples_done..accum.samples_done.saturating_add(args.pass_spp).min(s.spp);
+        let r = pool.install(|| render_reference_pass(scene, tracer, s, &mut accum, range, &|k| bar.inc(k)));
+        if let Err(e) = r {
+            bar.finish_and_clear();
+            return Err(flat(e));
+        }
+        passes += 1;
+        let done = accum.samples_done >= s.spp;
+        let stop = args.stop_after_passes.is_some_and(|n| passes >= n);
+        if !done {
+            bar.suspend(|| save_checkpoint(checkpoint, &accum, &identity))?;
+        }
+        if stop && !done {
+            bar.finish_and_clear();
+            tracing::info!(
+                "stopped after {passes} passes as asked: {} of {} spp saved in {}",
+                accum.samples_done,
+                s.spp,
+                checkpoint.display()
+            );
+            return Ok(());
+        }
+    }
+    bar.finish_and_clear();
+    log_rate("render", pixels * (accum.samples_done - start_samples) as u64, t);
+
+    let t = Instant::now();
+    let attributes = [
+        ("cvtrace.spp", AttrValue::Int(accum.samples_done as i32)),
+        ("cvtrace.seed", AttrValue::Text(s.seed.to_string())),
+        ("cvtrace.maxDepth", AttrValue::Int(s.max_depth)),
+        ("cvtrace.rrDepth", AttrValue::Int(s.rr_depth as i32)),
+        ("cvtrace.scene", AttrValue::Text(args.scene.to_string_lossy().into_owned())),
+        ("cvtrace.version", AttrValue::Text(env!("CARGO_PKG_VERSION").to_string())),
+        ("cvtrace.nonFiniteSamples", AttrValue::Text(accum.non_finite_samples.to_string())),
+    ];
+    if let Err(e) = write_rgb(&args.output, &accum.mean(), &attributes, args.force) {
+        // Keep the finished work: the next run with the same settings only has to write.
+        let _ = save_checkpoint(checkpoint, &accum, &identity);
+        return Err(flat(e));
+    }
+    tracing::info!("wrote {} in {:.1} ms", args.output.display(), ms(t));
+    if checkpoint.exists() {
+        std::fs::remove_file(checkpoint).with_context(|| format!("{}: could not remove the finished checkpoint", checkpoint.display()))?;
+    }
+    Ok(())
+}
+
+/// `cbox.ref.exr` → `cbox.ref.checkpoint.exr` (other names get `.checkpoint.exr` appended).
+fn checkpoint_path(output: &Path) -> PathBuf {
+    let name = output.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let stem = name.strip_suffix(".exr").unwrap_or(&name);
+    output.with_file_name(format!("{stem}.checkpoint.exr"))
+}
+
+/// Everything a checkpoint must agree on with the current run for its sums to be continued.
+/// The sample count is not part of it: passes add samples in index order, so any later
+/// target (at least the samples done) continues the same sequence.
+#[derive(Debug, PartialEq)]
+struct CheckpointIdentity {
+    width: u32,
+    height: u32,
+    seed: u64,
+    max_depth: i32,
+    rr_depth: u32,
+    /// Hash of the loaded scene (geometry, materials, textures, lights, final camera).
+    scene_hash: String,
+    camera: String,
+}
+
+const CKPT_KIND: (&str, &str) = ("cvtrace.checkpoint", "reference-v1");
+
+impl CheckpointIdentity {
+    fn new(scene: &Scene, s: &RenderSettings) -> Self {
+        let c = scene.camera();
+        CheckpointIdentity {
+            width: s.width,
+            height: s.height,
+            seed: s.seed,
+            max_depth: s.max_depth,
+            rr_depth: s.rr_depth,
+            scene_hash: format!("{:016x}", scene_hash(scene)),
+            camera: format!("eye {} target {} up {} vfov {}", c.eye, c.target, c.up, c.vfov_deg),
+        }
+    }
+
+    fn attributes(&self) -> Vec<(&'static str, AttrValue)> {
+        vec![
+            (CKPT_KIND.0, AttrValue::Text(CKPT_KIND.1.into())),
+            ("cvtrace.seed", AttrValue::Text(self.seed.to_string())),
+            ("cvtrace.maxDepth", AttrValue::Int(self.max_depth)),
+            ("cvtrace.rrDepth", AttrValue::Int(self.rr_depth as i32)),
+            ("cvtrace.sceneHash", AttrValue::Text(self.scene_hash.clone())),
+            ("cvtrace.camera", AttrValue::Text(self.camera.clone())),
+            ("cvtrace.version", AttrValue::Text(env!("CARGO_PKG_VERSION").into())),
+        ]
+    }
+
+    fn from_file(ch: &ExrChannels, path: &Path) -> Result<Self> {
+        let text = |k: &str| -> Result<String> {
+            ch.attr(k).map(|v| v.as_text()).with_context(|| format!("{}: checkpoint lacks the attribute {k}", path.display()))
+        };
+        if text(CKPT_KIND.0)? != CKPT_KIND.1 {
+            bail!("{}: not a cvtrace {} checkpoint", path.display(), CKPT_KIND.1);
+        }
+        let version = text("cvtrace.version")?;
+        if version != env!("CARGO_PKG_VERSION") {
+            bail!(
+                "{}: checkpoint written by cvtrace {version}, this is {}; delete it to start over",
+                path.display(),
+                env!("CARGO_PKG_VERSION")
+            );
+        }
+        let parse = |k: &str| -> Result<i64> {
+            text(k)?.parse::<i64>().with_context(|| format!("{}: attribute {k} is not an integer", path.display()))
+        };
+        Ok(CheckpointIdentity {
+            width: ch.width as u32,
+            height: ch.height as u32,
+            seed: text("cvtrace.seed")?.parse().with_context(|| format!("{}: bad cvtrace.seed", path.display()))?,
+            max_depth: parse("cvtrace.maxDepth")? as i32,
+            rr_depth: parse("cvtrace.rrDepth")? as u32,
+            scene_hash: text("cvtrace.sceneHash")?,
+            camera: text("cvtrace.camera")?,
+        })
+    }
+
+    /// Human-readable differences, for the mismatch error.
+    fn differences(&self, other: &Self) -> Vec<String> {
+        let mut d = Vec::new();
+        let mut cmp = |what: &str, a: String, b: String| {
+            if a != b {
+                d.push(format!("{what} {b} (checkpoint) vs {a} (now)"));
+            }
+        };
+        cmp("size", format!("{}x{}", self.width, self.height), format!("{}x{}", other.width, other.height));
+        cmp("seed", self.seed.to_string(), other.seed.to_string());
+        cmp("max depth", self.max_depth.to_string(), other.max_depth.to_string());
+        cmp("rr depth", self.rr_depth.to_string(), other.rr_depth.to_string());
+        cmp("scene hash", self.scene_hash.clone(), other.scene_hash.clone());
+        cmp("camera", self.camera.clone(), other.camera.clone());
+        d
+    }
+}
+
+/// The f64 running sums are stored exactly, as four 16-bit pieces per value in f32 channels
+/// (integers below 2^24 are exact in f32); R, G, B hold the mean so far for viewing.
+const SUM_PIECES: usize = 4;
+
+fn sum_channel(c: usize, piece: usize) -> String {
+    format!("sum.{}.w{piece}", ["R", "G", "B"][c])
+}
+
+fn save_checkpoint(path: &Path, accum: &ReferenceAccum, identity: &CheckpointIdentity) -> Result<()> {
+    let t = Instant::now();
+    let (w, h) = (accum.width as usize, accum.height as usize);
+    let mut ch = ExrChannels::new(w, h);
+    let mean = accum.mean();
+    for (c, name) in ["R", "G", "B"].iter().enumerate() {
+        ch.insert(*name, mean.channel(c));
+        for piece in 0..SUM_PIECES {
+            let plane = accum.sum.iter().map(|s| ((s[c].to_bits() >> (16 * piece)) & 0xffff) as f32).collect();
+            ch.insert(sum_channel(c, piece), plane);
+        }
+    }
+    for (k, v) in identity.attributes() {
+        ch.attributes.insert(k.to_string(), v);
+    }
+    ch.attributes.insert("cvtrace.samplesDone".into(), AttrValue::Int(accum.samples_done as i32));
+    ch.attributes.insert("cvtrace.nonFiniteSamples".into(), AttrValue::Text(accum.non_finite_samples.to_string()));
+    ch.write(path, true).map_err(flat)?;
+    tracing::debug!("checkpoint {} ({} spp) written in {:.1} ms", path.display(), accum.samples_done, ms(t));
+    Ok(())
+}
+
+/// The accumulator saved at `path`, `None` if there is no checkpoint, or an error if it
+/// belongs to a different render.
+fn load_checkpoint(path: &Path, identity: &CheckpointIdentity) -> Result<Option<ReferenceAccum>> {
+    if !path.exists() {
+        return Ok(None);
+    }
+    let mut ch = ExrChannels::read(path).map_err(flat)?;
+    let saved = CheckpointIdentity::from_file(&ch, path)?;
+    let diff = identity.differences(&saved);
+    if !diff.is_empty() {
+        bail!(
+            "{}: checkpoint of a different render ({}); render with its settings to resume, or delete it to start over",
+            path.display(),
+            diff.join(", ")
+        );
+    }
+    let samples_done = match ch.attr("cvtrace.samplesDone") {
+        Some(AttrValue::Int(n)) if *n >= 0 => *n as u32,
+        _ => bail!("{}: checkpoint lacks a valid cvtrace.samplesDone", path.display()),
+    };
+    let non_finite_samples = ch.attr("cvtrace.nonFiniteSamples").and_then(|v| v.as_text().parse().ok()).unwrap_or(0);
+    let n = ch.width * ch.height;
+    let mut bits = vec![[0u64; 3]; n];
+    for c in 0..3 {
+        for piece in 0..SUM_PIECES {
+            let plane = ch.take(path, &sum_channel(c, piece))?;
+            for (b, v) in bits.iter_mut().zip(plane) {
+                if !(0.0..=65535.0).contains(&v) || v.fract() != 0.0 {
+                    bail!("{}: channel {} is corrupt", path.display(), sum_channel(c, piece));
+                }
+                b[c] |= (v as u64) << (16 * piece);
+            }
+        }
+    }
+    let sum: Vec<[f64; 3]> = bits.iter().map(|b| b.map(f64::from_bits)).collect();
+    if sum.iter().flatten().any(|v| !v.is_finite()) {
+        bail!("{}: checkpoint sums are not finite", path.display());
+    }
+    Ok(Some(ReferenceAccum {
+        width: identity.width,
+        height: identity.height,
+        sum,
+        samples_done,
+        seed: identity.seed,
+        max_depth: identity.max_depth,
+        rr_depth: identity.rr_depth,
+        non_finite_samples,
+    }))
+}
+
+/// FNV-1a over the scene's debug form: any change in geometry, materials, textures or
+/// camera changes it, without needing a serialisation format.
+fn scene_hash(scene: &Scene) -> u64 {
+    struct Fnv(u64);
+    impl std::fmt::Write for Fnv {
+        fn write_str(&mut self, s: &str) -> std::fmt::Result {
+            for b in s.bytes() {
+                self.0 = (self.0 ^ b as u64).wrapping_mul(0x100_0000_01b3);
+            }
+            Ok(())
+        }
+    }
+    let mut h = Fnv(0xcbf2_9ce4_8422_2325);
+    let _ = std::fmt::Write::write_fmt(&mut h, format_args!("{scene:?}"));
+    h.0
+}
+
+/// Eye, target and vertical field of view from `--camera`.
+struct CameraView {
+    eye: Vec3,
+    target: Vec3,
+    vfov_deg: f32,
+}
+
+fn parse_camera(s: &str) -> Result<CameraView> {
+    let usage = "expected --camera \"ex,ey,ez:tx,ty,tz:vfov\", e.g. \"278,273,-800:278,273,0:37\"";
+    let parts: Vec<&str> = s.split(':').collect();
+    if parts.len() != 3 {
+        bail!("--camera {s:?}: {usage}");
+    }
+    let vec3 = |p: &str| -> Result<Vec3> {
+        let v: Vec<f32> =
+            p.split(',').map(|x| x.trim().parse::<f32>()).collect::<Result<_, _>>().with_context(|| format!("--camera {s:?}: {usage}"))?;
+        match v[..] {
+            [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Vec3::new(x, y, z)),
+            _ => bail!("--camera {s:?}: {usage}"),
+        }
+    };
+    let vfov_deg: f32 = parts[2].trim().parse().with_context(|| format!("--camera {s:?}: {usage}"))?;
+    Ok(CameraView { eye: vec3(parts[0])?, target: vec3(parts[1])?, vfov_deg })
+}
+
+/// The render size: explicit flags win; a missing side follows the camera's aspect ratio.
+fn image_size(width: Option<u32>, height: Option<u32>, camera: &Camera) -> (u32, u32) {
+    let aspect = camera.width.max(1) as f64 / camera.height.max(1) as f64;
+    let from_aspect = |v: f64| v.round().clamp(1.0, u32::MAX as f64) as u32;
+    match (width, height) {
+        (Some(w), Some(h)) => (w, h),
+        (Some(w), None) => (w, from_aspect(w as f64 / aspect)),
+        (None, Some(h)) => (from_aspect(h as f64 * aspect), h),
+        (None, None) => (DEFAULT_WIDTH, from_aspect(DEFAULT_WIDTH as f64 / aspect)),
+    }
+}
+
+/// A progress bar on stderr, drawn only when stderr is a terminal.
+fn progress_bar(total: u64, done: u64) -> ProgressBar {
+    let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
+    let style = ProgressStyle::with_template(
+        "{elapsed_precise} [{bar:40.cyan/blue}] {percent:>3}% {human_pos}/{human_len} samples, {per_sec}, ETA {eta}",
+    )
+    .unwrap_or_else(|_| ProgressStyle::default_bar());
+    bar.set_style(style);
+    bar.set_position(done);
+    bar.reset_eta();
+    bar
+}
+
+fn log_rate(phase: &str, samples: u64, start: Instant) {
+    let secs = start.elapsed().as_secs_f64();
+    let rate = if secs > 0.0 { samples as f64 / secs } else { 0.0 };
+    tracing::info!("{phase}: {samples} samples in {secs:.2} s ({:.2} M samples/s)", rate / 1e6);
+}
+
+/// The library errors already name the file and embed their cause in their message; keeping
+/// their `source()` chain would print the cause twice under `{:#}`.
+fn flat(e: impl std::fmt::Display) -> anyhow::Error {
+    anyhow::anyhow!("{e}")
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn camera_flag_parses_and_rejects_garbage() {
+        let v = parse_camera("278,273,-800:278,273,0:37").unwrap();
+        assert_eq!((v.eye, v.target, v.vfov_deg), (Vec3::new(278.0, 273.0, -800.0), Vec3::new(278.0, 273.0, 0.0), 37.0));
+        for bad in ["1,2:3,4,5:6", "1,2,3:4,5,6", "a,b,c:1,2,3:4", "1,2,3:4,5,6:x", "1,2,3,4:5,6,7:8", "nan,0,0:1,1,1:30"] {
+            assert!(parse_camera(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn missing_side_follows_the_camera_aspect() {
+        let cam = Camera { width: 640, height: 480, ..Camera::default() };
+        assert_eq!(image_size(None, None, &cam), (256, 192));
+        assert_eq!(image_size(Some(320), None, &cam), (320, 240));
+        assert_eq!(image_size(None, Some(300), &cam), (400, 300));
+        assert_eq!(image_size(Some(7), Some(9), &cam), (7, 9));
+    }
+
+    #[test]
+    fn checkpoint_sits_next_to_the_output() {
+        assert_eq!(checkpoint_path(Path::new("out/cbox.ref.exr")), Path::new("out/cbox.ref.checkpoint.exr"));
+        assert_eq!(checkpoint_path(Path::new("ref")), Path::new("ref.checkpoint.exr"));
+    }
 }

@@ -1,0 +1,220 @@
+//! `cvtrace render` end to end: runs the built binary on small renders of the shipped
+//! Cornell box and checks files, determinism, resumable references and error handling.
+use cvtrace_streams::exr_io::{AttrValue, ExrChannels};
+use cvtrace_streams::StreamSet;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn scene() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box/scene.gltf")
+}
+
+/// Runs `cvtrace <args>` in `dir`.
+fn cvtrace(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_cvtrace")).args(args).current_dir(dir).output().expect("the cvtrace binary runs")
+}
+
+fn ok(out: &Output) {
+    assert!(out.status.success(), "cvtrace failed ({}):\n{}", out.status, String::from_utf8_lossy(&out.stderr));
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+fn files_in(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    v.sort();
+    v
+}
+
+/// Channels compared bit for bit, and attributes. (Whole files are not compared byte for
+/// byte: the `exr` crate writes custom header attributes in hash-map order, which varies
+/// from process to process; the pixel data does not.)
+fn assert_same_content(a: &Path, b: &Path) {
+    let (x, y) = (ExrChannels::read(a).unwrap(), ExrChannels::read(b).unwrap());
+    assert_eq!((x.width, x.height), (y.width, y.height));
+    assert_eq!(x.channels.keys().collect::<Vec<_>>(), y.channels.keys().collect::<Vec<_>>());
+    for (name, pa) in &x.channels {
+        let pb = &y.channels[name];
+        let first = pa.iter().zip(pb).position(|(u, v)| u.to_bits() != v.to_bits());
+        assert!(first.is_none(), "{name} differs at pixel {}: {} vs {}", first.unwrap(), pa[first.unwrap()], pb[first.unwrap()]);
+    }
+    assert_eq!(x.attributes, y.attributes);
+}
+
+fn tool_available(name: &str) -> bool {
+    Command::new(name).arg("--help").output().is_ok()
+}
+
+const SMALL: &[&str] = &["--width", "32", "--height", "32", "--max-depth", "6"];
+
+#[test]
+fn stream_file_has_every_channel_and_openimageio_reads_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    let args = |out: &'static str| {
+        [&["--log", "warn", "render", sp, "--spp", "8", "--batches", "4", "--seed", "7", "-o", out][..], SMALL].concat()
+    };
+    ok(&cvtrace(dir.path(), &args("a.streams.exr")));
+
+    let ch = ExrChannels::read(&dir.path().join("a.streams.exr")).unwrap();
+    assert_eq!((ch.width, ch.height), (32, 32));
+    let mut expected: Vec<String> = Vec::new();
+    for stream in ["pt", "crn"] {
+        for prefix in std::iter::once(format!("{stream}.")).chain((0..4).map(|b| format!("{stream}.b{b:02}."))) {
+            expected.extend(["R", "G", "B"].map(|c| format!("{prefix}{c}")));
+        }
+    }
+    expected.extend(["albedo.R", "albedo.G", "albedo.B", "normal.X", "normal.Y", "normal.Z", "depth.Z"].map(String::from));
+    for name in &expected {
+        assert!(ch.channels.contains_key(name), "missing channel {name}; have {:?}", ch.channels.keys());
+    }
+    assert_eq!(ch.channels.len(), expected.len(), "unexpected extra channels: {:?}", ch.channels.keys());
+
+    let set = StreamSet::read(&dir.path().join("a.streams.exr")).unwrap();
+    assert_eq!((set.meta.spp, set.meta.seed, set.meta.max_depth), (8, 7, 6));
+    assert_eq!(set.meta.scene, sp, "meta.scene records the scene path");
+    assert_eq!(set.batch_count(), 4);
+    // The box is lit: the image is not black, and PT and CRN render the same scene.
+    let mean = |im: &cvtrace_streams::Image| im.pixels.iter().map(|p| (p[0] + p[1] + p[2]) as f64).sum::<f64>() / im.len() as f64;
+    let (pt, crn) = (mean(&set.pt.mean), mean(&set.crn.mean));
+    assert!(pt > 0.05 && crn > 0.05, "image means pt {pt}, crn {crn}");
+
+    if !tool_available("oiiotool") {
+        eprintln!("SKIPPED the OpenImageIO part: oiiotool is not installed (scripts/setup.sh installs it)");
+        return;
+    }
+    let info = Command::new("oiiotool").args(["--info", "-v", "a.streams.exr"]).current_dir(dir.path()).output().unwrap();
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(info.status.success(), "oiiotool: {}", String::from_utf8_lossy(&info.stderr));
+    assert!(text.contains("32 x   32") && text.contains("37 channel"), "{text}");
+    assert!(text.contains("crn.b03.B") && text.contains("cvtrace.spp: 8"), "{text}");
+
+    ok(&cvtrace(dir.path(), &args("b.streams.exr")));
+    let idiff = Command::new("idiff").args(["a.streams.exr", "b.streams.exr"]).current_dir(dir.path()).output().unwrap();
+    let text = String::from_utf8_lossy(&idiff.stdout);
+    assert!(idiff.status.success() && text.contains("PASS"), "idiff of two identical renders: {text}");
+}
+
+#[test]
+fn one_and_two_threads_give_identical_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    let run = |threads: &str, seed: &str, out: &str| {
+        let base = ["--threads", threads, "--log", "warn", "render", sp, "--spp", "6", "--batches", "3", "--seed", seed, "-o", out];
+        ok(&cvtrace(dir.path(), &[&base[..], SMALL].concat()));
+    };
+    run("1", "11", "t1.streams.exr");
+    run("2", "11", "t2.streams.exr");
+    assert_same_content(&dir.path().join("t1.streams.exr"), &dir.path().join("t2.streams.exr"));
+    // The comparison can fail: another seed changes the pixels.
+    run("2", "12", "t3.streams.exr");
+    let (a, c) =
+        (ExrChannels::read(&dir.path().join("t1.streams.exr")).unwrap(), ExrChannels::read(&dir.path().join("t3.streams.exr")).unwrap());
+    assert_ne!(a.channels["pt.R"], c.channels["pt.R"]);
+}
+
+#[test]
+fn interrupted_reference_resumes_to_the_same_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    let base = |pass: &'static str, out: &'static str| {
+        [&["--log", "warn", "render", sp, "--reference", "--spp", "12", "--seed", "3", "--pass-spp", pass, "-o", out][..], SMALL].concat()
+    };
+    ok(&cvtrace(dir.path(), &base("4", "full.ref.exr")));
+
+    // Stop after one pass of 4 spp: only the checkpoint exists.
+    ok(&cvtrace(dir.path(), &[base("4", "part.ref.exr"), vec!["--stop-after-passes", "1"]].concat()));
+    assert!(!dir.path().join("part.ref.exr").exists());
+    let ckpt = dir.path().join("part.ref.checkpoint.exr");
+    let saved = ExrChannels::read(&ckpt).unwrap();
+    assert_eq!(saved.attr("cvtrace.samplesDone"), Some(&AttrValue::Int(4)));
+
+    // A different render must not silently continue it.
+    let out =
+        cvtrace(dir.path(), &[&["render", sp, "--reference", "--spp", "12", "--seed", "4", "-o", "part.ref.exr"][..], SMALL].concat());
+    assert!(!out.status.success());
+    let e = stderr(&out);
+    assert!(e.contains("part.ref.checkpoint.exr") && e.contains("seed"), "{e}");
+    assert!(ckpt.exists(), "a mismatched checkpoint is kept");
+
+    // Resume with a different pass size: the samples are still added in the same order.
+    ok(&cvtrace(dir.path(), &base("5", "part.ref.exr")));
+    assert!(!ckpt.exists(), "the checkpoint is removed once the reference is written");
+    assert_same_content(&dir.path().join("full.ref.exr"), &dir.path().join("part.ref.exr"));
+    let full = ExrChannels::read(&dir.path().join("full.ref.exr")).unwrap();
+    assert_eq!(full.channels.keys().collect::<Vec<_>>(), ["B", "G", "R"]);
+    assert_eq!(full.attr("cvtrace.spp"), Some(&AttrValue::Int(12)));
+    assert_eq!(full.attr("cvtrace.seed").map(|v| v.as_text()), Some("3".to_string()));
+
+    // The reference is the PT stream of a stream render with the same seed and settings.
+    ok(&cvtrace(
+        dir.path(),
+        &[&["--log", "warn", "render", sp, "--spp", "12", "--batches", "2", "--seed", "3", "-o", "s.streams.exr"][..], SMALL].concat(),
+    ));
+    let streams = ExrChannels::read(&dir.path().join("s.streams.exr")).unwrap();
+    for c in ["R", "G", "B"] {
+        assert_eq!(full.channels[c], streams.channels[&format!("pt.{c}")], "channel {c}");
+    }
+}
+
+#[test]
+fn bad_input_fails_clearly_and_leaves_no_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("broken.gltf"), "{ this is not json").unwrap();
+    std::fs::write(
+        d.join("draco.gltf"),
+        r#"{"asset":{"version":"2.0"},"extensionsUsed":["KHR_draco_mesh_compression"],"extensionsRequired":["KHR_draco_mesh_compression"]}"#,
+    )
+    .unwrap();
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    let inputs = files_in(d);
+    let cases: &[(&[&str], &[&str])] = &[
+        (&["render", "missing.gltf", "-o", "x.streams.exr"], &["missing.gltf"]),
+        (&["render", "broken.gltf", "-o", "x.streams.exr"], &["broken.gltf", "not a valid glTF"]),
+        (&["render", "draco.gltf", "-o", "x.streams.exr"], &["draco.gltf", "KHR_draco_mesh_compression"]),
+        (&["render", sp, "--spp", "0", "-o", "x.streams.exr"], &["spp"]),
+        (&["render", sp, "--spp", "10", "--batches", "4", "-o", "x.streams.exr"], &["multiple of batches"]),
+        (&["render", sp, "--width", "1000000", "-o", "x.streams.exr"], &["1000000"]),
+        (&["render", sp, "--height", "0", "-o", "x.streams.exr"], &["image size"]),
+        (&["render", sp, "--max-depth", "0", "-o", "x.streams.exr"], &["max_depth"]),
+        (&["render", sp, "--camera", "1,2,3", "-o", "x.streams.exr"], &["--camera"]),
+        (&["render", sp, "--reference", "--batches", "2", "-o", "x.ref.exr"], &["--batches"]),
+        (&["render", sp, "--reference", "--pass-spp", "0", "-o", "x.ref.exr"], &["--pass-spp"]),
+        (&["render", sp, "-o", "no-such-dir/x.streams.exr"], &["no-such-dir", "does not exist"]),
+    ];
+    for (args, needles) in cases {
+        let out = cvtrace(d, args);
+        let e = stderr(&out);
+        assert!(!out.status.success(), "{args:?} should fail");
+        for n in *needles {
+            assert!(e.contains(n), "{args:?}: error should mention {n:?}:\n{e}");
+        }
+        assert!(!e.contains("panicked"), "{args:?} panicked:\n{e}");
+        assert_eq!(files_in(d), inputs, "{args:?} left files behind");
+    }
+}
+
+#[test]
+fn existing_output_is_kept_unless_forced() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("mine.streams.exr"), b"precious").unwrap();
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    let args = [&["--log", "warn", "render", sp, "--spp", "2", "--batches", "2", "-o", "mine.streams.exr"][..], SMALL].concat();
+    let out = cvtrace(d, &args);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("mine.streams.exr") && stderr(&out).contains("--force"), "{}", stderr(&out));
+    assert_eq!(std::fs::read(d.join("mine.streams.exr")).unwrap(), b"precious");
+
+    ok(&cvtrace(d, &[args, vec!["--force"]].concat()));
+    assert!(StreamSet::read(&d.join("mine.streams.exr")).is_ok());
+    assert_eq!(files_in(d), ["mine.streams.exr"], "no temporary file is left");
+}
