@@ -51,10 +51,8 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     check_external_files(&document, &base, path)?;
     let buffers = gltf::import_buffers(&document, Some(&base), blob).map_err(malformed)?;
     check_accessors(&document, &buffers, path)?;
-    let images = gltf::import_images(&document, Some(&base), &buffers).map_err(|e| SceneError::Invalid {
-        path: path.to_path_buf(),
-        message: format!("cannot decode an image: {e}"),
-    })?;
+    let images = gltf::import_images(&document, Some(&base), &buffers)
+        .map_err(|e| SceneError::Invalid { path: path.to_path_buf(), message: format!("cannot decode an image: {e}") })?;
 
     // The accessor readers index buffers directly; turn any inconsistency they trip on into an
     // error instead of a crash.
@@ -242,7 +240,11 @@ impl<'a> Builder<'a> {
         if self.parts.triangles.is_empty() {
             return Err(self.err("the scene contains no triangles"));
         }
-        let (lo, hi) = self.parts.positions.iter().fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        let (lo, hi) = self
+            .parts
+            .positions
+            .iter()
+            .fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
         self.parts.camera = Some(self.camera.take().unwrap_or_else(|| default_camera(lo, hi)));
         if self.parts.normals.iter().all(|n| *n == Vec3::ZERO) {
             self.parts.normals.clear();
@@ -309,7 +311,11 @@ impl<'a> Builder<'a> {
             use gltf::mesh::Mode;
             let mode = prim.mode();
             if !matches!(mode, Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan) {
-                tracing::warn!("{}: mesh {} has a {mode:?} primitive; only triangles are rendered, skipped", self.path.display(), mesh.index());
+                tracing::warn!(
+                    "{}: mesh {} has a {mode:?} primitive; only triangles are rendered, skipped",
+                    self.path.display(),
+                    mesh.index()
+                );
                 continue;
             }
             let reader = prim.reader(|b| self.buffers.get(b.index()).map(|d| &d.0[..]));

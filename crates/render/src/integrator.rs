@@ -60,7 +60,8 @@ fn spawn_origin(p: Vec3, ng: Vec3, dir: Vec3, eps: f32) -> Vec3 {
     }
 }
 
-/// The radiance carried by the camera ray `ray` (unit direction) for one sample.
+/// The radiance carried by the camera ray `ray` for one sample. `ray.dir` must be a unit vector
+/// (hit distances are used as lengths).
 /// `first` receives the first-hit features if asked for.
 pub fn radiance<T: Intersector>(
     scene: &Scene,
@@ -96,25 +97,20 @@ pub fn radiance<T: Intersector>(
                 1.0
             } else {
                 let cos_l = -ray.dir.dot(sp.ng);
-                let dist = hit.t * ray.dir.length();
-                let pdf_light = lights.pdf_area(hit.prim) * dist * dist / cos_l;
+                let pdf_light = lights.pdf_area(hit.prim) * hit.t * hit.t / cos_l;
                 power_heuristic(prev_pdf, pdf_light)
             };
             l += beta * le * w;
         }
         if let Some(f) = first.take() {
             let ns = if sp.ns.dot(ray.dir) > 0.0 { -sp.ns } else { sp.ns };
-            *f = FirstHit {
-                albedo: if le != Vec3::ZERO { le } else { material.base_color_at(textures, sp.uv) },
-                normal: ns,
-                depth: hit.t * ray.dir.length(),
-            };
+            *f = FirstHit { albedo: if le != Vec3::ZERO { le } else { material.base_color_at(textures, sp.uv) }, normal: ns, depth: hit.t };
         }
         if depth >= max_depth {
             break;
         }
 
-        let wo = -ray.dir.normalize();
+        let wo = -ray.dir;
         let params = material.params_at(textures, sp.uv);
         let bsdf = Bsdf::new(&params, sp.ns, sp.ng, wo);
         let vertex = depth - 1;

@@ -303,7 +303,10 @@ pub fn render_reference_pass<T: Intersector>(
     settings.validate_image()?;
     let mismatch = |m: String| Err(RenderError::ReferenceMismatch(m));
     if (accum.width, accum.height) != (settings.width, settings.height) {
-        return mismatch(format!("accumulator is {}x{}, settings ask for {}x{}", accum.width, accum.height, settings.width, settings.height));
+        return mismatch(format!(
+            "accumulator is {}x{}, settings ask for {}x{}",
+            accum.width, accum.height, settings.width, settings.height
+        ));
     }
     if accum.sum.len() != settings.width as usize * settings.height as usize {
         return mismatch(format!("accumulator holds {} pixels, expected {}", accum.sum.len(), settings.width * settings.height));

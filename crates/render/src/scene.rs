@@ -128,7 +128,12 @@ impl Scene {
                     return bad(format!("material `{}` uses texture {t} but there are {}", m.name, textures.len()));
                 }
             }
-            if !(m.base_color.is_finite() && m.emission.is_finite() && m.metallic.is_finite() && m.roughness.is_finite() && m.ior.is_finite()) {
+            if !(m.base_color.is_finite()
+                && m.emission.is_finite()
+                && m.metallic.is_finite()
+                && m.roughness.is_finite()
+                && m.ior.is_finite())
+            {
                 return bad(format!("material `{}` has a non-finite parameter", m.name));
             }
         }
@@ -147,7 +152,8 @@ impl Scene {
             triangle_materials.iter().zip(&tri_area).map(|(&m, &a)| triangle_power(mean_emission[m as usize], a)).collect();
         let lights = LightSet::new(&power, &tri_area);
 
-        let (lo, hi) = positions.iter().fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        let (lo, hi) =
+            positions.iter().fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
         let scale = lo.abs().max(hi.abs()).max_element().max((hi - lo).max_element()).max(1e-3);
         let camera = match camera {
             Some(c) => c,

@@ -88,7 +88,8 @@ pub fn add_box(parts: &mut SceneParts, lo: Vec3, hi: Vec3, material: u32) {
     add_quad(parts, [p(t, f, t), p(t, f, f), p(t, t, f), p(t, t, t)], material); // +x
     add_quad(parts, [p(f, f, f), p(f, f, t), p(f, t, t), p(f, t, f)], material); // -x
     add_quad(parts, [p(f, t, t), p(t, t, t), p(t, t, f), p(f, t, f)], material); // +y
-    add_quad(parts, [p(f, f, f), p(t, f, f), p(t, f, t), p(f, f, t)], material); // -y
+    add_quad(parts, [p(f, f, f), p(t, f, f), p(t, f, t), p(f, f, t)], material);
+    // -y
 }
 
 /// A Cornell-style box: room `[-1, 1]³` open towards +z, red left and green right walls, a
@@ -117,6 +118,38 @@ pub fn cornell_box() -> Scene {
     Scene::from_parts(parts).expect("the built-in Cornell box is valid")
 }
 
+/// The Cornell-style box with a material line-up: a glossy plastic floor, a rough gold tall
+/// block, a smooth glass short block and a small mirror-like chrome cube: a visual check of
+/// every lobe.
+pub fn materials_box() -> Scene {
+    let mut parts = SceneParts {
+        materials: vec![
+            Material::diffuse(Vec3::splat(0.73)),
+            Material::diffuse(Vec3::new(0.65, 0.05, 0.05)),
+            Material::diffuse(Vec3::new(0.12, 0.45, 0.15)),
+            Material::emissive(Vec3::splat(0.78), Vec3::new(17.0, 12.0, 4.0)),
+            Material { name: "plastic".into(), base_color: Vec3::new(0.2, 0.3, 0.6), metallic: 0.0, roughness: 0.25, ..Default::default() },
+            Material::metal(Vec3::new(1.0, 0.78, 0.34), 0.35),
+            Material::glass(1.5, 0.0),
+            Material::metal(Vec3::splat(0.95), 0.0),
+        ],
+        ..Default::default()
+    };
+    let v = Vec3::new;
+    add_quad(&mut parts, [v(-1., -1., 1.), v(1., -1., 1.), v(1., -1., -1.), v(-1., -1., -1.)], 4);
+    add_quad(&mut parts, [v(-1., 1., -1.), v(1., 1., -1.), v(1., 1., 1.), v(-1., 1., 1.)], 0);
+    add_quad(&mut parts, [v(-1., -1., -1.), v(1., -1., -1.), v(1., 1., -1.), v(-1., 1., -1.)], 0);
+    add_quad(&mut parts, [v(-1., -1., 1.), v(-1., -1., -1.), v(-1., 1., -1.), v(-1., 1., 1.)], 1);
+    add_quad(&mut parts, [v(1., -1., -1.), v(1., -1., 1.), v(1., 1., 1.), v(1., 1., -1.)], 2);
+    let y = 0.998;
+    add_quad(&mut parts, [v(-0.25, y, -0.25), v(0.25, y, -0.25), v(0.25, y, 0.25), v(-0.25, y, 0.25)], 3);
+    add_box(&mut parts, v(-0.65, -1.0, -0.6), v(-0.05, 0.2, -0.05), 5);
+    add_box(&mut parts, v(0.1, -1.0, -0.1), v(0.65, -0.4, 0.5), 6);
+    add_box(&mut parts, v(0.35, -1.0, -0.8), v(0.75, -0.6, -0.4), 7);
+    parts.camera = Some(Camera { eye: v(0.0, 0.0, 3.9), target: v(0.0, 0.0, 0.0), up: Vec3::Y, vfov_deg: 38.0, width: 256, height: 256 });
+    Scene::from_parts(parts).expect("the built-in material box is valid")
+}
+
 /// A closed cube `[-1, 1]³` whose inward-facing walls all emit `le` and reflect `albedo`
 /// (Lambertian), seen from its centre: radiance is `le / (1 − albedo)` everywhere.
 pub fn furnace_box(le: f32, albedo: f32) -> Scene {
@@ -127,7 +160,14 @@ pub fn furnace_box(le: f32, albedo: f32) -> Scene {
     for t in &mut parts.triangles {
         t.swap(1, 2);
     }
-    parts.camera = Some(Camera { eye: Vec3::new(0.1, -0.05, 0.2), target: Vec3::new(0.3, 0.2, -1.0), up: Vec3::Y, vfov_deg: 90.0, width: 16, height: 16 });
+    parts.camera = Some(Camera {
+        eye: Vec3::new(0.1, -0.05, 0.2),
+        target: Vec3::new(0.3, 0.2, -1.0),
+        up: Vec3::Y,
+        vfov_deg: 90.0,
+        width: 16,
+        height: 16,
+    });
     Scene::from_parts(parts).expect("the furnace box is valid")
 }
 

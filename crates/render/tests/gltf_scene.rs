@@ -133,7 +133,8 @@ fn malformed_files_are_errors_naming_the_file() {
     let msg = Scene::load(&missing).unwrap_err().to_string();
     assert!(msg.contains("nope.gltf"), "{msg}");
     // An accessor pointing past its buffer.
-    let text = gltf_json(&embedded_uri(), "", "").replace("\"byteOffset\": 48, \"byteLength\": 12", "\"byteOffset\": 48, \"byteLength\": 120");
+    let text =
+        gltf_json(&embedded_uri(), "", "").replace("\"byteOffset\": 48, \"byteLength\": 12", "\"byteOffset\": 48, \"byteLength\": 120");
     let p = write(dir.path(), "overrun.gltf", &text);
     let msg = Scene::load(&p).unwrap_err().to_string();
     assert!(msg.contains("overrun.gltf"), "{msg}");

@@ -85,6 +85,8 @@ pub struct Bsdf {
     p_diffuse: f32,
     p_spec: f32,
     p_glass: f32,
+    /// Only the Lambertian lobe is active (e.g. the Cornell box): sampling takes a shortcut.
+    lambert_only: bool,
 }
 
 impl Bsdf {
@@ -102,8 +104,28 @@ impl Bsdf {
         let t = params.transmission.clamp(0.0, 1.0);
         let opaque = (1.0 - m) * (1.0 - t);
         let base = params.base_color.max(Vec3::ZERO);
-        let r0 = ((params.ior - 1.0) / (params.ior + 1.0)).powi(2);
         let spec_factor = params.specular.clamp(0.0, 1.0);
+        if m == 0.0 && t == 0.0 && spec_factor == 0.0 {
+            // Pure Lambertian: no Fresnel or microfacet set-up needed.
+            let p_d = if base.max_element() > 0.0 { 1.0 } else { 0.0 };
+            return Bsdf {
+                frame,
+                ng,
+                wo: wo_local,
+                side,
+                diffuse: base,
+                spec: MicrofacetReflection { ggx: Ggx::new(1.0), f0: Vec3::ZERO, f90: 0.0 },
+                glass: Dielectric::new(1.5, 1.0),
+                glass_weight: Vec3::ZERO,
+                glass_scalar: 0.0,
+                wo_dot_ng: wo.dot(ng),
+                p_diffuse: p_d,
+                p_spec: 0.0,
+                p_glass: 0.0,
+                lambert_only: true,
+            };
+        }
+        let r0 = ((params.ior - 1.0) / (params.ior + 1.0)).powi(2);
         let f0_dielectric = (Vec3::splat(r0) * params.specular_color.max(Vec3::ZERO)).min(Vec3::ONE) * spec_factor;
         let f_view = super::fresnel::schlick(f0_dielectric, spec_factor, cos_o);
         let diffuse = base * (opaque * (1.0 - f_view.max_element()));
@@ -143,6 +165,7 @@ impl Bsdf {
             p_diffuse: p_d,
             p_spec: p_s,
             p_glass: p_g,
+            lambert_only: false,
         }
     }
 
@@ -205,6 +228,18 @@ impl Bsdf {
     /// `u_choice`. `None` when the path ends here (black BSDF or a direction below the surface).
     pub fn sample(&self, u_lobe: f32, u: Vec2, u_choice: f32) -> Option<BsdfSample> {
         let wo_l = self.wo;
+        if self.lambert_only {
+            // f·cos/pdf of a cosine-sampled Lambertian lobe is its albedo.
+            if self.p_diffuse == 0.0 {
+                return None;
+            }
+            let wi_l = self.opaque_local(lambert::sample(u));
+            let wi = self.frame.to_world(wi_l);
+            if wi_l.z == 0.0 || wi.dot(self.ng) * self.wo_dot_ng <= 0.0 {
+                return None;
+            }
+            return Some(BsdfSample { wi, weight: self.diffuse, pdf: wi_l.z.abs() * std::f32::consts::FRAC_1_PI, delta: false, eta: 1.0 });
+        }
         let wi_l = if u_lobe < self.p_diffuse {
             self.opaque_local(lambert::sample(u))
         } else if u_lobe < self.p_diffuse + self.p_spec || (self.p_glass == 0.0 && self.p_spec > 0.0) {
