@@ -152,7 +152,7 @@ pub fn radiance<T: Intersector>(
         // Continue the path by sampling the BSDF.
         let u_lobe = sampler.get1d(dims::at(vertex, dims::LOBE));
         let u_dir = sampler.get2d(dims::at(vertex, dims::BSDF_DIR));
-        let u_choice = sampler.get1d(dims::at(vertex, dims::DIELECTRIC_CHOICE));
+        let u_choice = if bsdf.has_glass() { sampler.get1d(dims::at(vertex, dims::DIELECTRIC_CHOICE)) } else { 0.0 };
         let Some(bs) = bsdf.sample(u_lobe, u_dir, u_choice) else { break };
         beta *= bs.weight;
         if beta == Vec3::ZERO || !beta.is_finite() {

@@ -112,10 +112,13 @@ impl SampleSampler {
         (h >> 40) as f32 * INV_2_24
     }
 
-    /// Dimensions `dim` and `dim + 1`.
+    /// Dimensions `dim` and `dim + 1` as a pair. Both come from one 64-bit hash (its top and
+    /// next 24 bits), which halves the hashing cost of 2D decisions; so `get2d(d)` is *not*
+    /// `(get1d(d), get1d(d + 1))`, but it is just as deterministic and shared in CRN.
     #[inline]
     pub fn get2d(&self, dim: u32) -> glam::Vec2 {
-        glam::Vec2::new(self.get1d(dim), self.get1d(dim + 1))
+        let h = mix64(self.key.wrapping_add((dim as u64 + 1).wrapping_mul(GOLDEN)) ^ 0x2D00_0000_0000_0000);
+        glam::Vec2::new((h >> 40) as f32 * INV_2_24, ((h >> 16) & 0xFF_FFFF) as f32 * INV_2_24)
     }
 }
 
@@ -185,6 +188,29 @@ mod tests {
         assert!(correlation(&x, &y).abs() < 4.0 / (n as f64).sqrt());
         let z: Vec<f64> = (0..n).map(|s| pt.sample(9, s + 1).get1d(4) as f64).collect();
         assert!(correlation(&x, &z).abs() < 4.0 / (n as f64).sqrt());
+    }
+
+    #[test]
+    fn pairs_are_uniform_and_their_components_independent() {
+        let st = StreamSampler::new(4, StreamKind::Pt);
+        let n = 100_000u32;
+        let (mut sx, mut sy, mut sxy) = (0.0f64, 0.0f64, 0.0f64);
+        let mut quadrants = [0u32; 4];
+        for i in 0..n {
+            let v = st.sample(i as u64 % 101, i).get2d(4 + i % 7);
+            assert!((0.0..1.0).contains(&v.x) && (0.0..1.0).contains(&v.y));
+            sx += v.x as f64;
+            sy += v.y as f64;
+            sxy += (v.x as f64 - 0.5) * (v.y as f64 - 0.5);
+            quadrants[(v.x >= 0.5) as usize * 2 + (v.y >= 0.5) as usize] += 1;
+        }
+        let sd_mean = (1.0 / 12.0 / n as f64).sqrt();
+        assert!((sx / n as f64 - 0.5).abs() < 5.0 * sd_mean && (sy / n as f64 - 0.5).abs() < 5.0 * sd_mean);
+        // Covariance of independent U(0,1): 0 with sd 1/12/sqrt(n).
+        assert!((sxy / n as f64).abs() < 5.0 / 12.0 / (n as f64).sqrt(), "cov {}", sxy / n as f64);
+        for q in quadrants {
+            assert!((q as f64 - n as f64 / 4.0).abs() < 5.0 * (n as f64 * 0.25 * 0.75).sqrt(), "{quadrants:?}");
+        }
     }
 
     #[test]

@@ -175,6 +175,12 @@ impl Bsdf {
         self.p_diffuse > 0.0 || self.p_spec > 0.0 || (self.p_glass > 0.0 && !self.glass.smooth)
     }
 
+    /// True if the glass lobe can be chosen (it needs the reflect-or-refract random number).
+    #[inline]
+    pub fn has_glass(&self) -> bool {
+        self.p_glass > 0.0
+    }
+
     #[inline]
     fn opaque_local(&self, v: Vec3) -> Vec3 {
         Vec3::new(v.x, v.y, v.z * self.side)
