@@ -107,7 +107,10 @@ mod tests {
         assert_eq!(cube.row(0, 2), &[-4.0, -2.0, 6.0]);
         let v = variance_of_mean(&s);
         assert!((v[0][0] - 7.0 / 3.0).abs() < 1e-6 && v[0][1] == 0.0 && (v[0][2] - 28.0 / 3.0).abs() < 1e-5);
-        let g = group_means(&Stream::from_batches(vec![s.batches[0].clone(), s.batches[1].clone(), s.batches[2].clone(), s.batches[2].clone()]), 2);
+        let g = group_means(
+            &Stream::from_batches(vec![s.batches[0].clone(), s.batches[1].clone(), s.batches[2].clone(), s.batches[2].clone()]),
+            2,
+        );
         assert_eq!(g[0].pixels[0][0], 1.5);
         assert_eq!(g[1].pixels[0][0], 6.0);
     }

@@ -16,14 +16,7 @@ pub enum ReconError {
     EmptyImage { origin: String, width: usize, height: usize },
 
     #[error("{origin}: `{layer}` is {width}x{height}, expected {expected_width}x{expected_height} like the rest of the stream set")]
-    SizeMismatch {
-        origin: String,
-        layer: String,
-        width: usize,
-        height: usize,
-        expected_width: usize,
-        expected_height: usize,
-    },
+    SizeMismatch { origin: String, layer: String, width: usize, height: usize, expected_width: usize, expected_height: usize },
 
     #[error("{origin}: pt has {pt} batches and crn has {crn}; both streams need the same number of batches")]
     BatchCountMismatch { origin: String, pt: usize, crn: usize },
@@ -41,14 +34,7 @@ pub enum ReconError {
     MissingReference { method: &'static str },
 
     #[error("reference {reference} is {width}x{height}, but the streams in {origin} are {expected_width}x{expected_height}; pass the reference of the same scene and resolution")]
-    ReferenceSize {
-        reference: String,
-        origin: String,
-        width: usize,
-        height: usize,
-        expected_width: usize,
-        expected_height: usize,
-    },
+    ReferenceSize { reference: String, origin: String, width: usize, height: usize, expected_width: usize, expected_height: usize },
 
     #[error("{origin}: `{method}` needs the samples per pixel of each stream, but it is 0 (StreamMeta::spp / attribute cvtrace.spp); set it to the spp the streams were rendered with")]
     MissingSpp { origin: String, method: &'static str },

@@ -76,8 +76,13 @@ impl<'a> Input<'a> {
                 });
             }
         }
-        if let Some((i, (x, y, c, v))) =
-            layers.par_iter().map(|(_, im)| first_non_finite(im)).collect::<Vec<_>>().into_iter().enumerate().find_map(|(i, r)| r.map(|r| (i, r)))
+        if let Some((i, (x, y, c, v))) = layers
+            .par_iter()
+            .map(|(_, im)| first_non_finite(im))
+            .collect::<Vec<_>>()
+            .into_iter()
+            .enumerate()
+            .find_map(|(i, r)| r.map(|r| (i, r)))
         {
             return Err(ReconError::NonFinite { origin: origin(), channel: format!("{}{}", layers[i].0, RGB[c]), value: v, x, y });
         }
@@ -161,7 +166,8 @@ pub enum BatchNeed {
 
 impl BatchNeed {
     fn check(self, origin: String, method: &'static str, found: usize) -> Result<(), ReconError> {
-        let fail = |requirement: String, hint: String| Err(ReconError::BatchCount { origin: origin.clone(), method, requirement, found, hint });
+        let fail =
+            |requirement: String, hint: String| Err(ReconError::BatchCount { origin: origin.clone(), method, requirement, found, hint });
         match self {
             BatchNeed::None => Ok(()),
             BatchNeed::Range { min, .. } if found < min => fail(

@@ -57,9 +57,7 @@ impl FromStr for MethodChoice {
         if s.trim().eq_ignore_ascii_case("all") {
             return Ok(MethodChoice::All);
         }
-        s.parse::<Method>()
-            .map(MethodChoice::One)
-            .map_err(|e| ParseNameError { expected: MethodChoice::NAMES, ..e })
+        s.parse::<Method>().map(MethodChoice::One).map_err(|e| ParseNameError { expected: MethodChoice::NAMES, ..e })
     }
 }
 

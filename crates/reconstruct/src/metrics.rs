@@ -21,7 +21,8 @@ pub fn rel_mse(x: &Image, reference: &Image) -> f64 {
 /// Plain MSE over pixels and channels.
 pub fn mse(x: &Image, reference: &Image) -> f64 {
     assert!(x.same_size(reference), "mse: images of different sizes");
-    let sum: f64 = x.pixels.iter().zip(&reference.pixels).map(|(p, r)| (0..3).map(|c| (p[c] as f64 - r[c] as f64).powi(2)).sum::<f64>()).sum();
+    let sum: f64 =
+        x.pixels.iter().zip(&reference.pixels).map(|(p, r)| (0..3).map(|c| (p[c] as f64 - r[c] as f64).powi(2)).sum::<f64>()).sum();
     sum / (3 * x.pixels.len()).max(1) as f64
 }
 

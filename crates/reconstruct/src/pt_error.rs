@@ -20,6 +20,9 @@ named_enum! {
         Cbf => "cbf",
         /// The raw per-pixel batch variance of `h̄`.
         Variance => "variance",
+        /// Squared differences between `h̄` and a cross-bilateral-filtered PT image used as a
+        /// pseudo-reference, smoothed by the same filter (an alternative we measured).
+        CbfResidual => "cbf-residual",
         /// Realised squared errors `(h̄ − reference)²`: analysis only, needs a reference.
         Oracle => "oracle",
     }
@@ -53,7 +56,7 @@ pub const MAX_RADIUS: usize = 15;
 
 impl Default for CbfOptions {
     fn default() -> Self {
-        CbfOptions { radius: 5, sigma_colour: 0.25, sigma_albedo: 0.1, sigma_normal: 0.2, exclude_centre: true }
+        CbfOptions { radius: 3, sigma_colour: 0.25, sigma_albedo: 0.1, sigma_normal: 0.2, exclude_centre: true }
     }
 }
 
@@ -62,7 +65,9 @@ impl CbfOptions {
         if self.radius == 0 || self.radius > MAX_RADIUS {
             return Err(ReconError::option("cbf-radius", self.radius, format!("must be between 1 and {MAX_RADIUS} pixels")));
         }
-        for (name, v) in [("cbf-sigma-colour", self.sigma_colour), ("cbf-sigma-albedo", self.sigma_albedo), ("cbf-sigma-normal", self.sigma_normal)] {
+        for (name, v) in
+            [("cbf-sigma-colour", self.sigma_colour), ("cbf-sigma-albedo", self.sigma_albedo), ("cbf-sigma-normal", self.sigma_normal)]
+        {
             if !(v > 0.0 && v.is_finite()) {
                 return Err(ReconError::option(name, v, "must be a positive finite number"));
             }
@@ -77,6 +82,12 @@ pub fn pt_errors(kind: ErrorEstimate, set: &StreamSet, reference: Option<&Image>
     match kind {
         ErrorEstimate::Variance => variance_of_mean(&set.pt),
         ErrorEstimate::Cbf => cross_bilateral(&variance_of_mean(&set.pt), set, cbf),
+        ErrorEstimate::CbfResidual => {
+            let pseudo = cross_bilateral(&set.pt.mean.pixels, set, cbf);
+            let sq: Vec<[f32; 3]> =
+                set.pt.mean.pixels.iter().zip(&pseudo).map(|(h, r)| std::array::from_fn(|c| (h[c] - r[c]) * (h[c] - r[c]))).collect();
+            cross_bilateral(&sq, set, cbf)
+        }
         ErrorEstimate::Oracle => {
             let r = reference.expect("oracle errors need a reference (checked by Input::check)");
             set.pt.mean.pixels.iter().zip(&r.pixels).map(|(h, r)| std::array::from_fn(|c| (h[c] - r[c]) * (h[c] - r[c]))).collect()
@@ -133,9 +144,10 @@ impl Planes {
             g: std::array::from_fn(|c| plane(g, c)),
             g2: g.iter().map(|p| p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).collect(),
             eps,
-            features: set.features.as_ref().map(|f| {
-                (std::array::from_fn(|c| plane(&f.albedo.pixels, c)), std::array::from_fn(|c| plane(&f.normal.pixels, c)))
-            }),
+            features: set
+                .features
+                .as_ref()
+                .map(|f| (std::array::from_fn(|c| plane(&f.albedo.pixels, c)), std::array::from_fn(|c| plane(&f.normal.pixels, c)))),
             v: std::array::from_fn(|c| plane(values, c)),
         }
     }
@@ -182,7 +194,8 @@ fn cbf_row(p: &Planes, k: &Gains, spatial: &[f32], r: usize, exclude: bool, y: u
                 for j in 0..n {
                     let da = [ac[0] - a0[j], ac[1] - a1[j], ac[2] - a2[j]];
                     let dn = [nc[0] - m0[j], nc[1] - m1[j], nc[2] - m2[j]];
-                    t[j] += (da[0] * da[0] + da[1] * da[1] + da[2] * da[2]) * k.albedo + (dn[0] * dn[0] + dn[1] * dn[1] + dn[2] * dn[2]) * k.normal;
+                    t[j] += (da[0] * da[0] + da[1] * da[1] + da[2] * da[2]) * k.albedo
+                        + (dn[0] * dn[0] + dn[1] * dn[1] + dn[2] * dn[2]) * k.normal;
                 }
             }
             for tj in t.iter_mut() {
@@ -208,7 +221,6 @@ fn cbf_row(p: &Planes, k: &Gains, spatial: &[f32], r: usize, exclude: bool, y: u
         *out = if ws > 1e-6 { [s[0] / ws, s[1] / ws, s[2] / ws] } else { [p.v[0][c], p.v[1][c], p.v[2][c]] };
     }
 }
-
 
 #[cfg(test)]
 mod tests {

@@ -28,7 +28,7 @@ pub struct CvOptions {
 
 impl Default for CvOptions {
     fn default() -> Self {
-        CvOptions { select: Selection::Knn, k: 24, search_window: 11, ridge: 0.1, shared_coefficients: false, seed: 0 }
+        CvOptions { select: Selection::Knn, k: 24, search_window: 11, ridge: 0.3, shared_coefficients: false, seed: 0 }
     }
 }
 

@@ -271,7 +271,8 @@ impl Estimator for Iduw {
             None => {
                 let (crit, count) = self.criteria(input, &p);
                 // First minimum, so ties resolve to the earlier grid value.
-                let (best, (g, value)) = crit.iter().enumerate().fold((0, crit[0]), |acc, (i, c)| if c.1 < acc.1 .1 { (i, *c) } else { acc });
+                let (best, (g, value)) =
+                    crit.iter().enumerate().fold((0, crit[0]), |acc, (i, c)| if c.1 < acc.1 .1 { (i, *c) } else { acc });
                 d.int("gamma_index", best as i64).float("gamma_criterion", value).int("selection_pixels", count as i64);
                 g
             }
@@ -298,7 +299,9 @@ impl Estimator for Iduw {
                 }
             },
         );
-        d.float("gamma", gamma as f64).float("neighbour_weight_mean", wsum.iter().sum::<f64>() / (3 * w * h) as f64).int("window", win as i64);
+        d.float("gamma", gamma as f64)
+            .float("neighbour_weight_mean", wsum.iter().sum::<f64>() / (3 * w * h) as f64)
+            .int("window", win as i64);
         Ok(finish(image, d, start))
     }
 }

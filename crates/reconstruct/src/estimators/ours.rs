@@ -157,4 +157,3 @@ impl Estimator for Ours {
         Ok(finish(image, d, start))
     }
 }
-

@@ -1,0 +1,166 @@
+//! The measurements behind the defaults in docs/estimators.md.
+//!
+//! Renders the synthetic soft-shadow scene (`cvtrace_reconstruct::synthetic`) over several
+//! seeds, reconstructs it with every method and option variant, and prints Markdown tables of
+//! relMSE (mean over seeds ± standard error, and the ratio to PT at 2n, i.e. the same total
+//! sample count spent on independent samples).
+//!
+//! ```text
+//! cargo run --release -p cvtrace-reconstruct --example ablation            # full (a few minutes)
+//! cargo run --release -p cvtrace-reconstruct --example ablation -- --quick # 3 seeds, 1 spp level
+//! ```
+use cvtrace_reconstruct::estimators::{Cv, Iduw, Ours};
+use cvtrace_reconstruct::metrics::{rel_bias_variance, rel_mse};
+use cvtrace_reconstruct::synthetic::{RenderSpec, SoftShadowScene};
+use cvtrace_reconstruct::*;
+use cvtrace_streams::Image;
+use std::collections::BTreeMap;
+
+type Make = Box<dyn Fn() -> Box<dyn Estimator>>;
+
+struct Variant {
+    table: &'static str,
+    label: String,
+    batches: usize,
+    make: Make,
+}
+
+fn ours(f: impl Fn(&mut OursOptions) + 'static) -> Make {
+    Box::new(move || {
+        let mut o = OursOptions::default();
+        f(&mut o);
+        Box::new(Ours::new(o).unwrap())
+    })
+}
+
+fn main() {
+    let quick = std::env::args().any(|a| a == "--quick");
+    let size = 128;
+    let seeds: u64 = if quick { 3 } else { 8 };
+    let spps: &[u32] = if quick { &[32] } else { &[32, 128] };
+    let scene = SoftShadowScene::default();
+    let reference = scene.reference(size, size);
+
+    let mut v: Vec<Variant> = vec![];
+    let mut add = |table: &'static str, label: String, batches: usize, make: Make| v.push(Variant { table, label, batches, make });
+    for m in Method::ALL {
+        add("methods", m.to_string(), 16, Box::new(move || build(*m, &Options::default()).unwrap()));
+    }
+    for b in [4usize, 8, 16, 32] {
+        add("batches", format!("ours, B = {b}"), b, ours(|_| {}));
+        add("batches", format!("ours, variance errors, B = {b}"), b, ours(|o| o.errors = ErrorEstimate::Variance));
+    }
+    for e in ErrorEstimate::ALL {
+        for p in Penalty::ALL {
+            let (e, p) = (*e, *p);
+            add(
+                "errors",
+                format!("{e} / {p}"),
+                16,
+                ours(move |o| {
+                    o.errors = e;
+                    o.penalty = p;
+                }),
+            );
+        }
+    }
+    for s in Selection::ALL {
+        let s = *s;
+        add("selection", format!("{s}"), 16, ours(move |o| o.select = s));
+    }
+    for k in [9usize, 16, 25, 36] {
+        add("k", format!("knn, k = {k}"), 16, ours(move |o| o.k = k));
+        add(
+            "k",
+            format!("window, k = {k}"),
+            16,
+            ours(move |o| {
+                o.k = k;
+                o.select = Selection::Window;
+            }),
+        );
+    }
+    for sw in [7usize, 11, 15] {
+        add("search", format!("knn, search window {sw}"), 16, ours(move |o| o.search_window = sw));
+    }
+    add("coefficients", "per channel".into(), 16, ours(|_| {}));
+    add("coefficients", "shared".into(), 16, ours(|o| o.shared_coefficients = true));
+    for r in [1e-5, 1e-3, 1e-2, 1e-1] {
+        add("ridge", format!("ours, ridge {r}"), 16, ours(move |o| o.ridge = r));
+    }
+    for r in [1e-2, 1e-1, 0.3, 1.0, 3.0] {
+        add(
+            "ridge",
+            format!("cv, ridge {r}"),
+            16,
+            Box::new(move || Box::new(Cv::new(CvOptions { ridge: r, ..Default::default() }).unwrap())),
+        );
+    }
+    for radius in [2usize, 3, 5, 8] {
+        add("cbf", format!("radius {radius}"), 16, ours(move |o| o.cbf.radius = radius));
+    }
+    for sc in [0.1f32, 0.25, 0.5, 1.0] {
+        add("cbf", format!("σ_colour {sc}"), 16, ours(move |o| o.cbf.sigma_colour = sc));
+    }
+    add("cbf", "centre included".into(), 16, ours(|o| o.cbf.exclude_centre = false));
+    for w in [7usize, 11, 15, 21] {
+        add(
+            "iduw",
+            format!("window {w}"),
+            16,
+            Box::new(move || Box::new(Iduw::new(IduwOptions { window: w, ..Default::default() }).unwrap())),
+        );
+    }
+
+    for &spp in spps {
+        // results[variant] = relMSE per seed; outputs kept for the bias/variance split.
+        let mut results: Vec<Vec<f64>> = vec![vec![]; v.len()];
+        let mut pt2n = vec![];
+        let mut bv_outputs: BTreeMap<String, Vec<Image>> = BTreeMap::new();
+        for seed in 0..seeds {
+            let mut sets = BTreeMap::new();
+            for var in &v {
+                sets.entry(var.batches).or_insert_with(|| {
+                    scene.render(&RenderSpec { width: size, height: size, spp, batches: var.batches, seed: 7000 + seed }).unwrap()
+                });
+            }
+            let spec16 = RenderSpec { width: size, height: size, spp, batches: 16, seed: 7000 + seed };
+            let second = scene.render_pt(&spec16, 1).unwrap();
+            pt2n.push(rel_mse(&Image::mean_of(&[sets[&16].pt.mean.clone(), second.mean]), &reference));
+            for (vi, var) in v.iter().enumerate() {
+                let set = &sets[&var.batches];
+                let out = (var.make)().reconstruct(&Input::new(set).with_reference(&reference)).unwrap();
+                results[vi].push(rel_mse(&out.image, &reference));
+                if var.table == "selection" {
+                    bv_outputs.entry(var.label.clone()).or_default().push(out.image);
+                }
+            }
+        }
+        let (m2n, _) = mean_se(&pt2n);
+        println!("\n## {size}×{size}, {spp} spp per stream, {seeds} seeds\n");
+        println!("PT at 2n ({} spp): relMSE {m2n:.3e}\n", 2 * spp);
+        let mut current = "";
+        for (vi, var) in v.iter().enumerate() {
+            if var.table != current {
+                current = var.table;
+                println!("\n### {current}\n\n| variant | relMSE | ± se | / PT@2n |\n|---|---|---|---|");
+            }
+            let (m, se) = mean_se(&results[vi]);
+            println!("| {} | {m:.3e} | {se:.1e} | {:.3} |", var.label, m / m2n);
+        }
+        println!(
+            "\n### bias / variance of the selections (relative, over seeds)\n\n| selection | squared bias | variance |\n|---|---|---|"
+        );
+        for (label, outs) in &bv_outputs {
+            let (b, var) = rel_bias_variance(outs, &reference);
+            println!("| {label} | {b:.3e} | {var:.3e} |");
+        }
+    }
+}
+
+fn mean_se(x: &[f64]) -> (f64, f64) {
+    let n = x.len() as f64;
+    let m = x.iter().sum::<f64>() / n;
+    let var = x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
+    (m, (var / n).sqrt())
+}

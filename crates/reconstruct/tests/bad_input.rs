@@ -1,0 +1,149 @@
+//! Bad input gives clear errors that name the file, the channel and the fix.
+mod common;
+
+use common::stream_set;
+use cvtrace_reconstruct::synthetic::{RenderSpec, SoftShadowScene};
+use cvtrace_reconstruct::*;
+use cvtrace_streams::exr_io::{read_rgb, write_rgb};
+use cvtrace_streams::{Image, StreamSet};
+
+fn set(b: usize) -> StreamSet {
+    SoftShadowScene::default().render(&RenderSpec { width: 12, height: 8, spp: 2 * b as u32, batches: b, seed: 1 }).unwrap()
+}
+
+fn err(method: Method, options: &Options, input: &Input) -> String {
+    build(method, options).unwrap().reconstruct(input).unwrap_err().to_string()
+}
+
+#[test]
+fn batch_counts_that_do_not_fit() {
+    let s6 = set(6);
+    let input = Input::new(&s6).named("cbox.streams.exr", "-");
+    let e = err(Method::Iduw, &Options::default(), &input);
+    assert!(e.contains("cbox.streams.exr") && e.contains("multiple of 4") && e.contains("6"), "{e}");
+    let s1 = set(1);
+    let e = err(Method::Ours, &Options::default(), &Input::new(&s1).named("one.exr", "-"));
+    assert!(e.contains("one.exr") && e.contains("at least 2") && e.contains("--batches"), "{e}");
+    let mut odd = set(4);
+    odd.crn.batches.pop();
+    let e = err(Method::Cv, &Options::default(), &Input::new(&odd).named("odd.exr", "-"));
+    assert!(e.contains("odd.exr") && e.contains("pt has 4") && e.contains("crn has 3"), "{e}");
+    // Methods that only read the means do not care.
+    assert!(build(Method::Average, &Options::default()).unwrap().reconstruct(&Input::new(&odd)).is_ok());
+}
+
+#[test]
+fn non_finite_values_name_the_channel_and_pixel() {
+    let mut s = set(4);
+    s.pt.batches[3].pixels[2 * 12 + 5][1] = f32::NAN;
+    let e = err(Method::Ours, &Options::default(), &Input::new(&s).named("nan.streams.exr", "-"));
+    assert!(e.contains("nan.streams.exr") && e.contains("pt.b03.G") && e.contains("(5, 2)"), "{e}");
+    // PT alone never reads batches, but it does read the mean.
+    s.pt.mean.pixels[0][2] = f32::INFINITY;
+    let e = err(Method::Pt, &Options::default(), &Input::new(&s).named("nan.streams.exr", "-"));
+    assert!(e.contains("pt.B") && e.contains("(0, 0)"), "{e}");
+}
+
+#[test]
+fn mismatched_sizes_are_named() {
+    let mut s = set(4);
+    s.crn.batches[1] = Image::new(11, 8);
+    let e = err(Method::Ours, &Options::default(), &Input::new(&s).named("s.exr", "-"));
+    assert!(e.contains("s.exr") && e.contains("crn.b01") && e.contains("11x8") && e.contains("12x8"), "{e}");
+}
+
+#[test]
+fn missing_features_and_reference() {
+    let mut s = set(4);
+    s.features = None;
+    let mut o = Options::default();
+    o.ours.select = Selection::Gbuffer;
+    let e = err(Method::Ours, &o, &Input::new(&s).named("nofeat.exr", "-"));
+    assert!(e.contains("nofeat.exr") && e.contains("albedo") && e.contains("gbuffer"), "{e}");
+    let mut o = Options::default();
+    o.ours.errors = ErrorEstimate::Oracle;
+    let est = build(Method::Ours, &o).unwrap();
+    assert!(est.needs().reference);
+    let e = est.reconstruct(&Input::new(&s)).unwrap_err().to_string();
+    assert!(e.contains("oracle") && e.contains("--reference"), "{e}");
+    let mut zero = set(4);
+    zero.meta.spp = 0;
+    let e = err(Method::Iduw, &Options::default(), &Input::new(&zero).named("nospp.exr", "-"));
+    assert!(e.contains("nospp.exr") && e.contains("spp"), "{e}");
+}
+
+#[test]
+fn reference_of_the_wrong_size_read_from_a_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("cbox.ref.exr");
+    write_rgb(&path, &Image::new(10, 8), &[], false).unwrap();
+    let reference = read_rgb(&path).unwrap();
+    let s = set(4);
+    let name = path.display().to_string();
+    let mut o = Options::default();
+    o.ours.errors = ErrorEstimate::Oracle;
+    let e = err(Method::Ours, &o, &Input::new(&s).with_reference(&reference).named("cbox.streams.exr", &name));
+    assert!(e.contains("cbox.ref.exr") && e.contains("cbox.streams.exr") && e.contains("10x8") && e.contains("12x8"), "{e}");
+}
+
+#[test]
+fn streams_read_from_a_file_are_named_in_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("six.streams.exr");
+    set(6).write(&path, false).unwrap();
+    let s = StreamSet::read(&path).unwrap();
+    let name = path.display().to_string();
+    let e = err(Method::Iduw, &Options::default(), &Input::new(&s).named(&name, "-"));
+    assert!(e.contains("six.streams.exr") && e.contains("multiple of 4"), "{e}");
+}
+
+#[test]
+fn absurd_options_are_refused_before_any_work() {
+    let bad = |f: &dyn Fn(&mut Options), what: &str| {
+        let mut o = Options::default();
+        f(&mut o);
+        let m = if what == "iduw" {
+            Method::Iduw
+        } else if what == "cv" {
+            Method::Cv
+        } else {
+            Method::Ours
+        };
+        build(m, &o).err().map(|e| e.to_string()).unwrap_or_else(|| panic!("accepted {o:?}"))
+    };
+    let e = bad(&|o| o.ours.k = 0, "ours");
+    assert!(e.contains("--k 0"), "{e}");
+    let e = bad(
+        &|o| {
+            o.ours.k = 30;
+            o.ours.search_window = 5;
+        },
+        "ours",
+    );
+    assert!(e.contains("--k 30") && e.contains("5x5") && e.contains("--search-window"), "{e}");
+    let e = bad(&|o| o.ours.k = 65, "ours");
+    assert!(e.contains("64"), "{e}");
+    let e = bad(&|o| o.ours.search_window = 10, "ours");
+    assert!(e.contains("--search-window 10") && e.contains("odd"), "{e}");
+    let e = bad(&|o| o.ours.ridge = -1.0, "ours");
+    assert!(e.contains("--ridge -1"), "{e}");
+    let e = bad(&|o| o.ours.cbf.radius = 0, "ours");
+    assert!(e.contains("cbf-radius"), "{e}");
+    let e = bad(&|o| o.iduw.window = 4, "iduw");
+    assert!(e.contains("--iduw-window 4"), "{e}");
+    let e = bad(&|o| o.iduw.gammas.clear(), "iduw");
+    assert!(e.contains("γ"), "{e}");
+    let e = bad(&|o| o.cv.k = 121, "cv");
+    assert!(e.contains("--k 121"), "{e}");
+    let e = "lasso".parse::<Penalty>().unwrap_err().to_string();
+    assert!(e.contains("lasso") && e.contains("avg"), "{e}");
+    let e = "nearest".parse::<Selection>().unwrap_err().to_string();
+    assert!(e.contains("knn, window, random, gbuffer"), "{e}");
+}
+
+#[test]
+fn too_many_batches_are_refused_with_a_fix() {
+    let s = stream_set(4, 4, 65, 65, |_| 1.0, |b, _| b as f64 * 1e-3, |_, i| i as f64 * 1e-3);
+    let e = err(Method::Ours, &Options::default(), &Input::new(&s).named("many.exr", "-"));
+    assert!(e.contains("many.exr") && e.contains("at most 64") && e.contains("merge"), "{e}");
+}
