@@ -83,8 +83,7 @@ pub fn radiance<T: Intersector>(
     let mut prev_delta = true;
     // Segments so far, including `ray`.
     let mut depth = 1u32;
-    loop {
-        let Some(hit) = tracer.intersect(&ray) else { break };
+    while let Some(hit) = tracer.intersect(&ray) {
         let sp = scene.surface(hit.prim, hit.u, hit.v);
         let material = &scene.materials()[sp.material as usize];
         let front = ray.dir.dot(sp.ng) < 0.0;
@@ -163,7 +162,8 @@ pub fn radiance<T: Intersector>(
         prev_delta = bs.delta;
         if depth >= limits.rr_depth {
             let q = (beta.max_element() * eta_scale).min(0.95);
-            if !(sampler.get1d(dims::at(vertex, dims::RUSSIAN_ROULETTE)) < q) {
+            // q may be NaN only if beta is; beta was checked finite above.
+            if sampler.get1d(dims::at(vertex, dims::RUSSIAN_ROULETTE)) >= q {
                 break;
             }
             beta /= q;

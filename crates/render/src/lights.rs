@@ -34,7 +34,7 @@ impl LightSet {
     pub fn new(power: &[f64], area: &[f32]) -> LightSet {
         let total: f64 = power.iter().filter(|p| p.is_finite() && **p > 0.0).sum();
         let mut pdf_area = vec![0.0f32; power.len()];
-        if !(total > 0.0) {
+        if total <= 0.0 || total.is_nan() {
             return LightSet { prims: Vec::new(), cdf: Vec::new(), pdf_area, total_power: 0.0 };
         }
         let mut prims = Vec::new();

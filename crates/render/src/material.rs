@@ -124,3 +124,30 @@ impl Material {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn textures_modulate_factors_with_gltf_channel_layout() {
+        // Texture 0: colour; texture 1: metallic-roughness (G = roughness, B = metallic).
+        let textures = vec![Texture::constant(Vec3::new(0.5, 1.0, 0.25)), Texture::constant(Vec3::new(0.9, 0.5, 0.2))];
+        let m = Material {
+            base_color: Vec3::new(0.8, 0.6, 1.0),
+            base_color_texture: Some(0),
+            metallic: 1.0,
+            roughness: 0.8,
+            metallic_roughness_texture: Some(1),
+            emission: Vec3::splat(2.0),
+            emissive_texture: Some(0),
+            ..Default::default()
+        };
+        let p = m.params_at(&textures, Vec2::new(0.3, 0.7));
+        assert_eq!(p.base_color, Vec3::new(0.4, 0.6, 0.25));
+        assert!((p.roughness - 0.4).abs() < 1e-6 && (p.metallic - 0.2).abs() < 1e-6, "{p:?}");
+        assert_eq!(m.emission_at(&textures, Vec2::ZERO), Vec3::new(1.0, 2.0, 0.5));
+        assert_eq!(m.mean_emission(&textures), Vec3::new(1.0, 2.0, 0.5));
+        assert!(m.is_emissive() && !Material::diffuse(Vec3::ONE).is_emissive());
+    }
+}

@@ -60,7 +60,7 @@ impl RenderSettings {
         if self.batches == 0 {
             return bad("batches must be at least 1".into());
         }
-        if self.spp % self.batches != 0 {
+        if !self.spp.is_multiple_of(self.batches) {
             return bad(format!("spp ({}) must be a multiple of batches ({})", self.spp, self.batches));
         }
         Ok(())
@@ -110,6 +110,9 @@ impl<T: Intersector> Context<'_, T> {
 
 fn context<'a, T: Intersector>(scene: &'a Scene, tracer: &'a T, settings: &RenderSettings) -> Result<Context<'a, T>, RenderError> {
     scene.camera().validate().map_err(RenderError::Camera)?;
+    if scene.lights().is_empty() {
+        tracing::warn!("the scene has no emissive surfaces: the image will be black");
+    }
     Ok(Context {
         scene,
         tracer,

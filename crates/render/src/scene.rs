@@ -302,6 +302,25 @@ mod tests {
     }
 
     #[test]
+    fn shading_normals_are_interpolated_and_oriented_with_the_winding() {
+        let mut p = quad();
+        // Vertex normals pointing *against* the winding normal (+z), tilted differently per vertex.
+        p.normals = vec![Vec3::new(0.0, 0.0, -1.0), Vec3::new(0.6, 0.0, -0.8), Vec3::new(0.0, 0.6, -0.8), Vec3::new(0.0, 0.0, -1.0)];
+        p.uvs = vec![Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y];
+        let s = Scene::from_parts(p).unwrap();
+        let sp = s.surface(0, 1.0, 0.0); // at vertex 1
+        assert!((sp.ns - Vec3::new(-0.6, 0.0, 0.8)).length() < 1e-6, "{}", sp.ns);
+        assert_eq!(sp.ng, Vec3::Z);
+        let mid = s.surface(0, 0.5, 0.5);
+        assert!((mid.ns.length() - 1.0).abs() < 1e-6 && mid.ns.z > 0.0);
+        assert!((mid.uv - Vec2::new(1.0, 0.5)).length() < 1e-6);
+        // Zero normals fall back to the geometric normal.
+        let mut p = quad();
+        p.normals = vec![Vec3::ZERO; 4];
+        assert_eq!(Scene::from_parts(p).unwrap().surface(1, 0.2, 0.2).ns, Vec3::Z);
+    }
+
+    #[test]
     fn from_parts_rejects_bad_indices() {
         let mut p = quad();
         p.triangles[1] = [0, 2, 9];
