@@ -218,3 +218,35 @@ fn repository_cornell_box_loads() {
     assert!((cam.eye - Vec3::new(278.0, 273.0, -800.0)).length() < 1e-3);
     assert!((cam.target - cam.eye).normalize().z > 0.999);
 }
+
+#[test]
+fn binary_glb_loads_from_its_bin_chunk() {
+    // The same document with the buffer in the GLB's BIN chunk (no uri).
+    let json = gltf_json("REMOVE", "", "").replace(r#", "uri": "REMOVE""#, "");
+    let mut json = json.into_bytes();
+    while json.len() % 4 != 0 {
+        json.push(b' ');
+    }
+    let bin = quad_buffer(); // 60 bytes, already a multiple of 4
+    let total = 12 + 8 + json.len() + 8 + bin.len();
+    let mut glb = Vec::new();
+    glb.extend_from_slice(b"glTF");
+    glb.extend_from_slice(&2u32.to_le_bytes());
+    glb.extend_from_slice(&(total as u32).to_le_bytes());
+    glb.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    glb.extend_from_slice(b"JSON");
+    glb.extend_from_slice(&json);
+    glb.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+    glb.extend_from_slice(b"BIN\0");
+    glb.extend_from_slice(&bin);
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("quad.glb");
+    std::fs::write(&p, &glb).unwrap();
+    let scene = Scene::load(&p).unwrap();
+    assert_eq!(scene.triangles().len(), 4);
+    // A truncated GLB is an error naming the file.
+    let q = dir.path().join("cut.glb");
+    std::fs::write(&q, &glb[..glb.len() - 30]).unwrap();
+    let msg = Scene::load(&q).unwrap_err().to_string();
+    assert!(msg.contains("cut.glb"), "{msg}");
+}
