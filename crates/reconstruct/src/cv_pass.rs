@@ -11,7 +11,7 @@
 //! Without FMA contraction both builds do the same IEEE operations, so they agree bit for bit.
 use crate::batch_stats::BatchCube;
 use crate::control_variate::combine;
-use crate::panel::Panel;
+use crate::panel::{Panel, Rows};
 use crate::penalty::Penalty;
 use crate::selection::{SelectScratch, Selector};
 use crate::simd::{Portable, Simd};
@@ -189,16 +189,15 @@ impl CvPass<'_> {
             return out;
         }
         if let Some(p) = sc.panel.as_deref_mut() {
+            let centre: [&[f32; P]; 3] = std::array::from_fn(|ch| cube.row_padded::<P>(c, ch));
+            let mut rows = Rows { d: centre.map(|r| [r; MAX_K]), dc: centre };
             for (j, &i) in idx.iter().enumerate() {
                 for ch in 0..3 {
-                    p.d[ch][j] = *cube.row_padded::<P>(i as usize, ch);
+                    rows.d[ch][j] = cube.row_padded::<P>(i as usize, ch);
                     p.w[ch][j] = self.weight(i as usize, c, ch);
                 }
             }
-            for ch in 0..3 {
-                p.dc[ch] = *cube.row_padded::<P>(c, ch);
-            }
-            let outcomes = p.solve::<S>(n, s, self.ridge);
+            let outcomes = p.solve::<S>(&rows, n, s, self.ridge);
             for ch in 0..3 {
                 let beta = &mut p.beta[ch][..n];
                 st.record(outcomes[ch], beta, self.include_centre);

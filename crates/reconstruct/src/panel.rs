@@ -18,11 +18,14 @@
 use crate::simd::Simd;
 use crate::solve::{Outcome, MAX_K};
 
+/// Per channel, the zero-padded CRN batch deviations of the `k` control variates (borrowed
+/// from the batch cube: no copies) and of the centre.
+pub(crate) struct Rows<'a, const P: usize> {
+    pub d: [[&'a [f32; P]; MAX_K]; 3],
+    pub dc: [&'a [f32; P]; 3],
+}
+
 pub(crate) struct Panel<const P: usize> {
-    /// Per channel, row `j`: the CRN batch deviations of control variate `j`, zero-padded to `P`.
-    pub d: [[[f32; P]; MAX_K]; 3],
-    /// Per channel, the centre's deviations.
-    pub dc: [[f32; P]; 3],
     /// Per channel, the diagonal `W` (≥ 0).
     pub w: [[f64; MAX_K]; 3],
     pub beta: [[f64; MAX_K]; 3],
@@ -36,8 +39,6 @@ pub(crate) struct Panel<const P: usize> {
 impl<const P: usize> Panel<P> {
     pub fn boxed() -> Box<Self> {
         Box::new(Panel {
-            d: [[[0.0; P]; MAX_K]; 3],
-            dc: [[0.0; P]; 3],
             w: [[0.0; MAX_K]; 3],
             beta: [[0.0; MAX_K]; 3],
             g: [[[0.0; P]; P]; 3],
@@ -50,7 +51,7 @@ impl<const P: usize> Panel<P> {
     /// β of each channel for `k` control variates; per channel the same contract as
     /// [`crate::solve::Workspace::solve`].
     #[inline(always)]
-    pub fn solve<S: Simd>(&mut self, k: usize, s: f64, ridge: f64) -> [Outcome; 3] {
+    pub fn solve<S: Simd>(&mut self, rows: &Rows<P>, k: usize, s: f64, ridge: f64) -> [Outcome; 3] {
         let mut out = [Outcome::Solved; 3];
         let mut pending = [false; 3];
         let mut lambda = [0.0; 3];
@@ -58,7 +59,7 @@ impl<const P: usize> Panel<P> {
         for ch in 0..3 {
             let mut sc = 0.0;
             for j in 0..k {
-                sc += s * S::dot32(&self.d[ch][j], &self.d[ch][j]) as f64 + self.w[ch][j];
+                sc += s * S::dot32(rows.d[ch][j], rows.d[ch][j]) as f64 + self.w[ch][j];
             }
             sc /= k.max(1) as f64;
             if k == 0 || !(sc > 0.0 && sc.is_finite()) {
@@ -74,7 +75,7 @@ impl<const P: usize> Panel<P> {
             if !pending.iter().any(|p| *p) {
                 break;
             }
-            let ok = self.try_solve::<S>(k, s, lambda, pending);
+            let ok = self.try_solve::<S>(rows, k, s, lambda, pending);
             for ch in 0..3 {
                 if !pending[ch] {
                     continue;
@@ -97,7 +98,7 @@ impl<const P: usize> Panel<P> {
     }
 
     #[inline(always)]
-    fn try_solve<S: Simd>(&mut self, k: usize, s: f64, lambda: [f64; 3], active: [bool; 3]) -> [bool; 3] {
+    fn try_solve<S: Simd>(&mut self, rows: &Rows<P>, k: usize, s: f64, lambda: [f64; 3], active: [bool; 3]) -> [bool; 3] {
         let mut ok = active;
         for ch in 0..3 {
             if !ok[ch] {
@@ -117,7 +118,7 @@ impl<const P: usize> Panel<P> {
             let g = &mut self.g[ch];
             for a0 in (0..P).step_by(4) {
                 for b0 in (0..P).step_by(8) {
-                    let acc = S::gram_block(&self.d[ch][..k], &self.c32[ch][..k], a0, b0);
+                    let acc = S::gram_block(&rows.d[ch][..k], &self.c32[ch][..k], a0, b0);
                     for q in 0..4 {
                         for l in 0..8 {
                             g[a0 + q][b0 + l] = acc[q][l] as f64;
@@ -169,7 +170,7 @@ impl<const P: usize> Panel<P> {
         for i in 0..P {
             for ch in 0..3 {
                 if ok[ch] {
-                    y[ch][i] = (self.dc[ch][i] as f64 - S::dot(&self.g[ch][i], &y[ch])) * self.inv_diag[ch][i];
+                    y[ch][i] = (rows.dc[ch][i] as f64 - S::dot(&self.g[ch][i], &y[ch])) * self.inv_diag[ch][i];
                 }
             }
         }
@@ -186,7 +187,7 @@ impl<const P: usize> Panel<P> {
         for ch in 0..3 {
             if ok[ch] {
                 for j in 0..k {
-                    self.beta[ch][j] = s * self.winv[ch][j] * S::dot32(&self.d[ch][j], &z[ch]) as f64;
+                    self.beta[ch][j] = s * self.winv[ch][j] * S::dot32(rows.d[ch][j], &z[ch]) as f64;
                 }
             }
         }
@@ -207,12 +208,13 @@ mod tests {
             let mut p = Panel::<32>::boxed();
             let s = 1.0 / (b * (b - 1)) as f64;
             let mut want = vec![];
+            let mut data = vec![[[0.0f32; 32]; MAX_K]; 3];
             for ch in 0..3 {
                 let mut ws = Workspace::boxed();
                 for j in 0..k {
                     for c in 0..b {
                         let v = (uniform(hash4(1 + ch as u64, j as u64, c as u64, 0)) - 0.5) as f32;
-                        p.d[ch][j][c] = v;
+                        data[ch][j][c] = v;
                         ws.d[j * b + c] = v as f64;
                     }
                     let w = wscale * uniform(hash4(2 + ch as u64, j as u64, 0, 0));
@@ -220,13 +222,14 @@ mod tests {
                     ws.w[j] = w;
                 }
                 for c in 0..b {
-                    p.dc[ch][c] = p.d[ch][0][c];
-                    ws.dc[c] = p.d[ch][0][c] as f64;
+                    ws.dc[c] = data[ch][0][c] as f64;
                 }
                 let o = ws.solve(k, b, s, ridge, Form::Woodbury);
                 want.push((o, ws.beta[..k].to_vec()));
             }
-            let got = p.solve::<Portable>(k, s, ridge);
+            let rows =
+                Rows { d: std::array::from_fn(|ch| std::array::from_fn(|j| &data[ch][j])), dc: std::array::from_fn(|ch| &data[ch][0]) };
+            let got = p.solve::<Portable>(&rows, k, s, ridge);
             for ch in 0..3 {
                 assert_eq!(got[ch], want[ch].0, "k={k} b={b} ch={ch}");
                 for j in 0..k {

@@ -8,7 +8,7 @@
 /// Vector kernels over fixed-width rows (`P` a multiple of 8).
 pub(crate) trait Simd {
     /// For `q < 4`, `l < 8`: `Σ_j (c_j · d_j[a0+q]) · d_j[b0+l]` over `j < k`, summed in `j` order.
-    fn gram_block<const P: usize>(d: &[[f32; P]], c: &[f32], a0: usize, b0: usize) -> [[f32; 8]; 4];
+    fn gram_block<const P: usize>(d: &[&[f32; P]], c: &[f32], a0: usize, b0: usize) -> [[f32; 8]; 4];
     /// `y[l] += a · x[l]`.
     fn axpy<const P: usize>(y: &mut [f64; P], a: f64, x: &[f64; P]);
     /// `Σ a[l]·b[l]` with four lane sums combined as `(s0 + s1) + (s2 + s3)`.
@@ -21,7 +21,7 @@ pub(crate) struct Portable;
 
 impl Simd for Portable {
     #[inline(always)]
-    fn gram_block<const P: usize>(d: &[[f32; P]], c: &[f32], a0: usize, b0: usize) -> [[f32; 8]; 4] {
+    fn gram_block<const P: usize>(d: &[&[f32; P]], c: &[f32], a0: usize, b0: usize) -> [[f32; 8]; 4] {
         let mut acc = [[0.0f32; 8]; 4];
         for (r, &cj) in d.iter().zip(c) {
             for q in 0..4 {
@@ -72,7 +72,7 @@ pub(crate) struct Avx2;
 #[cfg(target_arch = "x86_64")]
 impl Simd for Avx2 {
     #[inline(always)]
-    fn gram_block<const P: usize>(d: &[[f32; P]], c: &[f32], a0: usize, b0: usize) -> [[f32; 8]; 4] {
+    fn gram_block<const P: usize>(d: &[&[f32; P]], c: &[f32], a0: usize, b0: usize) -> [[f32; 8]; 4] {
         use std::arch::x86_64::*;
         assert!(a0 + 4 <= P && b0 + 8 <= P);
         // SAFETY: AVX2 is available (see the type's contract); loads stay inside each row
@@ -146,10 +146,10 @@ mod tests {
     use crate::rng::{hash4, uniform};
 
     #[target_feature(enable = "avx2")]
-    fn avx_results(d: &[[f32; 16]], c: &[f32], x: &[f64; 16], y: &[f64; 16]) -> ([[f32; 8]; 4], [f64; 16], f64, f32) {
+    fn avx_results(d: &[&[f32; 16]], c: &[f32], x: &[f64; 16], y: &[f64; 16]) -> ([[f32; 8]; 4], [f64; 16], f64, f32) {
         let mut yy = *y;
         Avx2::axpy(&mut yy, -0.37, x);
-        (Avx2::gram_block(d, c, 4, 8), yy, Avx2::dot(x, y), Avx2::dot32(&d[0], &d[1]))
+        (Avx2::gram_block(d, c, 4, 8), yy, Avx2::dot(x, y), Avx2::dot32(d[0], d[1]))
     }
 
     #[test]
@@ -163,12 +163,13 @@ mod tests {
         let x: [f64; 16] = std::array::from_fn(|i| u(7, i as u64) * 1e3);
         let y: [f64; 16] = std::array::from_fn(|i| u(8, i as u64) * 1e-3);
         // SAFETY: AVX2 detected above.
+        let d: Vec<&[f32; 16]> = d.iter().collect();
         let (g, yy, dt, d32) = unsafe { avx_results(&d, &c, &x, &y) };
         let mut py = y;
         Portable::axpy(&mut py, -0.37, &x);
         assert_eq!(g, Portable::gram_block(&d, &c, 4, 8));
         assert_eq!(yy, py);
         assert_eq!(dt.to_bits(), Portable::dot(&x, &y).to_bits());
-        assert_eq!(d32.to_bits(), Portable::dot32(&d[0], &d[1]).to_bits());
+        assert_eq!(d32.to_bits(), Portable::dot32(d[0], d[1]).to_bits());
     }
 }
