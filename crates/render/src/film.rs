@@ -78,9 +78,9 @@ impl TileStream {
 }
 
 /// Everything a tile produces for a stream render.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct TileResult {
-    pub tile: Option<Tile>,
+    pub tile: Tile,
     pub pt: TileStream,
     pub crn: TileStream,
     pub albedo: Vec<[f32; 3]>,

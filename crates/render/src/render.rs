@@ -141,7 +141,7 @@ pub fn render_streams<T: Intersector>(
     let render_tile = |tile: &Tile| -> TileResult {
         let n = tile.pixel_count();
         let mut r = TileResult {
-            tile: Some(*tile),
+            tile: *tile,
             pt: TileStream::new(n, nb as usize),
             crn: TileStream::new(n, nb as usize),
             albedo: Vec::with_capacity(n),
@@ -198,7 +198,7 @@ pub fn render_streams<T: Intersector>(
     let mut depth = vec![0.0f32; w * h];
     let mut non_finite = 0u64;
     for r in &results {
-        let tile = r.tile.expect("every tile result names its tile");
+        let tile = r.tile;
         non_finite += r.non_finite;
         for (i, (x, y)) in tile.pixels().enumerate() {
             let p = y as usize * w + x as usize;
