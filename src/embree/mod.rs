@@ -108,14 +108,27 @@ pub struct Device {
 }
 
 impl Device {
-    /// Creates a device with Embree's defaults and installs the error callback.
+    /// Creates a device and installs the error callback. Embree's defaults apply unless the
+    /// environment variable `CVTRACE_EMBREE_CONFIG` holds an Embree config string
+    /// (e.g. `verbose=1` to print the ISA Embree selected, `threads=1`).
     pub fn new() -> Result<Device, EmbreeError> {
-        // SAFETY: a null config string selects the defaults.
-        let raw = unsafe { ffi::rtcNewDevice(std::ptr::null()) };
+        match std::env::var("CVTRACE_EMBREE_CONFIG") {
+            Ok(config) if !config.trim().is_empty() => Device::with_config(&config),
+            _ => Device::with_config(""),
+        }
+    }
+
+    /// Creates a device with an explicit Embree config string ("" for the defaults).
+    pub fn with_config(config: &str) -> Result<Device, EmbreeError> {
+        let config_c = std::ffi::CString::new(config)
+            .map_err(|_| EmbreeError::Device { message: format!("config string {config:?} contains a NUL byte") })?;
+        let config_ptr = if config.is_empty() { std::ptr::null() } else { config_c.as_ptr() };
+        // SAFETY: a null pointer selects the defaults; otherwise a valid NUL-terminated string.
+        let raw = unsafe { ffi::rtcNewDevice(config_ptr) };
         if raw.is_null() {
             // SAFETY: rtcGetDeviceError(NULL) reports the error of the failed device creation.
             let code = unsafe { ffi::rtcGetDeviceError(std::ptr::null_mut()) };
-            return Err(EmbreeError::Device { message: error_name(code).to_string() });
+            return Err(EmbreeError::Device { message: format!("{} (config {config:?})", error_name(code)) });
         }
         let sink = Box::new(ErrorSink::default());
         // SAFETY: the sink outlives the device (see DeviceInner), and the callback never unwinds.

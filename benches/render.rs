@@ -1,0 +1,134 @@
+//! Render throughput on the shipped Cornell box (256×256, max depth 8) and bare Embree ray
+//! rates against its BVH. Run with `cargo bench --bench render`.
+//!
+//! Target: ≥ 1.5 M path samples per CPU-second (so ≥ 3 M/s wall on 2 cores).
+use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
+use cvtrace::{set_flush_denormals, BuildOptions, BuildQuality, Device, EmbreeScene};
+use cvtrace_render::{render_reference_pass, render_streams, Intersector, Ray, ReferenceAccum, RenderSettings, Scene};
+use glam::{Vec2, Vec3};
+use std::hint::black_box;
+use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Duration;
+
+const SIDE: u32 = 256;
+const SPP: u32 = 4;
+
+fn cornell() -> (Scene, EmbreeScene) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box/scene.gltf");
+    let scene = Scene::load(&path).expect("the shipped Cornell box loads");
+    let tracer = EmbreeScene::build(scene.positions(), scene.triangles()).expect("Embree builds it");
+    (scene, tracer)
+}
+
+/// The render pool as the CLI sets it up: all cores, FTZ/DAZ in every worker.
+fn pool() -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new().start_handler(|_| set_flush_denormals()).build().expect("thread pool")
+}
+
+fn settings() -> RenderSettings {
+    RenderSettings { width: SIDE, height: SIDE, spp: SPP, batches: 1, seed: 1, max_depth: 8, rr_depth: 5 }
+}
+
+/// Counts the rays a render casts, to put samples/s and rays/s side by side.
+struct Counting<'a> {
+    inner: &'a EmbreeScene,
+    intersect: AtomicU64,
+    occluded: AtomicU64,
+}
+
+impl Intersector for Counting<'_> {
+    fn intersect(&self, ray: &Ray) -> Option<cvtrace_render::Hit> {
+        self.intersect.fetch_add(1, Ordering::Relaxed);
+        self.inner.intersect(ray)
+    }
+    fn occluded(&self, ray: &Ray) -> bool {
+        self.occluded.fetch_add(1, Ordering::Relaxed);
+        self.inner.occluded(ray)
+    }
+}
+
+fn path_tracer(c: &mut Criterion) {
+    let (scene, tracer) = cornell();
+    let pool = pool();
+    let s = settings();
+    {
+        let counting = Counting { inner: &tracer, intersect: AtomicU64::new(0), occluded: AtomicU64::new(0) };
+        let mut acc = ReferenceAccum::new(&s);
+        pool.install(|| render_reference_pass(&scene, &counting, &s, &mut acc, 0..SPP, &|_| {})).unwrap();
+        let n = (SIDE * SIDE * SPP) as f64;
+        eprintln!(
+            "rays per PT sample at max depth {}: {:.2} nearest-hit + {:.2} shadow",
+            s.max_depth,
+            counting.intersect.load(Ordering::Relaxed) as f64 / n,
+            counting.occluded.load(Ordering::Relaxed) as f64 / n
+        );
+    }
+    let pixels = SIDE as u64 * SIDE as u64;
+    let mut g = c.benchmark_group("path_tracer");
+    g.sample_size(10).measurement_time(Duration::from_secs(8)).warm_up_time(Duration::from_secs(1));
+
+    // PT only: the progressive reference pass, samples of one stream.
+    g.throughput(Throughput::Elements(pixels * SPP as u64));
+    g.bench_function("cornell_256_depth8_pt_4spp", |b| {
+        b.iter_batched_ref(
+            || ReferenceAccum::new(&s),
+            |acc| pool.install(|| render_reference_pass(&scene, &tracer, &s, acc, 0..SPP, &|_| {})).unwrap(),
+            BatchSize::LargeInput,
+        )
+    });
+
+    // Paired PT + CRN streams with first-hit features: what `cvtrace render` does.
+    g.throughput(Throughput::Elements(pixels * SPP as u64 * 2));
+    g.bench_function("cornell_256_depth8_streams_2x4spp", |b| {
+        b.iter(|| black_box(pool.install(|| render_streams(&scene, &tracer, &s, &|_| {})).unwrap()))
+    });
+    g.finish();
+}
+
+/// SplitMix64 for reproducible random rays.
+fn splitmix(state: &mut u64) -> f32 {
+    *state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    let mut z = *state;
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
+}
+
+fn embree_rays(c: &mut Criterion) {
+    set_flush_denormals();
+    let (scene, tracer) = cornell();
+    let frame = scene.camera().frame(SIDE, SIDE);
+    let coherent: Vec<Ray> = (0..SIDE * SIDE).map(|i| frame.ray(i % SIDE, i / SIDE, Vec2::splat(0.5))).collect();
+    // Incoherent: random points inside the box towards random directions (like bounce rays).
+    let (lo, hi) = scene.bounds();
+    let mut st = 42u64;
+    let incoherent: Vec<Ray> = (0..SIDE * SIDE)
+        .map(|_| {
+            let origin = lo + (hi - lo) * Vec3::new(splitmix(&mut st), splitmix(&mut st), splitmix(&mut st)) * 0.98 + (hi - lo) * 0.01;
+            let z = 2.0 * splitmix(&mut st) - 1.0;
+            let phi = std::f32::consts::TAU * splitmix(&mut st);
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            Ray { origin, dir: Vec3::new(r * phi.cos(), r * phi.sin(), z), tmin: 0.0, tmax: f32::INFINITY }
+        })
+        .collect();
+
+    let mut g = c.benchmark_group("embree_single_thread");
+    g.sample_size(20).measurement_time(Duration::from_secs(3)).warm_up_time(Duration::from_millis(500));
+    g.throughput(Throughput::Elements(coherent.len() as u64));
+    g.bench_function("intersect_primary_coherent", |b| b.iter(|| coherent.iter().filter(|r| tracer.intersect(r).is_some()).count()));
+    g.bench_function("intersect_random_incoherent", |b| b.iter(|| incoherent.iter().filter(|r| tracer.intersect(r).is_some()).count()));
+    g.bench_function("occluded_random_incoherent", |b| b.iter(|| incoherent.iter().filter(|r| tracer.occluded(r)).count()));
+    // What the build options cost on incoherent rays (default: high quality, robust).
+    let device = Device::new().unwrap();
+    for (name, quality, robust) in [("medium_fast", BuildQuality::Medium, false), ("high_fast", BuildQuality::High, false)] {
+        let t = device.build_scene(scene.positions(), scene.triangles(), &BuildOptions { quality, robust, compact: false }).unwrap();
+        g.bench_function(format!("intersect_random_incoherent_{name}"), |b| {
+            b.iter(|| incoherent.iter().filter(|r| t.intersect(r).is_some()).count())
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, path_tracer, embree_rays);
+criterion_main!(benches);
