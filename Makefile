@@ -4,7 +4,8 @@ CARGO  ?= cargo
 BIN    := target/release/cvtrace
 SCENE  ?= scenes/cornell-box/scene.gltf
 OUT    ?= out/cornell-box
-SPP    ?= 32
+SPP    ?= 8,16,32
+BATCHES ?= 8
 SEEDS  ?= 4
 REF_SPP ?= 4096
 
@@ -16,13 +17,13 @@ setup:
 build: setup
 	$(CARGO) build --release --locked
 
-# Renders (or reuses) a reference, renders paired streams, reconstructs with every estimator.
+# A small study of the default scene, end to end: a reference (rendered once, then reused),
+# paired streams over seeds and spp values, every estimator, the tables and the HTML viewer.
 demo: build
-	@mkdir -p $(OUT)
-	@test -f $(OUT)/reference.exr || $(BIN) render $(SCENE) --reference --spp $(REF_SPP) -o $(OUT)/reference.exr
-	$(BIN) render $(SCENE) --spp $(SPP) --batches 16 --seed 7 --force -o $(OUT)/streams.exr
-	$(BIN) reconstruct $(OUT)/streams.exr --method all --reference $(OUT)/reference.exr --force -o $(OUT)/recon
-	@echo "demo: results in $(OUT)/recon"
+	$(BIN) study $(SCENE) --spp $(SPP) --seeds $(SEEDS) --batches $(BATCHES) \
+		--reference $(OUT)/reference.exr --reference-spp $(REF_SPP) -o $(OUT)/study
+	$(BIN) report $(OUT)/study -o $(OUT)/report --force
+	@echo "demo: open $(OUT)/report/index.html"
 
 test: setup
 	$(CARGO) test --workspace --locked
