@@ -40,7 +40,11 @@ fn find_embree() -> Result<Embree, Vec<String>> {
         let include = dir.join("include");
         match header_major(&include) {
             Some(major) => {
-                let lib_dir = ["lib", "lib64"].iter().map(|l| dir.join(l)).find(|l| l.is_dir()).unwrap_or_else(|| dir.join("lib"));
+                let lib_dir = ["lib", "lib64", "lib/x86_64-linux-gnu", "lib/aarch64-linux-gnu"]
+                    .iter()
+                    .map(|l| dir.join(l))
+                    .find(|l| has_library(l, major))
+                    .unwrap_or_else(|| dir.join("lib"));
                 println!("cargo:rustc-link-search=native={}", lib_dir.display());
                 println!("cargo:rustc-link-lib=dylib=embree{major}");
                 // Tests and the binary run from target/ without LD_LIBRARY_PATH.
@@ -85,6 +89,12 @@ fn find_embree() -> Result<Embree, Vec<String>> {
         tried.push(format!("{prefix}/include/embree{{4,3}}/rtcore.h (absent)"));
     }
     Err(tried)
+}
+
+/// Whether `dir` holds `libembree{major}` in any form (.so, .so.N, .a, .dylib).
+fn has_library(dir: &Path, major: u32) -> bool {
+    let prefix = format!("libembree{major}");
+    std::fs::read_dir(dir).map(|entries| entries.flatten().any(|e| e.file_name().to_string_lossy().starts_with(&prefix))).unwrap_or(false)
 }
 
 /// The newest Embree major whose headers are under `include`.
