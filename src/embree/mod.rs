@@ -381,7 +381,7 @@ impl Intersector for EmbreeScene {
         unsafe { ffi::cvt_intersect1(self.raw, &mut rh.0) };
         let hit = &rh.0.hit;
         // Embree sets tfar to the hit distance.
-        (hit.geomID != ffi::RTC_INVALID_GEOMETRY_ID).then(|| Hit { t: rh.0.ray.tfar, prim: hit.primID, u: hit.u, v: hit.v })
+        (hit.geomID != ffi::RTC_INVALID_GEOMETRY_ID).then_some(Hit { t: rh.0.ray.tfar, prim: hit.primID, u: hit.u, v: hit.v })
     }
 
     #[inline]
