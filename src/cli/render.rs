@@ -202,7 +202,7 @@ fn render_reference(
         let r = pool.install(|| render_reference_pass(scene, tracer, s, &mut accum, range, &|k| bar.inc(k)));
         if let Err(e) = r {
             bar.finish_and_clear();
-            return Err(flat(e));
+            return Err(e.into());
         }
         passes += 1;
         let done = accum.samples_done >= s.spp;
@@ -237,7 +237,7 @@ fn render_reference(
     if let Err(e) = write_rgb(&args.output, &accum.mean(), &attributes, args.force) {
         // Keep the finished work: the next run with the same settings only has to write.
         let _ = save_checkpoint(checkpoint, &accum, &identity);
-        return Err(flat(e));
+        return Err(e.into());
     }
     tracing::info!("wrote {} in {:.1} ms", args.output.display(), ms(t));
     if checkpoint.exists() {
@@ -494,12 +494,6 @@ fn log_rate(phase: &str, samples: u64, start: Instant) {
     let secs = start.elapsed().as_secs_f64();
     let rate = if secs > 0.0 { samples as f64 / secs } else { 0.0 };
     tracing::info!("{phase}: {samples} samples in {secs:.2} s ({:.2} M samples/s)", rate / 1e6);
-}
-
-/// The library errors already name the file and embed their cause in their message; keeping
-/// their `source()` chain would print the cause twice under `{:#}`.
-fn flat(e: impl std::fmt::Display) -> anyhow::Error {
-    anyhow::anyhow!("{e}")
 }
 
 fn ms(t: Instant) -> f64 {

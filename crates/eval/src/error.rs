@@ -10,12 +10,9 @@ pub enum EvalError {
     SizeMismatch { a: String, aw: usize, ah: usize, b: String, bw: usize, bh: usize },
     #[error("{label}: non-finite value {value} at pixel ({x}, {y}), channel {channel}")]
     NonFinite { label: String, x: usize, y: usize, channel: usize, value: f32 },
-    #[error("{path}: {source}")]
-    Io {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
+    /// The cause is part of the message (not a `source`), so `{:#}` chains print it once.
+    #[error("{path}: {error}")]
+    Io { path: PathBuf, error: std::io::Error },
     #[error("{path}: not a valid cvtrace results file: {message}")]
     Json { path: PathBuf, message: String },
     #[error("{context}: {message}")]
@@ -28,6 +25,6 @@ impl EvalError {
     }
 
     pub(crate) fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
-        EvalError::Io { path: path.into(), source }
+        EvalError::Io { path: path.into(), error: source }
     }
 }

@@ -11,12 +11,9 @@ use std::path::{Path, PathBuf};
 /// Why a scene could not be loaded or built. Every variant names the file (or `<memory>`).
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    #[error("{path}: {source}")]
-    Io {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
+    /// The cause is part of the message (not a `source`), so `{:#}` chains print it once.
+    #[error("{path}: {error}")]
+    Io { path: PathBuf, error: std::io::Error },
     #[error("{path}: not a valid glTF 2.0 file: {message}")]
     Malformed { path: PathBuf, message: String },
     #[error("{path}: requires the glTF extension `{extension}`, which cvtrace does not support")]

@@ -17,7 +17,7 @@ pub fn check_writable(path: &Path, overwrite: bool) -> Result<(), StreamError> {
     if !parent.is_dir() {
         return Err(StreamError::invalid(path, format!("output directory {} does not exist", parent.display())));
     }
-    let md = std::fs::metadata(&parent).map_err(|e| StreamError::Io { path: parent.clone(), source: e })?;
+    let md = std::fs::metadata(&parent).map_err(|e| StreamError::Io { path: parent.clone(), error: e })?;
     if md.permissions().readonly() {
         return Err(StreamError::invalid(path, format!("output directory {} is not writable", parent.display())));
     }
@@ -62,7 +62,7 @@ where
     }
     std::fs::rename(&tmp, path).map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
-        StreamError::Io { path: path.to_path_buf(), source: e }
+        StreamError::Io { path: path.to_path_buf(), error: e }
     })
 }
 

@@ -3,8 +3,9 @@ use std::path::PathBuf;
 
 #[derive(Debug, thiserror::Error)]
 pub enum StreamError {
-    #[error("{path}: {source}")]
-    Io { path: PathBuf, #[source] source: std::io::Error },
+    /// The cause is part of the message (not a `source`), so `{:#}` chains print it once.
+    #[error("{path}: {error}")]
+    Io { path: PathBuf, error: std::io::Error },
     #[error("{path}: not a readable OpenEXR file: {message}")]
     Exr { path: PathBuf, message: String },
     #[error("{path}: missing channel `{channel}`")]

@@ -58,7 +58,7 @@ impl ExrChannels {
         if !path.exists() {
             return Err(StreamError::Io {
                 path: path.to_path_buf(),
-                source: std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
+                error: std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
             });
         }
         let image = read()
@@ -124,8 +124,56 @@ impl ExrChannels {
         let encoding = Encoding { compression: Compression::ZIP16, blocks: Blocks::ScanLines, line_order: LineOrder::Increasing };
         let layer = Layer::new(size, attributes, encoding, channels);
         let image = exr::image::Image::from_layer(layer);
-        write_atomically(path, overwrite, |tmp| image.write().to_file(tmp))
+        write_atomically(path, overwrite, |tmp| -> Result<(), String> {
+            image.write().to_file(tmp).map_err(|e| e.to_string())?;
+            sort_header_attributes(tmp).map_err(|e| e.to_string())
+        })
     }
+}
+
+/// Rewrites the header of a single-part EXR with its attributes sorted by name.
+///
+/// The `exr` crate keeps custom attributes in a `HashMap`, so their order in the file (not
+/// their values) changes from run to run. OpenEXR readers look attributes up by name, so the
+/// order is free; sorting it makes equal images give byte-identical files. The header keeps
+/// its length, so the chunk offsets after it stay valid.
+fn sort_header_attributes(path: &Path) -> std::io::Result<()> {
+    use std::io::{Read, Seek, SeekFrom, Write};
+    let bad = |m: &str| std::io::Error::new(std::io::ErrorKind::InvalidData, m.to_string());
+    let mut file = std::fs::OpenOptions::new().read(true).write(true).open(path)?;
+    let mut head = Vec::new();
+    Read::by_ref(&mut file).take(1 << 20).read_to_end(&mut head)?;
+    if head.len() < 8 || head[..4] != [0x76, 0x2f, 0x31, 0x01] {
+        return Err(bad("not an OpenEXR file"));
+    }
+    if head[5] & 0x10 != 0 {
+        return Err(bad("multi-part files are not sorted"));
+    }
+    let cstr_end = |from: usize| head[from..].iter().position(|&b| b == 0).map(|i| from + i);
+    let mut attributes: Vec<&[u8]> = Vec::new();
+    let mut at = 8;
+    loop {
+        let name_end = cstr_end(at).ok_or_else(|| bad("header runs past 1 MiB"))?;
+        if name_end == at {
+            break; // the empty name that ends the header
+        }
+        let type_end = cstr_end(name_end + 1).ok_or_else(|| bad("truncated attribute type"))?;
+        let size_at = type_end + 1;
+        let size_bytes: [u8; 4] = head.get(size_at..size_at + 4).ok_or_else(|| bad("truncated attribute size"))?.try_into().unwrap();
+        let end = size_at + 4 + i32::from_le_bytes(size_bytes).max(0) as usize;
+        if end > head.len() {
+            return Err(bad("truncated attribute value"));
+        }
+        attributes.push(&head[at..end]);
+        at = end;
+    }
+    // Sort by name (the bytes up to the first NUL).
+    attributes.sort_by(|a, b| a.split(|&c| c == 0).next().cmp(&b.split(|&c| c == 0).next()));
+    let sorted: Vec<u8> = attributes.concat();
+    debug_assert_eq!(sorted.len(), at - 8);
+    file.seek(SeekFrom::Start(8))?;
+    file.write_all(&sorted)?;
+    file.sync_all()
 }
 
 /// Reads an RGB image from channels `{prefix}R/G/B` (prefix "" for a plain beauty image).
@@ -183,6 +231,24 @@ mod tests {
         let ch = ExrChannels::read(&p).unwrap();
         assert_eq!(ch.attr("cvtrace.spp"), Some(&AttrValue::Int(7)));
         assert_eq!(ch.attr("cvtrace.note"), Some(&AttrValue::Text("hi".into())));
+    }
+
+    #[test]
+    fn equal_images_give_byte_identical_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = crate::Image::from_fn(9, 4, |x, y| [x as f32, y as f32, 0.25]);
+        let attrs: Vec<(String, AttrValue)> = (0..12).map(|i| (format!("cvtrace.a{i}"), AttrValue::Int(i))).collect();
+        let attrs: Vec<(&str, AttrValue)> = attrs.iter().map(|(k, v)| (k.as_str(), v.clone())).collect();
+        let files: Vec<Vec<u8>> = (0..4)
+            .map(|i| {
+                let p = dir.path().join(format!("{i}.exr"));
+                write_rgb(&p, &img, &attrs, false).unwrap();
+                std::fs::read(&p).unwrap()
+            })
+            .collect();
+        assert!(files.windows(2).all(|w| w[0] == w[1]), "attribute order changed between writes");
+        let back = ExrChannels::read(&dir.path().join("0.exr")).unwrap();
+        assert_eq!(back.attr("cvtrace.a7"), Some(&AttrValue::Int(7)));
     }
 
     #[test]
