@@ -111,18 +111,50 @@ fn main() {
             Box::new(move || Box::new(Iduw::new(IduwOptions { window: w, ..Default::default() }).unwrap())),
         );
     }
+    add(
+        "iduw",
+        "window 15, grid extended to γ = 100".into(),
+        16,
+        Box::new(|| {
+            let mut gammas = GAMMA_GRID.to_vec();
+            gammas.extend([5.0, 10.0, 25.0, 50.0, 100.0]);
+            Box::new(Iduw::new(IduwOptions { gammas, ..Default::default() }).unwrap())
+        }),
+    );
 
     for &spp in spps {
         // results[variant] = relMSE per seed; outputs kept for the bias/variance split.
         let mut results: Vec<Vec<f64>> = vec![vec![]; v.len()];
         let mut pt2n = vec![];
         let mut bv_outputs: BTreeMap<String, Vec<Image>> = BTreeMap::new();
+        let mut gammas: BTreeMap<String, Vec<f64>> = BTreeMap::new();
+        let mut scaled: BTreeMap<(String, u32), Vec<f64>> = BTreeMap::new();
         for seed in 0..seeds {
             let mut sets = BTreeMap::new();
             for var in &v {
                 sets.entry(var.batches).or_insert_with(|| {
                     scene.render(&RenderSpec { width: size, height: size, spp, batches: var.batches, seed: 7000 + seed }).unwrap()
                 });
+            }
+            // Radiance scale: relMSE is (nearly) scale-free, so only a scale-dependent method moves.
+            for scale in [0.1f32, 1.0, 10.0] {
+                let mut set = sets[&16].clone();
+                for im in std::iter::once(&mut set.pt.mean)
+                    .chain(set.pt.batches.iter_mut())
+                    .chain(std::iter::once(&mut set.crn.mean))
+                    .chain(set.crn.batches.iter_mut())
+                {
+                    im.pixels.iter_mut().for_each(|p| p.iter_mut().for_each(|v| *v *= scale));
+                }
+                let mut r = reference.clone();
+                r.pixels.iter_mut().for_each(|p| p.iter_mut().for_each(|v| *v *= scale));
+                for m in [Method::Iduw, Method::Ours] {
+                    let out = build(m, &Options::default()).unwrap().reconstruct(&Input::new(&set)).unwrap();
+                    scaled
+                        .entry((m.to_string(), (scale * 10.0) as u32))
+                        .or_default()
+                        .push(rel_mse(&out.image, &r) / rel_mse(&set.pt.mean, &r));
+                }
             }
             let spec16 = RenderSpec { width: size, height: size, spp, batches: 16, seed: 7000 + seed };
             let second = scene.render_pt(&spec16, 1).unwrap();
@@ -131,6 +163,9 @@ fn main() {
                 let set = &sets[&var.batches];
                 let out = (var.make)().reconstruct(&Input::new(set).with_reference(&reference)).unwrap();
                 results[vi].push(rel_mse(&out.image, &reference));
+                if let Some(g) = out.diagnostics.get("gamma").and_then(DiagValue::as_f64) {
+                    gammas.entry(var.label.clone()).or_default().push(g);
+                }
                 if var.table == "selection" {
                     bv_outputs.entry(var.label.clone()).or_default().push(out.image);
                 }
@@ -147,6 +182,15 @@ fn main() {
             }
             let (m, se) = mean_se(&results[vi]);
             println!("| {} | {m:.3e} | {se:.1e} | {:.3} |", var.label, m / m2n);
+        }
+        println!("\n### γ chosen by IDUW (mean over seeds)\n\n| variant | γ |\n|---|---|");
+        for (label, g) in &gammas {
+            println!("| {label} | {:.3} |", g.iter().sum::<f64>() / g.len() as f64);
+        }
+        println!("\n### radiance scale (relMSE relative to PT alone at the same scale)\n\n| method | ×0.1 | ×1 | ×10 |\n|---|---|---|---|");
+        for m in ["iduw", "ours"] {
+            let cell = |s: u32| mean_se(&scaled[&(m.to_string(), s)]).0;
+            println!("| {m} | {:.3} | {:.3} | {:.3} |", cell(1), cell(10), cell(100));
         }
         println!(
             "\n### bias / variance of the selections (relative, over seeds)\n\n| selection | squared bias | variance |\n|---|---|---|"

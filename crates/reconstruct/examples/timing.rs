@@ -18,7 +18,8 @@ fn main() {
         let out = e.reconstruct(&Input::new(&set)).unwrap();
         let s = out.diagnostics.seconds;
         let cpu = cpu_seconds().map(|c| c - cpu0.unwrap_or(0.0)).unwrap_or(f64::NAN);
-        println!("{:<8} {:>7.3} s wall {:>7.3} s cpu  {:>7.2} Mpix/s", m.name(), s, cpu, (w * h) as f64 / s / 1e6);
+        let prep = out.diagnostics.get("seconds_prepare").map(|v| format!("  (prepare {v:.3} s)")).unwrap_or_default();
+        println!("{:<8} {:>7.3} s wall {:>7.3} s cpu  {:>7.2} Mpix/s{prep}", m.name(), s, cpu, (w * h) as f64 / s / 1e6);
     }
 }
 

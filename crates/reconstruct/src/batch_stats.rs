@@ -15,6 +15,8 @@ pub(crate) struct BatchCube {
     pub batches: usize,
     pub stride: usize,
     pub data: Vec<f32>,
+    /// Per pixel and channel, the sum of squared deviations.
+    pub sq: Vec<[f32; 3]>,
 }
 
 impl BatchCube {
@@ -36,7 +38,11 @@ impl BatchCube {
                 }
             });
         }
-        BatchCube { batches: b, stride, data }
+        let sq = data
+            .par_chunks(3 * stride.max(1))
+            .map(|px| std::array::from_fn(|ch| px[ch * stride..ch * stride + b].iter().map(|v| v * v).sum()))
+            .collect();
+        BatchCube { batches: b, stride, data, sq }
     }
 
     /// The deviations of pixel `i` in channel `ch`.

@@ -195,6 +195,7 @@ impl CvPass<'_> {
                 for ch in 0..3 {
                     rows.d[ch][j] = cube.row_padded::<P>(i as usize, ch);
                     p.w[ch][j] = self.weight(i as usize, c, ch);
+                    p.sq[ch][j] = cube.sq[i as usize][ch];
                 }
             }
             let outcomes = p.solve::<S>(&rows, n, s, self.ridge);

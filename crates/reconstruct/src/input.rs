@@ -3,7 +3,7 @@
 //! caller holding buffers from another renderer).
 use crate::ReconError;
 use cvtrace_streams::stream_set::batch_prefix;
-use cvtrace_streams::{Image, StreamSet};
+use cvtrace_streams::{Features, Image, Stream, StreamMeta, StreamSet};
 use rayon::prelude::*;
 
 /// The input of every estimator.
@@ -126,6 +126,49 @@ impl<'a> Input<'a> {
         }
         Ok(())
     }
+}
+
+/// A stream set from another renderer's buffers: `B` batch means per stream (equal sample
+/// counts per batch, batch `b` of every CRN pixel sharing its random numbers), `spp` the
+/// samples per pixel of each stream (IDUW needs it; 0 if unknown). The stream means are the
+/// means of the batches. Checks that there are batches and that every image has one size.
+pub fn stream_set_from_batches(pt: Vec<Image>, crn: Vec<Image>, spp: u32, features: Option<Features>) -> Result<StreamSet, ReconError> {
+    let origin = "<batch buffers>".to_string();
+    let Some(first) = pt.first().or(crn.first()) else {
+        return Err(ReconError::BatchCount {
+            origin,
+            method: "stream set",
+            requirement: "at least 1".into(),
+            found: 0,
+            hint: "pass the batch means of both streams".into(),
+        });
+    };
+    let (w, h) = (first.width, first.height);
+    for (name, list) in [("pt", &pt), ("crn", &crn)] {
+        for (b, im) in list.iter().enumerate() {
+            if im.width != w || im.height != h || im.pixels.len() != w * h {
+                return Err(ReconError::SizeMismatch {
+                    origin,
+                    layer: format!("{}RGB", batch_prefix(name, b)),
+                    width: im.width,
+                    height: im.height,
+                    expected_width: w,
+                    expected_height: h,
+                });
+            }
+        }
+    }
+    if pt.len() != crn.len() {
+        return Err(ReconError::BatchCountMismatch { origin, pt: pt.len(), crn: crn.len() });
+    }
+    Ok(StreamSet {
+        width: w,
+        height: h,
+        pt: Stream::from_batches(pt),
+        crn: Stream::from_batches(crn),
+        features,
+        meta: StreamMeta { spp, ..Default::default() },
+    })
 }
 
 const RGB: [&str; 3] = ["R", "G", "B"];

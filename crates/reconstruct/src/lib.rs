@@ -19,6 +19,20 @@
 //! println!("{}", out.diagnostics);
 //! ```
 //!
+//! With buffers from another renderer, [`stream_set_from_batches`] builds the stream set:
+//!
+//! ```
+//! use cvtrace_reconstruct::{build, stream_set_from_batches, Image, Input, Method, Options};
+//!
+//! // B = 4 batch means per stream, all of one size (here constant images).
+//! let batch = |v: f32| Image::from_fn(8, 8, |_, _| [v; 3]);
+//! let pt = vec![batch(0.9), batch(1.1), batch(1.0), batch(1.0)];
+//! let crn = vec![batch(0.8), batch(1.2), batch(1.05), batch(0.95)];
+//! let set = stream_set_from_batches(pt, crn, 16, None).unwrap();
+//! let out = build(Method::Iduw, &Options::default()).unwrap().reconstruct(&Input::new(&set)).unwrap();
+//! assert!(out.diagnostics.get("gamma").is_some());
+//! ```
+//!
 //! Methods and their defaults are documented, with measurements, in `docs/estimators.md`.
 
 mod batch_stats;
@@ -44,11 +58,13 @@ pub mod synthetic;
 mod window;
 
 pub use batch_stats::variance_of_mean;
+/// The input types, re-exported so that library callers need no second import.
+pub use cvtrace_streams::{Features, Image, Stream, StreamMeta, StreamSet};
 pub use diagnostics::{DiagValue, Diagnostics};
 pub use error::{ParseNameError, ReconError};
 pub use estimator::{Estimator, Output};
 pub use estimators::{CvOptions, IduwOptions, OursOptions, GAMMA_GRID};
-pub use input::{BatchNeed, Input, Needs};
+pub use input::{stream_set_from_batches, BatchNeed, Input, Needs};
 pub use method::{build, Method, MethodChoice, Options};
 pub use penalty::Penalty;
 pub use pt_error::{CbfOptions, ErrorEstimate};

@@ -7,12 +7,11 @@
 
 /// Vector kernels over fixed-width rows (`P` a multiple of 8).
 pub(crate) trait Simd {
-    /// For `q < 4`, `l < 8`: `Σ_j (c_j · d_j[a0+q]) · d_j[b0+l]` over `j < k`, summed in `j` order.
-    fn gram_block<const P: usize>(d: &[&[f32; P]], c: &[f32], a0: usize, b0: usize) -> [[f32; 8]; 4];
+    /// For `q < 4`, `l < 8`: `Σ_j e_j[a0+q] · d_j[b0+l]` over the rows, summed in `j` order,
+    /// where `e_j` is `d_j` scaled by its weight.
+    fn gram_block<const P: usize>(d: &[&[f32; P]], e: &[[f32; P]], a0: usize, b0: usize) -> [[f32; 8]; 4];
     /// `y[l] += a · x[l]`.
-    fn axpy<const P: usize>(y: &mut [f64; P], a: f64, x: &[f64; P]);
-    /// `Σ a[l]·b[l]` with four lane sums combined as `(s0 + s1) + (s2 + s3)`.
-    fn dot<const P: usize>(a: &[f64; P], b: &[f64; P]) -> f64;
+    fn axpy32<const P: usize>(y: &mut [f32; P], a: f32, x: &[f32; P]);
     /// `Σ a[l]·b[l]` with eight lane sums combined pairwise.
     fn dot32<const P: usize>(a: &[f32; P], b: &[f32; P]) -> f32;
 }
@@ -21,11 +20,11 @@ pub(crate) struct Portable;
 
 impl Simd for Portable {
     #[inline(always)]
-    fn gram_block<const P: usize>(d: &[&[f32; P]], c: &[f32], a0: usize, b0: usize) -> [[f32; 8]; 4] {
+    fn gram_block<const P: usize>(d: &[&[f32; P]], e: &[[f32; P]], a0: usize, b0: usize) -> [[f32; 8]; 4] {
         let mut acc = [[0.0f32; 8]; 4];
-        for (r, &cj) in d.iter().zip(c) {
+        for (r, ej) in d.iter().zip(e) {
             for q in 0..4 {
-                let ra = cj * r[a0 + q];
+                let ra = ej[a0 + q];
                 for l in 0..8 {
                     acc[q][l] += ra * r[b0 + l];
                 }
@@ -35,21 +34,10 @@ impl Simd for Portable {
     }
 
     #[inline(always)]
-    fn axpy<const P: usize>(y: &mut [f64; P], a: f64, x: &[f64; P]) {
+    fn axpy32<const P: usize>(y: &mut [f32; P], a: f32, x: &[f32; P]) {
         for l in 0..P {
             y[l] += a * x[l];
         }
-    }
-
-    #[inline(always)]
-    fn dot<const P: usize>(a: &[f64; P], b: &[f64; P]) -> f64 {
-        let mut acc = [0.0f64; 4];
-        for i in (0..P).step_by(4) {
-            for l in 0..4 {
-                acc[l] += a[i + l] * b[i + l];
-            }
-        }
-        (acc[0] + acc[1]) + (acc[2] + acc[3])
     }
 
     #[inline(always)]
@@ -72,18 +60,17 @@ pub(crate) struct Avx2;
 #[cfg(target_arch = "x86_64")]
 impl Simd for Avx2 {
     #[inline(always)]
-    fn gram_block<const P: usize>(d: &[&[f32; P]], c: &[f32], a0: usize, b0: usize) -> [[f32; 8]; 4] {
+    fn gram_block<const P: usize>(d: &[&[f32; P]], e: &[[f32; P]], a0: usize, b0: usize) -> [[f32; 8]; 4] {
         use std::arch::x86_64::*;
         assert!(a0 + 4 <= P && b0 + 8 <= P);
         // SAFETY: AVX2 is available (see the type's contract); loads stay inside each row
         // (asserted above).
         unsafe {
             let mut acc = [_mm256_setzero_ps(); 4];
-            for (r, &cj) in d.iter().zip(c) {
-                let p = r.as_ptr();
-                let rb = _mm256_loadu_ps(p.add(b0));
+            for (r, ej) in d.iter().zip(e) {
+                let rb = _mm256_loadu_ps(r.as_ptr().add(b0));
                 for (q, a) in acc.iter_mut().enumerate() {
-                    let ra = _mm256_set1_ps(cj * *p.add(a0 + q));
+                    let ra = _mm256_set1_ps(ej[a0 + q]);
                     *a = _mm256_add_ps(*a, _mm256_mul_ps(ra, rb));
                 }
             }
@@ -96,31 +83,16 @@ impl Simd for Avx2 {
     }
 
     #[inline(always)]
-    fn axpy<const P: usize>(y: &mut [f64; P], a: f64, x: &[f64; P]) {
+    fn axpy32<const P: usize>(y: &mut [f32; P], a: f32, x: &[f32; P]) {
         use std::arch::x86_64::*;
-        // SAFETY: AVX2 is available; P is a multiple of 4, so every load/store is in bounds.
+        // SAFETY: AVX2 is available; P is a multiple of 8, so every load/store is in bounds.
         unsafe {
-            let av = _mm256_set1_pd(a);
-            for i in (0..P).step_by(4) {
+            let av = _mm256_set1_ps(a);
+            for i in (0..P).step_by(8) {
                 let yp = y.as_mut_ptr().add(i);
-                let t = _mm256_mul_pd(av, _mm256_loadu_pd(x.as_ptr().add(i)));
-                _mm256_storeu_pd(yp, _mm256_add_pd(_mm256_loadu_pd(yp), t));
+                let t = _mm256_mul_ps(av, _mm256_loadu_ps(x.as_ptr().add(i)));
+                _mm256_storeu_ps(yp, _mm256_add_ps(_mm256_loadu_ps(yp), t));
             }
-        }
-    }
-
-    #[inline(always)]
-    fn dot<const P: usize>(a: &[f64; P], b: &[f64; P]) -> f64 {
-        use std::arch::x86_64::*;
-        // SAFETY: AVX2 is available; P is a multiple of 4.
-        unsafe {
-            let mut acc = _mm256_setzero_pd();
-            for i in (0..P).step_by(4) {
-                acc = _mm256_add_pd(acc, _mm256_mul_pd(_mm256_loadu_pd(a.as_ptr().add(i)), _mm256_loadu_pd(b.as_ptr().add(i))));
-            }
-            let mut l = [0.0f64; 4];
-            _mm256_storeu_pd(l.as_mut_ptr(), acc);
-            (l[0] + l[1]) + (l[2] + l[3])
         }
     }
 
@@ -146,10 +118,10 @@ mod tests {
     use crate::rng::{hash4, uniform};
 
     #[target_feature(enable = "avx2")]
-    fn avx_results(d: &[&[f32; 16]], c: &[f32], x: &[f64; 16], y: &[f64; 16]) -> ([[f32; 8]; 4], [f64; 16], f64, f32) {
+    fn avx_results(d: &[&[f32; 16]], c: &[[f32; 16]], y: &[f32; 16]) -> ([[f32; 8]; 4], [f32; 16], f32) {
         let mut yy = *y;
-        Avx2::axpy(&mut yy, -0.37, x);
-        (Avx2::gram_block(d, c, 4, 8), yy, Avx2::dot(x, y), Avx2::dot32(d[0], d[1]))
+        Avx2::axpy32(&mut yy, -0.37, d[2]);
+        (Avx2::gram_block(d, c, 4, 8), yy, Avx2::dot32(d[0], d[1]))
     }
 
     #[test]
@@ -159,17 +131,15 @@ mod tests {
         }
         let u = |a: u64, b: u64| uniform(hash4(5, a, b, 0)) - 0.5;
         let d: Vec<[f32; 16]> = (0..25).map(|j| std::array::from_fn(|b| u(j, b as u64) as f32)).collect();
-        let c: Vec<f32> = (0..25).map(|j| u(99, j) as f32 + 1.0).collect();
-        let x: [f64; 16] = std::array::from_fn(|i| u(7, i as u64) * 1e3);
-        let y: [f64; 16] = std::array::from_fn(|i| u(8, i as u64) * 1e-3);
-        // SAFETY: AVX2 detected above.
+        let c: Vec<[f32; 16]> = (0..25).map(|j| std::array::from_fn(|b| u(99, 16 * j + b as u64) as f32 + 1.0)).collect();
+        let y: [f32; 16] = std::array::from_fn(|i| (u(8, i as u64) * 1e-3) as f32);
         let d: Vec<&[f32; 16]> = d.iter().collect();
-        let (g, yy, dt, d32) = unsafe { avx_results(&d, &c, &x, &y) };
+        // SAFETY: AVX2 detected above.
+        let (g, yy, d32) = unsafe { avx_results(&d, &c, &y) };
         let mut py = y;
-        Portable::axpy(&mut py, -0.37, &x);
+        Portable::axpy32(&mut py, -0.37, d[2]);
         assert_eq!(g, Portable::gram_block(&d, &c, 4, 8));
-        assert_eq!(yy, py);
-        assert_eq!(dt.to_bits(), Portable::dot(&x, &y).to_bits());
+        assert_eq!(yy.map(f32::to_bits), py.map(f32::to_bits));
         assert_eq!(d32.to_bits(), Portable::dot32(d[0], d[1]).to_bits());
     }
 }

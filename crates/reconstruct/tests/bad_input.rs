@@ -147,3 +147,16 @@ fn too_many_batches_are_refused_with_a_fix() {
     let e = err(Method::Ours, &Options::default(), &Input::new(&s).named("many.exr", "-"));
     assert!(e.contains("many.exr") && e.contains("at most 64") && e.contains("merge"), "{e}");
 }
+
+#[test]
+fn buffers_from_another_renderer() {
+    let im = |w: usize, v: f32| Image::from_fn(w, 3, |_, _| [v; 3]);
+    let set = stream_set_from_batches(vec![im(4, 1.0), im(4, 3.0)], vec![im(4, 2.0), im(4, 2.0)], 8, None).unwrap();
+    assert_eq!((set.width, set.height, set.batch_count(), set.meta.spp), (4, 3, 2, 8));
+    assert_eq!(set.pt.mean.get(0, 0), [2.0; 3]);
+    let e = stream_set_from_batches(vec![im(4, 1.0), im(5, 1.0)], vec![im(4, 1.0), im(4, 1.0)], 8, None).unwrap_err().to_string();
+    assert!(e.contains("pt.b01") && e.contains("5x3") && e.contains("4x3"), "{e}");
+    let e = stream_set_from_batches(vec![im(4, 1.0)], vec![im(4, 1.0), im(4, 1.0)], 8, None).unwrap_err().to_string();
+    assert!(e.contains("pt has 1") && e.contains("crn has 2"), "{e}");
+    assert!(stream_set_from_batches(vec![], vec![], 8, None).is_err());
+}
