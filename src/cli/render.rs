@@ -81,23 +81,23 @@ pub fn run(args: RenderArgs) -> Result<()> {
         max_depth: args.max_depth,
         rr_depth: args.rr_depth,
     };
-    provisional.validate().map_err(flat)?;
+    provisional.validate()?;
     let camera_override = args.camera.as_deref().map(parse_camera).transpose()?;
-    check_writable(&args.output, args.force).map_err(flat)?;
+    check_writable(&args.output, args.force)?;
     let checkpoint = checkpoint_path(&args.output);
     if args.reference {
         if checkpoint.is_dir() {
             bail!("{}: the checkpoint path is a directory", checkpoint.display());
         }
         // The checkpoint is replaced after every pass, so its location must be writable too.
-        check_writable(&checkpoint, true).map_err(flat)?;
+        check_writable(&checkpoint, true)?;
     }
 
     // Denormal flushing in this thread too, for any work rayon runs on the caller.
     set_flush_denormals();
 
     let t = Instant::now();
-    let mut scene = Scene::load(&args.scene).map_err(flat)?;
+    let mut scene = Scene::load(&args.scene)?;
     tracing::info!(
         "loaded {} in {:.1} ms: {} triangles, {} materials",
         args.scene.display(),
@@ -113,7 +113,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     }
     let (width, height) = image_size(args.width, args.height, scene.camera());
     let settings = RenderSettings { width, height, ..provisional };
-    settings.validate().map_err(flat)?;
+    settings.validate()?;
 
     let tracer = EmbreeScene::build(scene.positions(), scene.triangles()).context("building the Embree BVH")?;
     // FTZ/DAZ in every render thread (Embree's advice), whatever the thread count: a local
@@ -148,11 +148,11 @@ fn render_stream_file(args: &RenderArgs, scene: &Scene, tracer: &EmbreeScene, s:
     let t = Instant::now();
     let result = pool.install(|| render_streams(scene, tracer, s, &|k| bar.inc(k)));
     bar.finish_and_clear();
-    let mut set = result.map_err(flat)?;
+    let mut set = result?;
     log_rate("render", total, t);
     set.meta.scene = args.scene.to_string_lossy().into_owned();
     let t = Instant::now();
-    set.write(&args.output, args.force).map_err(flat)?;
+    set.write(&args.output, args.force)?;
     tracing::info!("wrote {} in {:.1} ms", args.output.display(), ms(t));
     Ok(())
 }
@@ -368,7 +368,7 @@ fn save_checkpoint(path: &Path, accum: &ReferenceAccum, identity: &CheckpointIde
     }
     ch.attributes.insert("cvtrace.samplesDone".into(), AttrValue::Int(accum.samples_done as i32));
     ch.attributes.insert("cvtrace.nonFiniteSamples".into(), AttrValue::Text(accum.non_finite_samples.to_string()));
-    ch.write(path, true).map_err(flat)?;
+    ch.write(path, true)?;
     tracing::debug!("checkpoint {} ({} spp) written in {:.1} ms", path.display(), accum.samples_done, ms(t));
     Ok(())
 }
@@ -379,7 +379,7 @@ fn load_checkpoint(path: &Path, identity: &CheckpointIdentity) -> Result<Option<
     if !path.exists() {
         return Ok(None);
     }
-    let mut ch = ExrChannels::read(path).map_err(flat)?;
+    let mut ch = ExrChannels::read(path)?;
     let saved = CheckpointIdentity::from_file(&ch, path)?;
     let diff = identity.differences(&saved);
     if !diff.is_empty() {
