@@ -2,31 +2,11 @@
 //! Cornell box and checks files, determinism, resumable references and error handling.
 use cvtrace_streams::exr_io::{AttrValue, ExrChannels};
 use cvtrace_streams::StreamSet;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn scene() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box/scene.gltf")
-}
-
-/// Runs `cvtrace <args>` in `dir`.
-fn cvtrace(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_cvtrace")).args(args).current_dir(dir).output().expect("the cvtrace binary runs")
-}
-
-fn ok(out: &Output) {
-    assert!(out.status.success(), "cvtrace failed ({}):\n{}", out.status, String::from_utf8_lossy(&out.stderr));
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-fn files_in(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> = std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
-    v.sort();
-    v
-}
+use common::{cvtrace, files_in, ok, scene, stderr, SMALL};
+use std::path::Path;
+use std::process::Command;
 
 /// Channels compared bit for bit and attributes, then the whole files byte for byte (the
 /// writer sorts header attributes, so equal images give equal files).
@@ -47,7 +27,6 @@ fn tool_available(name: &str) -> bool {
     Command::new(name).arg("--help").output().is_ok()
 }
 
-const SMALL: &[&str] = &["--width", "32", "--height", "32", "--max-depth", "6"];
 
 #[test]
 fn stream_file_has_every_channel_and_openimageio_reads_it() {

@@ -1,0 +1,128 @@
+//! The rest of the command line end to end on tiny renders of the shipped Cornell box:
+//! reconstruct (one and all methods), compare, study (with resume) and report.
+mod common;
+
+use common::{cvtrace, files_in, ok, scene, stderr, stdout, SMALL};
+use cvtrace_eval::StudyResults;
+use cvtrace_streams::exr_io::{read_rgb, AttrValue, ExrChannels};
+use std::path::Path;
+
+/// Renders a stream file and a reference into `dir`.
+fn render_inputs(dir: &Path) {
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    let streams = [&["--log", "warn", "render", sp, "--spp", "16", "--batches", "8", "--seed", "3", "-o", "s.streams.exr"][..], SMALL];
+    ok(&cvtrace(dir, &streams.concat()));
+    let reference = [&["--log", "warn", "render", sp, "--reference", "--spp", "256", "--seed", "99", "-o", "ref.exr"][..], SMALL];
+    ok(&cvtrace(dir, &reference.concat()));
+}
+
+#[test]
+fn reconstruct_all_then_compare_ranks_against_the_reference() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    render_inputs(d);
+    let out = cvtrace(d, &["--log", "warn", "reconstruct", "s.streams.exr", "--method", "all", "--reference", "ref.exr", "-o", "out"]);
+    ok(&out);
+    let names = files_in(&d.join("out"));
+    for m in ["pt", "crn", "average", "iduw", "cv", "ours"] {
+        assert!(names.contains(&format!("{m}.exr")) && names.contains(&format!("{m}.png")), "{m} missing in {names:?}");
+        let ch = ExrChannels::read(&d.join(format!("out/{m}.exr"))).unwrap();
+        assert_eq!(ch.attr("cvtrace.method"), Some(&AttrValue::Text(m.into())));
+    }
+    // The table printed by reconstruct lists relMSE for every method.
+    let table = stdout(&out);
+    assert!(table.lines().filter(|l| l.starts_with("ours") || l.starts_with("iduw")).count() == 2, "{table}");
+
+    // `pt` is the PT stream mean, bit for bit.
+    let pt = read_rgb(&d.join("out/pt.exr")).unwrap();
+    let set = cvtrace_streams::StreamSet::read(&d.join("s.streams.exr")).unwrap();
+    assert_eq!(pt, set.pt.mean);
+
+    // compare: one row per image, the JSON it writes is a valid results file.
+    let images: Vec<String> = ["pt", "average", "ours"].iter().map(|m| format!("out/{m}.exr")).collect();
+    let mut args = vec!["--log", "warn", "compare", "--reference", "ref.exr", "--json", "cmp.json", "--csv", "cmp.csv"];
+    args.extend(images.iter().map(String::as_str));
+    ok(&cvtrace(d, &args));
+    let r = StudyResults::read_json(&d.join("cmp.json")).unwrap();
+    let scene = &r.scenes[0];
+    assert_eq!(scene.methods.len(), 3);
+    let rel = |k: &str| scene.method(k).unwrap().relmse_mean;
+    // Averaging two independent-enough estimates beats one of them, even at 32×32.
+    assert!(rel("average") < rel("pt"), "average {} vs pt {}", rel("average"), rel("pt"));
+    assert!(std::fs::read_to_string(d.join("cmp.csv")).unwrap().lines().count() >= 4);
+
+    // Outputs are not overwritten without --force.
+    let again = cvtrace(d, &["reconstruct", "s.streams.exr", "--method", "ours", "-o", "out/ours.exr"]);
+    assert!(!again.status.success() && stderr(&again).contains("--force"), "{}", stderr(&again));
+}
+
+#[test]
+fn reconstruct_rejects_bad_inputs_with_the_file_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    render_inputs(d);
+    // A reference of another size.
+    let s = scene();
+    let small = ["--log", "warn", "render", s.to_str().unwrap(), "--reference", "--spp", "4", "--width", "16", "--height", "16", "-o", "small.exr"];
+    ok(&cvtrace(d, &small));
+    let cases: [(&[&str], &str); 5] = [
+        (&["reconstruct", "missing.streams.exr", "-o", "x.exr"], "missing.streams.exr"),
+        (&["reconstruct", "s.streams.exr", "--reference", "small.exr", "-o", "x.exr"], "small.exr"),
+        (&["reconstruct", "s.streams.exr", "--method", "ours", "--errors", "oracle", "-o", "x.exr"], "reference"),
+        (&["reconstruct", "s.streams.exr", "--method", "bilateral", "-o", "x.exr"], "bilateral"),
+        (&["reconstruct", "ref.exr", "-o", "x.exr"], "ref.exr"),
+    ];
+    for (args, needle) in cases {
+        let out = cvtrace(d, args);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        let e = stderr(&out);
+        assert!(e.contains(needle), "{args:?}: error does not name {needle}:\n{e}");
+        assert!(!e.contains("panicked"), "{e}");
+        assert!(!d.join("x.exr").exists());
+    }
+}
+
+#[test]
+fn study_resumes_and_report_builds_the_viewer() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    let study = [
+        &["--log", "warn", "study", sp, "--spp", "4,8", "--seeds", "2", "--batches", "4", "--reference", "ref.exr"][..],
+        &["--reference-spp", "128", "-o", "study/cbox", "--ablations"],
+        SMALL,
+    ]
+    .concat();
+    ok(&cvtrace(d, &study));
+    let results = StudyResults::read_json(&d.join("study/cbox/results.json")).unwrap();
+    let scene = &results.scenes[0];
+    assert_eq!((scene.name.as_str(), scene.seeds, scene.spp_per_stream), ("cornell-box", 2, 8));
+    for k in ["pt", "crn", "average", "iduw", "cv", "ours", "pt2n", "ours-oracle", "ours-window"] {
+        let m = scene.method(k).unwrap_or_else(|| panic!("{k} missing"));
+        assert_eq!(m.relmse_per_seed.len(), 2);
+        assert!(m.relmse_mean.is_finite() && m.relmse_mean > 0.0);
+        assert!(d.join("study/cbox").join(m.image.as_ref().unwrap()).is_file());
+    }
+    // Two spp values: a convergence point per method and spp.
+    assert!(scene.convergence.iter().filter(|p| p.method == "ours").count() == 2);
+    assert!(scene.reference.noise.is_some());
+
+    // Resume: a second run reuses every render (the files are not rewritten).
+    let stamp = |p: &str| std::fs::metadata(d.join(p)).unwrap().modified().unwrap();
+    let before = stamp("study/cbox/spp00008/seed-001.streams.exr");
+    let out = cvtrace(d, &[&["--log", "info"][..], &study[2..]].concat());
+    ok(&out);
+    assert_eq!(stamp("study/cbox/spp00008/seed-001.streams.exr"), before);
+    assert!(stderr(&out).contains("reusing"), "{}", stderr(&out));
+    let again = StudyResults::read_json(&d.join("study/cbox/results.json")).unwrap();
+    let rel = |r: &StudyResults| r.scenes[0].methods.iter().map(|m| m.relmse_mean).collect::<Vec<_>>();
+    assert_eq!(rel(&again), rel(&results), "a resumed study gives the same numbers");
+
+    ok(&cvtrace(d, &["--log", "warn", "report", "study", "-o", "report"]));
+    let index = std::fs::read_to_string(d.join("report/index.html")).unwrap();
+    assert!(index.contains("data.js"));
+    let data = std::fs::read_to_string(d.join("report/data.js")).unwrap();
+    assert!(data.contains("cornell-box") && data.contains("\"ours\""));
+}
