@@ -12,6 +12,9 @@ fn main() {
     let t = Instant::now();
     let set = SoftShadowScene::default().render(&RenderSpec { width: w, height: h, spp: b as u32, batches: b, seed: 1 }).unwrap();
     println!("rendered {w}x{h} B={b} in {:.2}s on {} threads", t.elapsed().as_secs_f64(), rayon::current_num_threads());
+    if std::env::var_os("IDUW_SPLIT").is_some() {
+        iduw_split(&set);
+    }
     for m in methods.methods() {
         let e = build(m, &Options::default()).unwrap();
         let cpu0 = cpu_seconds();
@@ -21,6 +24,14 @@ fn main() {
         let prep = out.diagnostics.get("seconds_prepare").map(|v| format!("  (prepare {v:.3} s)")).unwrap_or_default();
         println!("{:<8} {:>7.3} s wall {:>7.3} s cpu  {:>7.2} Mpix/s{prep}", m.name(), s, cpu, (w * h) as f64 / s / 1e6);
     }
+}
+
+/// IDUW's cost split: the γ selection versus the final pass (fixed γ).
+fn iduw_split(set: &cvtrace_reconstruct::StreamSet) {
+    use cvtrace_reconstruct::{estimators::Iduw, Estimator, IduwOptions};
+    let fixed = Iduw::new(IduwOptions { gamma: Some(2.5), ..Default::default() }).unwrap();
+    let out = fixed.reconstruct(&Input::new(set)).unwrap();
+    println!("iduw-fixed {:>7.3} s wall (final pass only)", out.diagnostics.seconds);
 }
 
 /// Process CPU time (user + system) from /proc, to judge timings on a busy machine.

@@ -11,17 +11,61 @@ pub fn exp_neg(x: f32) -> f32 {
     const LN2_LO: f32 = 1.428_606_8e-6;
     const ROUND: f32 = 12_582_912.0; // 1.5·2^23: adding it rounds to an integer.
     let x = x.clamp(-87.0, 0.0);
-    let n = (x * LOG2E + ROUND) - ROUND;
+    // kf's low mantissa bits hold n = round(x·log2 e) (|n| ≤ 126 < 2^22), so 2^n is built
+    // with integer ops on the bits; a float-to-int cast would not vectorise.
+    let kf = x * LOG2E + ROUND;
+    let n = kf - ROUND;
     let r = (x - n * LN2_HI) - n * LN2_LO;
     // Taylor/minimax-quality polynomial of e^r on |r| ≤ ln2/2.
     let p = 1.0 + r * (1.0 + r * (0.5 + r * (0.166_666_67 + r * (0.041_666_668 + r * (0.008_333_452 + r * 0.001_388_720_5)))));
-    let bits = ((n as i32 + 127) as u32) << 23;
+    let bits = kf.to_bits().wrapping_sub(ROUND.to_bits()).wrapping_add(127) << 23;
     p * f32::from_bits(bits)
+}
+
+/// Eight [`exp_neg`]s with AVX2, the same IEEE operations in the same order (bit-identical).
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub unsafe fn exp_neg8_avx2(x: std::arch::x86_64::__m256) -> std::arch::x86_64::__m256 {
+    use std::arch::x86_64::*;
+    const ROUND: f32 = 12_582_912.0;
+    let c = |v: f32| _mm256_set1_ps(v);
+    let x = _mm256_max_ps(_mm256_min_ps(x, c(0.0)), c(-87.0));
+    let kf = _mm256_add_ps(_mm256_mul_ps(x, c(std::f32::consts::LOG2_E)), c(ROUND));
+    let n = _mm256_sub_ps(kf, c(ROUND));
+    let r = _mm256_sub_ps(_mm256_sub_ps(x, _mm256_mul_ps(n, c(0.693_145_75))), _mm256_mul_ps(n, c(1.428_606_8e-6)));
+    let mut p = _mm256_add_ps(c(0.008_333_452), _mm256_mul_ps(r, c(0.001_388_720_5)));
+    for k in [0.041_666_668, 0.166_666_67, 0.5, 1.0, 1.0] {
+        p = _mm256_add_ps(c(k), _mm256_mul_ps(r, p));
+    }
+    let bits = _mm256_slli_epi32::<23>(_mm256_add_epi32(
+        _mm256_sub_epi32(_mm256_castps_si256(kf), _mm256_set1_epi32(ROUND.to_bits() as i32)),
+        _mm256_set1_epi32(127),
+    ));
+    _mm256_mul_ps(p, _mm256_castsi256_ps(bits))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_build_is_bit_identical() {
+        if !std::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        use std::arch::x86_64::*;
+        for i in 0..20_000 {
+            let x: [f32; 8] = std::array::from_fn(|l| -(i as f32 * 8.0 + l as f32) * 0.0006 + if i % 7 == 0 { 1.0 } else { 0.0 });
+            let mut out = [0.0f32; 8];
+            // SAFETY: AVX2 detected above.
+            unsafe { _mm256_storeu_ps(out.as_mut_ptr(), exp_neg8_avx2(_mm256_loadu_ps(x.as_ptr()))) };
+            assert_eq!(out.map(f32::to_bits), x.map(|v| exp_neg(v).to_bits()), "{x:?}");
+        }
+    }
 
     #[test]
     fn matches_std_exp() {

@@ -6,8 +6,8 @@
 //! came out low also tends to report a low variance and gets trusted more. Averaging the
 //! variance over similar pixels with a cross-bilateral filter removes most of both effects.
 use crate::batch_stats::variance_of_mean;
-use crate::fast_exp::exp_neg;
 use crate::named::named_enum;
+use crate::simd::{Portable, Simd};
 use crate::ReconError;
 use cvtrace_streams::{Image, StreamSet};
 use rayon::prelude::*;
@@ -116,7 +116,7 @@ pub fn cross_bilateral(values: &[[f32; 3]], set: &StreamSet, o: &CbfOptions) -> 
             unsafe { cbf_row_avx2(&planes, &k, &spatial, r, o.exclude_centre, y, row) };
             return;
         }
-        cbf_row(&planes, &k, &spatial, r, o.exclude_centre, y, row);
+        cbf_row::<Portable>(&planes, &k, &spatial, r, o.exclude_centre, y, row);
     });
     out
 }
@@ -162,11 +162,11 @@ struct Gains {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 unsafe fn cbf_row_avx2(p: &Planes, k: &Gains, spatial: &[f32], r: usize, exclude: bool, y: usize, row: &mut [[f32; 3]]) {
-    cbf_row(p, k, spatial, r, exclude, y, row)
+    cbf_row::<crate::simd::Avx2>(p, k, spatial, r, exclude, y, row)
 }
 
 #[inline(always)]
-fn cbf_row(p: &Planes, k: &Gains, spatial: &[f32], r: usize, exclude: bool, y: usize, row: &mut [[f32; 3]]) {
+fn cbf_row<S: Simd>(p: &Planes, k: &Gains, spatial: &[f32], r: usize, exclude: bool, y: usize, row: &mut [[f32; 3]]) {
     let (w, h) = (p.w, p.h);
     let mut tbuf = [0.0f32; 2 * MAX_RADIUS + 1];
     for (x, out) in row.iter_mut().enumerate() {
@@ -198,9 +198,7 @@ fn cbf_row(p: &Planes, k: &Gains, spatial: &[f32], r: usize, exclude: bool, y: u
                         + (dn[0] * dn[0] + dn[1] * dn[1] + dn[2] * dn[2]) * k.normal;
                 }
             }
-            for tj in t.iter_mut() {
-                *tj = exp_neg(-*tj);
-            }
+            S::exp_neg_in_place(t);
             for j in 0..n {
                 let (l, wt) = (j % 8, t[j]);
                 acc[0][l] += wt;

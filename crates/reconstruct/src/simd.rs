@@ -4,6 +4,9 @@
 //! AVX2 build uses explicit intrinsics. The portable build performs the same IEEE operations
 //! in the same order per element (no fused multiply-add anywhere, fixed lane structure for
 //! sums), so both produce bit-identical results and the output does not depend on the CPU.
+use crate::fast_exp::exp_neg;
+#[cfg(target_arch = "x86_64")]
+use crate::fast_exp::exp_neg8_avx2;
 
 /// Vector kernels over fixed-width rows (`P` a multiple of 8).
 pub(crate) trait Simd {
@@ -14,11 +17,48 @@ pub(crate) trait Simd {
     fn axpy32<const P: usize>(y: &mut [f32; P], a: f32, x: &[f32; P]);
     /// `Σ a[l]·b[l]` with eight lane sums combined pairwise.
     fn dot32<const P: usize>(a: &[f32; P], b: &[f32; P]) -> f32;
+    /// `(Σ e^(−γ·t_i)·d_i, Σ e^(−γ·t_i))`: element `i` goes to lane `i mod 8` of chunk-wise
+    /// partial sums (the tail of fewer than 8 to lanes 0…), combined pairwise.
+    fn exp_weighted(t: &[f32], d: &[f32], gamma: f32) -> (f32, f32);
+    /// `t_i ← e^(−t_i)`.
+    fn exp_neg_in_place(t: &mut [f32]);
+}
+
+#[inline(always)]
+fn lane_sum(a: [f32; 8]) -> f32 {
+    ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]))
 }
 
 pub(crate) struct Portable;
 
 impl Simd for Portable {
+    #[inline(always)]
+    fn exp_weighted(t: &[f32], d: &[f32], gamma: f32) -> (f32, f32) {
+        let (mut acc, mut wacc) = ([0.0f32; 8], [0.0f32; 8]);
+        let (tc, dc) = (t.chunks_exact(8), d.chunks_exact(8));
+        let (tr, dr) = (tc.remainder(), dc.remainder());
+        for (t8, d8) in tc.zip(dc) {
+            for l in 0..8 {
+                let w = exp_neg(-gamma * t8[l]);
+                acc[l] += w * d8[l];
+                wacc[l] += w;
+            }
+        }
+        for (l, (tv, dv)) in tr.iter().zip(dr).enumerate() {
+            let w = exp_neg(-gamma * tv);
+            acc[l] += w * dv;
+            wacc[l] += w;
+        }
+        (lane_sum(acc), lane_sum(wacc))
+    }
+
+    #[inline(always)]
+    fn exp_neg_in_place(t: &mut [f32]) {
+        for v in t {
+            *v = exp_neg(-*v);
+        }
+    }
+
     #[inline(always)]
     fn gram_block<const P: usize>(d: &[&[f32; P]], e: &[[f32; P]], a0: usize, b0: usize) -> [[f32; 8]; 4] {
         let mut acc = [[0.0f32; 8]; 4];
@@ -59,6 +99,49 @@ pub(crate) struct Avx2;
 
 #[cfg(target_arch = "x86_64")]
 impl Simd for Avx2 {
+    #[inline(always)]
+    fn exp_weighted(t: &[f32], d: &[f32], gamma: f32) -> (f32, f32) {
+        use std::arch::x86_64::*;
+        let n = t.len().min(d.len());
+        let full = n / 8 * 8;
+        let (mut acc, mut wacc) = ([0.0f32; 8], [0.0f32; 8]);
+        // SAFETY: AVX2 is available (see the type's contract); loads stay below `full ≤ len`.
+        unsafe {
+            let g = _mm256_set1_ps(-gamma);
+            let (mut a, mut wa) = (_mm256_setzero_ps(), _mm256_setzero_ps());
+            for i in (0..full).step_by(8) {
+                let w = exp_neg8_avx2(_mm256_mul_ps(g, _mm256_loadu_ps(t.as_ptr().add(i))));
+                a = _mm256_add_ps(a, _mm256_mul_ps(w, _mm256_loadu_ps(d.as_ptr().add(i))));
+                wa = _mm256_add_ps(wa, w);
+            }
+            _mm256_storeu_ps(acc.as_mut_ptr(), a);
+            _mm256_storeu_ps(wacc.as_mut_ptr(), wa);
+        }
+        for (l, i) in (full..n).enumerate() {
+            let w = exp_neg(-gamma * t[i]);
+            acc[l] += w * d[i];
+            wacc[l] += w;
+        }
+        (lane_sum(acc), lane_sum(wacc))
+    }
+
+    #[inline(always)]
+    fn exp_neg_in_place(t: &mut [f32]) {
+        use std::arch::x86_64::*;
+        let full = t.len() / 8 * 8;
+        // SAFETY: AVX2 is available; loads and stores stay below `full ≤ len`.
+        unsafe {
+            let sign = _mm256_set1_ps(-0.0);
+            for i in (0..full).step_by(8) {
+                let p = t.as_mut_ptr().add(i);
+                _mm256_storeu_ps(p, exp_neg8_avx2(_mm256_xor_ps(_mm256_loadu_ps(p), sign)));
+            }
+        }
+        for v in &mut t[full..] {
+            *v = exp_neg(-*v);
+        }
+    }
+
     #[inline(always)]
     fn gram_block<const P: usize>(d: &[&[f32; P]], e: &[[f32; P]], a0: usize, b0: usize) -> [[f32; 8]; 4] {
         use std::arch::x86_64::*;
@@ -124,6 +207,13 @@ mod tests {
         (Avx2::gram_block(d, c, 4, 8), yy, Avx2::dot32(d[0], d[1]))
     }
 
+    #[target_feature(enable = "avx2")]
+    fn avx_exp(t: &[f32], d: &[f32]) -> ((f32, f32), Vec<f32>) {
+        let mut tt = t.to_vec();
+        Avx2::exp_neg_in_place(&mut tt);
+        (Avx2::exp_weighted(t, d, 0.7), tt)
+    }
+
     #[test]
     fn avx2_and_portable_agree_bit_for_bit() {
         if !std::is_x86_feature_detected!("avx2") {
@@ -141,5 +231,14 @@ mod tests {
         assert_eq!(g, Portable::gram_block(&d, &c, 4, 8));
         assert_eq!(yy.map(f32::to_bits), py.map(f32::to_bits));
         assert_eq!(d32.to_bits(), Portable::dot32(d[0], d[1]).to_bits());
+        let t: Vec<f32> = (0..229).map(|i| (u(3, i) + 0.5) as f32 * 4.0).collect();
+        let dd: Vec<f32> = (0..229).map(|i| u(4, i) as f32).collect();
+        // SAFETY: AVX2 detected above.
+        let (ew, mut tt) = unsafe { avx_exp(&t, &dd) };
+        let mut pt = t.clone();
+        Portable::exp_neg_in_place(&mut pt);
+        let pw = Portable::exp_weighted(&t, &dd, 0.7);
+        assert_eq!((ew.0.to_bits(), ew.1.to_bits()), (pw.0.to_bits(), pw.1.to_bits()));
+        assert!(tt.iter_mut().zip(&pt).all(|(a, b)| a.to_bits() == b.to_bits()));
     }
 }

@@ -11,11 +11,13 @@
 //! `(out^A − out^B)² / (P̄² + 0.01)`, where `out^A` is built from half A alone (its weights from
 //! sub-buffers 0 vs 1, `m` = spp/4), `out^B` likewise from half B, and `P̄` is the window mean of
 //! the PT image. Our one deviation for CPU cost: on large images the criterion is evaluated on a
-//! regular sub-lattice of pixels (≥ 64k of them), an unbiased estimate of the image mean.
+//! regular sub-lattice of pixels (≥ 32k of them), an unbiased estimate of the image mean.
 use super::finish;
 use crate::batch_stats::group_means;
-use crate::fast_exp::exp_neg;
 use crate::input::BatchNeed;
+#[cfg(target_arch = "x86_64")]
+use crate::simd::Avx2;
+use crate::simd::{Portable, Simd};
 use crate::window::mirror;
 use crate::{Diagnostics, Estimator, Input, Method, Needs, Output, ReconError};
 use cvtrace_streams::Image;
@@ -26,7 +28,7 @@ use std::time::Instant;
 pub const GAMMA_GRID: [f32; 10] = [0.01, 0.025, 0.05, 0.1, 0.2, 0.5, 1.0, 1.5, 2.0, 2.5];
 const MAX_WINDOW: usize = 31;
 /// Pixels used for γ selection on large images (the lattice stride is chosen to keep about this many).
-const SELECTION_PIXELS: usize = 65_536;
+const SELECTION_PIXELS: usize = 32_768;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct IduwOptions {
@@ -36,7 +38,7 @@ pub struct IduwOptions {
     pub gammas: Vec<f32>,
     /// A fixed γ, skipping the selection.
     pub gamma: Option<f32>,
-    /// Stride of the γ-selection lattice; 0 picks one that keeps ≈ 65k pixels.
+    /// Stride of the γ-selection lattice; 0 picks one that keeps at least 32k pixels.
     pub selection_stride: usize,
 }
 
@@ -68,70 +70,102 @@ pub struct Iduw {
     options: IduwOptions,
 }
 
-/// One way to combine: the estimates `h`, `g`, and the two CRN halves `x`, `y` whose
-/// disagreement sets the weights, with `m` samples per half.
+/// One way to combine, for one colour channel: the estimates `h` (PT) and `g` (CRN), and the
+/// two CRN halves `x`, `y` whose disagreement sets the weights, with `m` samples per half.
+#[derive(Clone, Copy)]
 struct Pass<'a> {
-    h: &'a [[f32; 3]],
-    g: &'a [[f32; 3]],
-    x: &'a [[f32; 3]],
-    y: &'a [[f32; 3]],
+    h: &'a [f32],
+    g: &'a [f32],
+    x: &'a [f32],
+    y: &'a [f32],
     m: f32,
 }
 
 impl Pass<'_> {
-    /// Fills `t_i = m·v_i` and `d_i = (g_c − g_i) − (h_c − h_i)` for the neighbours `nb`.
-    #[inline]
-    fn gather(&self, c: usize, nb: &[u32], ch: usize, t: &mut [f32], d: &mut [f32]) {
-        let (hc, gc, xc, yc) = (self.h[c][ch], self.g[c][ch], self.x[c][ch], self.y[c][ch]);
-        for ((&i, ti), di) in nb.iter().zip(t.iter_mut()).zip(d.iter_mut()) {
-            let i = i as usize;
-            let v = (xc - self.x[i][ch]) - (yc - self.y[i][ch]);
-            *ti = self.m * v * v;
-            *di = (gc - self.g[i][ch]) - (hc - self.h[i][ch]);
-        }
-    }
-}
-
-/// `(Σ exp(−γ t_i) d_i, Σ exp(−γ t_i))` with eight partial sums (vectorises, fixed order).
-#[inline]
-fn weighted(t: &[f32], d: &[f32], gamma: f32) -> (f32, f32) {
-    let mut acc = [0.0f32; 8];
-    let mut wacc = [0.0f32; 8];
-    let (tc, dc) = (t.chunks_exact(8), d.chunks_exact(8));
-    let (tr, dr) = (tc.remainder(), dc.remainder());
-    for (t8, d8) in tc.zip(dc) {
-        for l in 0..8 {
-            let w = exp_neg(-gamma * t8[l]);
-            acc[l] += w * d8[l];
-            wacc[l] += w;
-        }
-    }
-    for (l, (tv, dv)) in tr.iter().zip(dr).enumerate() {
-        let w = exp_neg(-gamma * tv);
-        acc[l] += w * dv;
-        wacc[l] += w;
-    }
-    let sum = |a: [f32; 8]| ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]));
-    (sum(acc), sum(wacc))
-}
-
-/// Indices of the mirrored window around (x, y), centre position excluded.
-fn neighbours(x: usize, y: usize, w: usize, h: usize, radius: isize, out: &mut Vec<u32>) {
-    out.clear();
-    for dy in -radius..=radius {
-        let yy = mirror(y as isize + dy, h);
-        for dx in -radius..=radius {
-            if dx == 0 && dy == 0 {
-                continue;
+    /// Fills `t = m·v` and `d = (g_c − g_i) − (h_c − h_i)` for every position of the mirrored
+    /// window around (cx, cy), row by row. The centre is included: its `d` is exactly 0, so it
+    /// adds nothing to `Σ w·d` (and exactly 1 to `Σ w`). Interior rows are contiguous slices.
+    #[inline(always)]
+    fn window(&self, cx: usize, cy: usize, w: usize, h: usize, r: usize, t: &mut [f32], d: &mut [f32]) {
+        let c = cy * w + cx;
+        let (hc, gc, xc, yc) = (self.h[c], self.g[c], self.x[c], self.y[c]);
+        let side = 2 * r + 1;
+        let interior = cx >= r && cx + r < w;
+        for (row, dy) in (0..side).zip(-(r as isize)..) {
+            let base = mirror(cy as isize + dy, h) * w;
+            let (tr, dr) = (&mut t[row * side..(row + 1) * side], &mut d[row * side..(row + 1) * side]);
+            if interior {
+                let a = base + cx - r;
+                let (hs, gs, xs, ys) = (&self.h[a..a + side], &self.g[a..a + side], &self.x[a..a + side], &self.y[a..a + side]);
+                for i in 0..side {
+                    let v = (xc - xs[i]) - (yc - ys[i]);
+                    tr[i] = self.m * v * v;
+                    dr[i] = (gc - gs[i]) - (hc - hs[i]);
+                }
+            } else {
+                for (i, dx) in (0..side).zip(-(r as isize)..) {
+                    let j = base + mirror(cx as isize + dx, w);
+                    let v = (xc - self.x[j]) - (yc - self.y[j]);
+                    tr[i] = self.m * v * v;
+                    dr[i] = (gc - self.g[j]) - (hc - self.h[j]);
+                }
             }
-            out.push((yy * w + mirror(x as isize + dx, w)) as u32);
+        }
+    }
+}
+
+/// Window mean of a plane around (cx, cy), mirrored.
+#[inline(always)]
+fn window_mean(p: &[f32], cx: usize, cy: usize, w: usize, h: usize, r: usize) -> f32 {
+    let mut s = 0.0f32;
+    for dy in -(r as isize)..=r as isize {
+        let base = mirror(cy as isize + dy, h) * w;
+        for dx in -(r as isize)..=r as isize {
+            s += p[base + mirror(cx as isize + dx, w)];
+        }
+    }
+    s / ((2 * r + 1) * (2 * r + 1)) as f32
+}
+
+/// One channel of everything IDUW reads, as planes.
+struct Planes {
+    pt: Vec<f32>,
+    crn: Vec<f32>,
+    pt_halves: [Vec<f32>; 2],
+    crn_halves: [Vec<f32>; 2],
+    crn_subs: [Vec<f32>; 4],
+}
+
+fn plane(im: &Image, ch: usize) -> Vec<f32> {
+    im.pixels.iter().map(|p| p[ch]).collect()
+}
+
+fn half(a: &Image, b: &Image, ch: usize) -> Vec<f32> {
+    a.pixels.iter().zip(&b.pixels).map(|(p, q)| 0.5 * (p[ch] + q[ch])).collect()
+}
+
+/// Sub-buffer images (means of consecutive quarters of the batches) of both streams.
+struct Prepared {
+    pt_subs: Vec<Image>,
+    crn_subs: Vec<Image>,
+    spp: f32,
+}
+
+impl Prepared {
+    fn planes(&self, set: &cvtrace_streams::StreamSet, ch: usize) -> Planes {
+        let (p, c) = (&self.pt_subs, &self.crn_subs);
+        Planes {
+            pt: plane(&set.pt.mean, ch),
+            crn: plane(&set.crn.mean, ch),
+            pt_halves: [half(&p[0], &p[1], ch), half(&p[2], &p[3], ch)],
+            crn_halves: [half(&c[0], &c[1], ch), half(&c[2], &c[3], ch)],
+            crn_subs: std::array::from_fn(|i| plane(&c[i], ch)),
         }
     }
 }
 
 /// Per-task buffers (reused for every pixel).
 struct Scratch {
-    nb: Vec<u32>,
     t: Vec<f32>,
     d: Vec<f32>,
     t2: Vec<f32>,
@@ -140,20 +174,82 @@ struct Scratch {
 
 impl Scratch {
     fn new(n: usize) -> Self {
-        Scratch { nb: Vec::with_capacity(n), t: vec![0.0; n], d: vec![0.0; n], t2: vec![0.0; n], d2: vec![0.0; n] }
+        Scratch { t: vec![0.0; n], d: vec![0.0; n], t2: vec![0.0; n], d2: vec![0.0; n] }
     }
 }
 
-fn average(a: &Image, b: &Image) -> Vec<[f32; 3]> {
-    a.pixels.iter().zip(&b.pixels).map(|(p, q)| std::array::from_fn(|c| 0.5 * (p[c] + q[c]))).collect()
+/// Geometry shared by the passes.
+#[derive(Clone, Copy)]
+struct Geometry {
+    w: usize,
+    h: usize,
+    r: usize,
+    /// 1 / (W² − 1).
+    norm: f32,
 }
 
-/// Everything derived from the input that the passes read.
-struct Prepared {
-    pt_halves: [Vec<[f32; 3]>; 2],
-    crn_halves: [Vec<[f32; 3]>; 2],
-    crn_subs: Vec<Image>,
-    spp: f32,
+/// The final output of one channel for one image row; returns Σ of the normalised weights.
+#[inline(always)]
+fn final_row<S: Simd>(pass: &Pass, geo: Geometry, gamma: f32, y: usize, out: &mut [[f32; 3]], ch: usize, sc: &mut Scratch) -> f64 {
+    let n = (2 * geo.r + 1).pow(2);
+    let mut wsum = 0.0f64;
+    for (x, px) in out.iter_mut().enumerate() {
+        pass.window(x, y, geo.w, geo.h, geo.r, &mut sc.t[..n], &mut sc.d[..n]);
+        let (acc, wt) = S::exp_weighted(&sc.t[..n], &sc.d[..n], gamma);
+        px[ch] = pass.h[y * geo.w + x] + acc * geo.norm;
+        wsum += ((wt - 1.0) * geo.norm) as f64;
+    }
+    wsum
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn final_row_avx2(pass: &Pass, geo: Geometry, gamma: f32, y: usize, out: &mut [[f32; 3]], ch: usize, sc: &mut Scratch) -> f64 {
+    final_row::<Avx2>(pass, geo, gamma, y, out, ch, sc)
+}
+
+/// The γ criterion of one channel over the lattice pixels `xs` of row `y`, added to `crit`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn criterion_row<S: Simd>(
+    halves: &[Pass; 2],
+    pt: &[f32],
+    geo: Geometry,
+    gammas: &[f32],
+    y: usize,
+    xs: &[usize],
+    crit: &mut [f64],
+    sc: &mut Scratch,
+) {
+    let n = (2 * geo.r + 1).pow(2);
+    for &x in xs {
+        let c = y * geo.w + x;
+        let pbar = window_mean(pt, x, y, geo.w, geo.h, geo.r);
+        let denom = (pbar * pbar) as f64 + 0.01;
+        halves[0].window(x, y, geo.w, geo.h, geo.r, &mut sc.t[..n], &mut sc.d[..n]);
+        halves[1].window(x, y, geo.w, geo.h, geo.r, &mut sc.t2[..n], &mut sc.d2[..n]);
+        for (gi, &gamma) in gammas.iter().enumerate() {
+            let oa = halves[0].h[c] + S::exp_weighted(&sc.t[..n], &sc.d[..n], gamma).0 * geo.norm;
+            let ob = halves[1].h[c] + S::exp_weighted(&sc.t2[..n], &sc.d2[..n], gamma).0 * geo.norm;
+            crit[gi] += ((oa - ob) as f64).powi(2) / denom;
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn criterion_row_avx2(
+    halves: &[Pass; 2],
+    pt: &[f32],
+    geo: Geometry,
+    gammas: &[f32],
+    y: usize,
+    xs: &[usize],
+    crit: &mut [f64],
+    sc: &mut Scratch,
+) {
+    criterion_row::<Avx2>(halves, pt, geo, gammas, y, xs, crit, sc)
 }
 
 impl Iduw {
@@ -169,14 +265,12 @@ impl Iduw {
     fn prepare(&self, input: &Input) -> Result<Prepared, ReconError> {
         input.check(self.name(), &self.needs())?;
         let set = input.streams;
-        let pt_subs = group_means(&set.pt, 4);
-        let crn_subs = group_means(&set.crn, 4);
-        Ok(Prepared {
-            pt_halves: [average(&pt_subs[0], &pt_subs[1]), average(&pt_subs[2], &pt_subs[3])],
-            crn_halves: [average(&crn_subs[0], &crn_subs[1]), average(&crn_subs[2], &crn_subs[3])],
-            crn_subs,
-            spp: set.meta.spp as f32,
-        })
+        Ok(Prepared { pt_subs: group_means(&set.pt, 4), crn_subs: group_means(&set.crn, 4), spp: set.meta.spp as f32 })
+    }
+
+    fn geometry(&self, w: usize, h: usize) -> Geometry {
+        let win = self.options.window;
+        Geometry { w, h, r: win / 2, norm: 1.0 / (win * win - 1) as f32 }
     }
 
     fn stride(&self, w: usize, h: usize) -> usize {
@@ -196,47 +290,44 @@ impl Iduw {
     fn criteria(&self, input: &Input, p: &Prepared) -> (Vec<(f32, f64)>, usize) {
         let set = input.streams;
         let (w, h) = (set.width, set.height);
-        let win = self.options.window;
-        let radius = (win / 2) as isize;
+        let geo = self.geometry(w, h);
         let gammas = &self.options.gammas;
         let stride = self.stride(w, h);
         let (xs, ys): (Vec<usize>, Vec<usize>) = ((stride / 2..w).step_by(stride).collect(), (stride / 2..h).step_by(stride).collect());
-        let s = &p.crn_subs;
-        let halves = [
-            Pass { h: &p.pt_halves[0], g: &p.crn_halves[0], x: &s[0].pixels, y: &s[1].pixels, m: p.spp / 4.0 },
-            Pass { h: &p.pt_halves[1], g: &p.crn_halves[1], x: &s[2].pixels, y: &s[3].pixels, m: p.spp / 4.0 },
-        ];
-        let pt = &set.pt.mean.pixels;
-        let norm = 1.0 / (win * win - 1) as f32;
-        let rows: Vec<Vec<f64>> = ys
-            .par_iter()
-            .map_init(
-                || Scratch::new(win * win),
-                |sc, &y| {
-                    let mut crit = vec![0.0f64; gammas.len()];
-                    for &x in &xs {
-                        let c = y * w + x;
-                        neighbours(x, y, w, h, radius, &mut sc.nb);
-                        for ch in 0..3 {
-                            let pbar = (pt[c][ch] + sc.nb.iter().map(|&i| pt[i as usize][ch]).sum::<f32>()) / (win * win) as f32;
-                            let denom = (pbar * pbar) as f64 + 0.01;
-                            halves[0].gather(c, &sc.nb, ch, &mut sc.t, &mut sc.d);
-                            halves[1].gather(c, &sc.nb, ch, &mut sc.t2, &mut sc.d2);
-                            let n = sc.nb.len();
-                            for (gi, &gamma) in gammas.iter().enumerate() {
-                                let oa = halves[0].h[c][ch] + weighted(&sc.t[..n], &sc.d[..n], gamma).0 * norm;
-                                let ob = halves[1].h[c][ch] + weighted(&sc.t2[..n], &sc.d2[..n], gamma).0 * norm;
-                                crit[gi] += ((oa - ob) as f64).powi(2) / denom;
-                            }
+        let n = (2 * geo.r + 1).pow(2);
+        let mut total = vec![0.0f64; gammas.len()];
+        for ch in 0..3 {
+            let pl = p.planes(set, ch);
+            let s = &pl.crn_subs;
+            let halves = [
+                Pass { h: &pl.pt_halves[0], g: &pl.crn_halves[0], x: &s[0], y: &s[1], m: p.spp / 4.0 },
+                Pass { h: &pl.pt_halves[1], g: &pl.crn_halves[1], x: &s[2], y: &s[3], m: p.spp / 4.0 },
+            ];
+            let rows: Vec<Vec<f64>> = ys
+                .par_iter()
+                .map_init(
+                    || Scratch::new(n),
+                    |sc, &y| {
+                        let mut crit = vec![0.0f64; gammas.len()];
+                        #[cfg(target_arch = "x86_64")]
+                        if std::is_x86_feature_detected!("avx2") {
+                            // SAFETY: AVX2 support was just checked.
+                            unsafe { criterion_row_avx2(&halves, &pl.pt, geo, gammas, y, &xs, &mut crit, sc) };
+                            return crit;
                         }
-                    }
-                    crit
-                },
-            )
-            .collect();
+                        criterion_row::<Portable>(&halves, &pl.pt, geo, gammas, y, &xs, &mut crit, sc);
+                        crit
+                    },
+                )
+                .collect();
+            for r in &rows {
+                for (t, v) in total.iter_mut().zip(r) {
+                    *t += v;
+                }
+            }
+        }
         let count = xs.len() * ys.len();
-        let crit = (0..gammas.len()).map(|gi| rows.iter().map(|r| r[gi]).sum::<f64>() / (3 * count).max(1) as f64);
-        (gammas.iter().copied().zip(crit).collect(), count)
+        (gammas.iter().copied().zip(total.iter().map(|c| c / (3 * count).max(1) as f64)).collect(), count)
     }
 }
 
@@ -277,28 +368,27 @@ impl Estimator for Iduw {
                 g
             }
         };
-        let win = self.options.window;
-        let radius = (win / 2) as isize;
-        let norm = 1.0 / (win * win - 1) as f32;
-        let full = Pass { h: &set.pt.mean.pixels, g: &set.crn.mean.pixels, x: &p.crn_halves[0], y: &p.crn_halves[1], m: p.spp / 2.0 };
+        let geo = self.geometry(w, h);
+        let n = (2 * geo.r + 1).pow(2);
         let mut image = Image::new(w, h);
         let mut wsum = vec![0.0f64; h];
-        image.pixels.par_chunks_mut(w).zip(wsum.par_iter_mut()).enumerate().for_each_init(
-            || Scratch::new(win * win),
-            |sc, (y, (row, ws))| {
-                for (x, px) in row.iter_mut().enumerate() {
-                    let c = y * w + x;
-                    neighbours(x, y, w, h, radius, &mut sc.nb);
-                    let n = sc.nb.len();
-                    for ch in 0..3 {
-                        full.gather(c, &sc.nb, ch, &mut sc.t[..n], &mut sc.d[..n]);
-                        let (acc, wt) = weighted(&sc.t[..n], &sc.d[..n], gamma);
-                        px[ch] = full.h[c][ch] + acc * norm;
-                        *ws += (wt * norm) as f64;
+        for ch in 0..3 {
+            let pl = p.planes(set, ch);
+            let full = Pass { h: &pl.pt, g: &pl.crn, x: &pl.crn_halves[0], y: &pl.crn_halves[1], m: p.spp / 2.0 };
+            image.pixels.par_chunks_mut(w).zip(wsum.par_iter_mut()).enumerate().for_each_init(
+                || Scratch::new(n),
+                |sc, (y, (row, ws))| {
+                    #[cfg(target_arch = "x86_64")]
+                    if std::is_x86_feature_detected!("avx2") {
+                        // SAFETY: AVX2 support was just checked.
+                        *ws += unsafe { final_row_avx2(&full, geo, gamma, y, row, ch, sc) };
+                        return;
                     }
-                }
-            },
-        );
+                    *ws += final_row::<Portable>(&full, geo, gamma, y, row, ch, sc);
+                },
+            );
+        }
+        let win = self.options.window;
         d.float("gamma", gamma as f64)
             .float("neighbour_weight_mean", wsum.iter().sum::<f64>() / (3 * w * h) as f64)
             .int("window", win as i64);
