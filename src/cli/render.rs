@@ -24,12 +24,6 @@ pub struct RenderArgs {
     /// Output: a stream file (e.g. cbox.streams.exr), or with --reference an RGB EXR.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Image width (default 256, or from --height and the camera's aspect ratio).
-    #[arg(long)]
-    pub width: Option<u32>,
-    /// Image height (default: from the width and the camera's aspect ratio).
-    #[arg(long)]
-    pub height: Option<u32>,
     /// Samples per pixel of each stream (or of the reference).
     #[arg(long, default_value_t = 64)]
     pub spp: u32,
@@ -39,15 +33,8 @@ pub struct RenderArgs {
     /// Random seed: the same seed and settings give bit-identical output.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Longest path in segments from the camera (Mitsuba convention), -1 for unlimited.
-    #[arg(long, default_value_t = -1, allow_negative_numbers = true)]
-    pub max_depth: i32,
-    /// Path depth at which Russian roulette starts.
-    #[arg(long, default_value_t = 5)]
-    pub rr_depth: u32,
-    /// Override the scene camera: "ex,ey,ez:tx,ty,tz:vfov_degrees" (eye, target, vertical FOV; up stays).
-    #[arg(long, value_name = "EYE:TARGET:FOV")]
-    pub camera: Option<String>,
+    #[command(flatten)]
+    pub view: ViewArgs,
     /// Render a PT-only reference image, progressively, resumable from a checkpoint next to the output.
     #[arg(long)]
     pub reference: bool,
@@ -62,6 +49,26 @@ pub struct RenderArgs {
     pub stop_after_passes: Option<u32>,
 }
 
+/// What is rendered, shared by `render` and `study`: image size, camera, path-length limits.
+#[derive(clap::Args, Debug, Clone)]
+pub struct ViewArgs {
+    /// Image width (default 256, or from --height and the camera's aspect ratio).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height (default: from the width and the camera's aspect ratio).
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Longest path in segments from the camera (Mitsuba convention), -1 for unlimited.
+    #[arg(long, default_value_t = -1, allow_negative_numbers = true)]
+    pub max_depth: i32,
+    /// Path depth at which Russian roulette starts.
+    #[arg(long, default_value_t = 5)]
+    pub rr_depth: u32,
+    /// Override the scene camera: "ex,ey,ez:tx,ty,tz:vfov_degrees" (eye, target, vertical FOV; up stays).
+    #[arg(long, value_name = "EYE:TARGET:FOV")]
+    pub camera: Option<String>,
+}
+
 pub fn run(args: RenderArgs) -> Result<()> {
     // Cheap checks first: flags, then whether the output can be written at all.
     let batches = match (args.reference, args.batches) {
@@ -73,16 +80,16 @@ pub fn run(args: RenderArgs) -> Result<()> {
         bail!("--pass-spp must be at least 1");
     }
     let provisional = RenderSettings {
-        width: args.width.unwrap_or(DEFAULT_WIDTH),
-        height: args.height.unwrap_or(DEFAULT_WIDTH),
+        width: args.view.width.unwrap_or(DEFAULT_WIDTH),
+        height: args.view.height.unwrap_or(DEFAULT_WIDTH),
         spp: args.spp,
         batches,
         seed: args.seed,
-        max_depth: args.max_depth,
-        rr_depth: args.rr_depth,
+        max_depth: args.view.max_depth,
+        rr_depth: args.view.rr_depth,
     };
     provisional.validate()?;
-    let camera_override = args.camera.as_deref().map(parse_camera).transpose()?;
+    let camera_override = args.view.camera.as_deref().map(parse_camera).transpose()?;
     check_writable(&args.output, args.force)?;
     let checkpoint = checkpoint_path(&args.output);
     if args.reference {
@@ -111,7 +118,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         camera.validate().map_err(|m| anyhow::anyhow!("--camera: {m}"))?;
         scene.set_camera(camera);
     }
-    let (width, height) = image_size(args.width, args.height, scene.camera());
+    let (width, height) = image_size(args.view.width, args.view.height, scene.camera());
     let settings = RenderSettings { width, height, ..provisional };
     settings.validate()?;
 

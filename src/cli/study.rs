@@ -7,7 +7,7 @@
 //! a file written atomically, so an interrupted study keeps its finished seeds and only
 //! re-runs the (cheap) reconstructions.
 use crate::cli::reconstruct::{read_input, EstimatorArgs};
-use crate::cli::render::{self as render_cli, RenderArgs};
+use crate::cli::render::{self as render_cli, RenderArgs, ViewArgs};
 use anyhow::{bail, Context, Result};
 use cvtrace_eval::falsecolor::{scale_for_maps, write_false_color_png};
 use cvtrace_eval::reference_noise::{from_variance_image, too_noisy_warning};
@@ -57,17 +57,8 @@ pub struct StudyArgs {
     /// Name of the scene in tables and the viewer (default: the scene's folder name).
     #[arg(long)]
     pub name: Option<String>,
-    #[arg(long)]
-    pub width: Option<u32>,
-    #[arg(long)]
-    pub height: Option<u32>,
-    #[arg(long, default_value_t = -1, allow_negative_numbers = true)]
-    pub max_depth: i32,
-    #[arg(long, default_value_t = 5)]
-    pub rr_depth: u32,
-    /// Camera override, as for `cvtrace render`.
-    #[arg(long, value_name = "EYE:TARGET:FOV")]
-    pub camera: Option<String>,
+    #[command(flatten)]
+    pub view: ViewArgs,
     #[command(flatten)]
     pub options: EstimatorArgs,
 }
@@ -330,14 +321,10 @@ fn render_args(args: &StudyArgs, spp: u32, batches: Option<u32>, seed: u64, outp
     RenderArgs {
         scene: args.scene.clone(),
         output: output.to_path_buf(),
-        width: args.width,
-        height: args.height,
         spp,
         batches,
         seed,
-        max_depth: args.max_depth,
-        rr_depth: args.rr_depth,
-        camera: args.camera.clone(),
+        view: args.view.clone(),
         reference,
         pass_spp: if reference { spp.clamp(1, 256) } else { 64 },
         force: true,
