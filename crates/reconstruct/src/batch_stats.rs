@@ -21,27 +21,39 @@ pub(crate) struct BatchCube {
 
 impl BatchCube {
     pub fn deviations(stream: &Stream, stride: usize) -> Self {
+        const CHUNK: usize = 2048;
         let b = stream.batches.len();
         assert!(stride >= b);
         let n = stream.mean.pixels.len();
         let mut data = vec![0.0f32; n * 3 * stride];
+        let mut sq = vec![[0.0f32; 3]; n];
         if b > 0 {
-            data.par_chunks_mut(3 * stride * 1024).enumerate().for_each(|(chunk, out)| {
-                for (local, px) in out.chunks_mut(3 * stride).enumerate() {
-                    let i = chunk * 1024 + local;
-                    for ch in 0..3 {
-                        let mean = stream.batches.iter().map(|im| im.pixels[i][ch] as f64).sum::<f64>() / b as f64;
-                        for (slot, im) in px[ch * stride..ch * stride + b].iter_mut().zip(&stream.batches) {
-                            *slot = (im.pixels[i][ch] as f64 - mean) as f32;
+            // Each task streams through every batch image once for its pixel range.
+            data.par_chunks_mut(3 * stride * CHUNK).zip(sq.par_chunks_mut(CHUNK)).enumerate().for_each(|(chunk, (out, sq))| {
+                let start = chunk * CHUNK;
+                let len = sq.len();
+                let mut sum = vec![[0.0f64; 3]; len];
+                for (bi, im) in stream.batches.iter().enumerate() {
+                    for (local, p) in im.pixels[start..start + len].iter().enumerate() {
+                        for ch in 0..3 {
+                            out[(local * 3 + ch) * stride + bi] = p[ch];
+                            sum[local][ch] += p[ch] as f64;
                         }
+                    }
+                }
+                for (local, px) in out.chunks_mut(3 * stride).enumerate() {
+                    for ch in 0..3 {
+                        let mean = sum[local][ch] / b as f64;
+                        let mut ss = 0.0f32;
+                        for slot in &mut px[ch * stride..ch * stride + b] {
+                            *slot = (*slot as f64 - mean) as f32;
+                            ss += *slot * *slot;
+                        }
+                        sq[local][ch] = ss;
                     }
                 }
             });
         }
-        let sq = data
-            .par_chunks(3 * stride.max(1))
-            .map(|px| std::array::from_fn(|ch| px[ch * stride..ch * stride + b].iter().map(|v| v * v).sum()))
-            .collect();
         BatchCube { batches: b, stride, data, sq }
     }
 

@@ -261,3 +261,50 @@ mod tests {
         }
     }
 }
+
+#[cfg(test)]
+mod timing {
+    use super::*;
+    use crate::rng::{hash4, uniform};
+
+    /// `cargo test --release -p cvtrace-reconstruct --lib panel_solve_cost -- --ignored --nocapture`
+    #[test]
+    #[ignore]
+    fn panel_solve_cost() {
+        let data: Vec<[[f32; 16]; MAX_K]> = (0..3)
+            .map(|ch| std::array::from_fn(|j| std::array::from_fn(|b| (uniform(hash4(ch, j as u64, b as u64, 0)) - 0.5) as f32)))
+            .collect();
+        let rows = Rows { d: std::array::from_fn(|ch| std::array::from_fn(|j| &data[ch][j])), dc: std::array::from_fn(|ch| &data[ch][0]) };
+        let mut p = Panel::<16>::boxed();
+        for ch in 0..3 {
+            for j in 0..25 {
+                p.w[ch][j] = 0.01;
+                p.sq[ch][j] = data[ch][j].iter().map(|v| v * v).sum();
+            }
+        }
+        let n = 200_000;
+        #[cfg(target_arch = "x86_64")]
+        {
+            #[target_feature(enable = "avx2")]
+            fn run(p: &mut Panel<16>, rows: &Rows<16>, n: usize) -> f64 {
+                let mut acc = 0.0;
+                for _ in 0..n {
+                    p.solve::<crate::simd::Avx2>(rows, 25, 1.0 / 240.0, 1e-3);
+                    acc += p.beta[0][0];
+                }
+                acc
+            }
+            let t = std::time::Instant::now();
+            // SAFETY: test machine has AVX2 (checked).
+            let a = if std::is_x86_feature_detected!("avx2") { unsafe { run(&mut p, &rows, n) } } else { 0.0 };
+            eprintln!("avx2: {:.0} ns per 3-channel solve ({a})", t.elapsed().as_nanos() as f64 / n as f64);
+        }
+        let t = std::time::Instant::now();
+        let mut acc = 0.0;
+        for _ in 0..n {
+            p.solve::<crate::simd::Portable>(&rows, 25, 1.0 / 240.0, 1e-3);
+            acc += p.beta[0][0];
+        }
+        eprintln!("portable: {:.0} ns per 3-channel solve ({acc})", t.elapsed().as_nanos() as f64 / n as f64);
+    }
+}
