@@ -221,7 +221,7 @@ impl BatchNeed {
                 format!("at most {max}"),
                 format!("merge neighbouring batches into at most {max} (each batch is a mean of a fixed sample range)"),
             ),
-            BatchNeed::MultipleOf(m) if found == 0 || found % m != 0 => fail(
+            BatchNeed::MultipleOf(m) if found == 0 || !found.is_multiple_of(m) => fail(
                 format!("a positive multiple of {m}"),
                 format!("it forms {m} sub-buffers from consecutive batches; re-render with a batch count divisible by {m}"),
             ),

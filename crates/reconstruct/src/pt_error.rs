@@ -121,6 +121,9 @@ pub fn cross_bilateral(values: &[[f32; 3]], set: &StreamSet, o: &CbfOptions) -> 
     out
 }
 
+/// Three planes, one per channel.
+type Rgb = [Vec<f32>; 3];
+
 /// Guide and value planes, one contiguous slice per quantity, so that a window row is a
 /// contiguous run the compiler can vectorise.
 struct Planes {
@@ -130,7 +133,7 @@ struct Planes {
     /// `1 / (ε + |ḡ|²/2)`-style normaliser input: `|ḡ|²` and ε.
     g2: Vec<f32>,
     eps: f32,
-    features: Option<([Vec<f32>; 3], [Vec<f32>; 3])>,
+    features: Option<(Rgb, Rgb)>,
     v: [Vec<f32>; 3],
 }
 

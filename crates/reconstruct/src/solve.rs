@@ -185,7 +185,7 @@ pub(crate) fn cholesky(a: &mut [f64], n: usize) -> bool {
     for j in 0..n {
         let orig = a[j * n + j];
         let pivot = orig - dot(&a[j * n..j * n + j], &a[j * n..j * n + j]);
-        if !(pivot > 1e-12 * orig.abs()) || !pivot.is_finite() {
+        if pivot.is_nan() || pivot <= 1e-12 * orig.abs() || !pivot.is_finite() {
             return false;
         }
         let ljj = pivot.sqrt();

@@ -165,7 +165,7 @@ impl SoftShadowScene {
         if spec.width == 0 || spec.height == 0 {
             return Err(ReconError::option("size", format!("{}x{}", spec.width, spec.height), "must be at least 1x1"));
         }
-        if spec.batches == 0 || spec.spp == 0 || spec.spp as usize % spec.batches != 0 {
+        if spec.batches == 0 || spec.spp == 0 || !(spec.spp as usize).is_multiple_of(spec.batches) {
             return Err(ReconError::option("batches", spec.batches, format!("must be positive and divide spp = {}", spec.spp)));
         }
         Ok(())

@@ -50,7 +50,7 @@ impl Default for IduwOptions {
 
 impl IduwOptions {
     pub fn validate(&self) -> Result<(), ReconError> {
-        if self.window < 3 || self.window % 2 == 0 || self.window > MAX_WINDOW {
+        if self.window < 3 || self.window.is_multiple_of(2) || self.window > MAX_WINDOW {
             return Err(ReconError::option("iduw-window", self.window, format!("must be odd, between 3 and {MAX_WINDOW}")));
         }
         if self.gammas.is_empty() {
@@ -86,6 +86,7 @@ impl Pass<'_> {
     /// window around (cx, cy), row by row. The centre is included: its `d` is exactly 0, so it
     /// adds nothing to `Σ w·d` (and exactly 1 to `Σ w`). Interior rows are contiguous slices.
     #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
     fn window(&self, cx: usize, cy: usize, w: usize, h: usize, r: usize, t: &mut [f32], d: &mut [f32]) {
         let c = cy * w + cx;
         let (hc, gc, xc, yc) = (self.h[c], self.g[c], self.x[c], self.y[c]);

@@ -58,7 +58,7 @@ pub(crate) fn check_selection(k: usize, search_window: usize, ridge: f64) -> Res
     if k == 0 || k > MAX_K {
         return Err(ReconError::option("k", k, format!("must be between 1 and {MAX_K}")));
     }
-    if search_window == 0 || search_window % 2 == 0 || search_window > MAX_SEARCH_WINDOW {
+    if search_window == 0 || search_window.is_multiple_of(2) || search_window > MAX_SEARCH_WINDOW {
         return Err(ReconError::option("search-window", search_window, format!("must be odd, between 1 and {MAX_SEARCH_WINDOW}")));
     }
     if k > search_window * search_window {
