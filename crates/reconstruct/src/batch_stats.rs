@@ -83,24 +83,39 @@ impl BatchCube {
 
 /// The estimated variance of each pixel mean, `Σ_b (x^b − x̄)² / (B(B−1))`; zero for `B < 2`.
 pub fn variance_of_mean(stream: &Stream) -> Vec<[f32; 3]> {
+    const CHUNK: usize = 4096;
     let b = stream.batches.len();
     let n = stream.mean.pixels.len();
+    let mut out = vec![[0.0f32; 3]; n];
     if b < 2 {
-        return vec![[0.0; 3]; n];
+        return out;
     }
     let norm = 1.0 / (b * (b - 1)) as f64;
-    (0..n)
-        .into_par_iter()
-        .map(|i| {
-            let mut out = [0.0f32; 3];
-            for (ch, o) in out.iter_mut().enumerate() {
-                let mean = stream.batches.iter().map(|im| im.pixels[i][ch] as f64).sum::<f64>() / b as f64;
-                let ss: f64 = stream.batches.iter().map(|im| (im.pixels[i][ch] as f64 - mean).powi(2)).sum();
-                *o = (ss * norm) as f32;
+    // Two passes over each task's pixel range, streaming through every batch image in turn.
+    out.par_chunks_mut(CHUNK).enumerate().for_each(|(chunk, out)| {
+        let range = chunk * CHUNK..chunk * CHUNK + out.len();
+        let mut mean = vec![[0.0f64; 3]; out.len()];
+        for im in &stream.batches {
+            for (m, p) in mean.iter_mut().zip(&im.pixels[range.clone()]) {
+                for ch in 0..3 {
+                    m[ch] += p[ch] as f64;
+                }
             }
-            out
-        })
-        .collect()
+        }
+        mean.iter_mut().for_each(|m| m.iter_mut().for_each(|v| *v /= b as f64));
+        let mut ss = vec![[0.0f64; 3]; out.len()];
+        for im in &stream.batches {
+            for ((s, m), p) in ss.iter_mut().zip(&mean).zip(&im.pixels[range.clone()]) {
+                for ch in 0..3 {
+                    s[ch] += (p[ch] as f64 - m[ch]).powi(2);
+                }
+            }
+        }
+        for (o, s) in out.iter_mut().zip(&ss) {
+            *o = std::array::from_fn(|ch| (s[ch] * norm) as f32);
+        }
+    });
+    out
 }
 
 /// Means of `groups` equal runs of consecutive batches (IDUW's sub-buffers).
