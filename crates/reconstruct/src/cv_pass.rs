@@ -86,6 +86,8 @@ struct Scratch<const P: usize> {
     idx: [u32; MAX_K],
     gs: [f64; MAX_K],
     hs: [f64; MAX_K],
+    gs3: [[f64; MAX_K]; 3],
+    hs3: [[f64; MAX_K]; 3],
     panel: Option<Box<Panel<P>>>,
     ws: Option<Box<Workspace>>,
 }
@@ -97,6 +99,8 @@ impl<const P: usize> Scratch<P> {
             idx: [0; MAX_K],
             gs: [0.0; MAX_K],
             hs: [0.0; MAX_K],
+            gs3: [[0.0; MAX_K]; 3],
+            hs3: [[0.0; MAX_K]; 3],
             panel: (P > 0).then(Panel::<P>::boxed),
             ws: (P == 0).then(Workspace::boxed),
         }
@@ -161,9 +165,11 @@ impl CvPass<'_> {
             let (ei, ec) = (e[i][ch] as f64, e[c][ch] as f64);
             if i == c {
                 ei
-            } else {
+            } else if self.penalty == Penalty::Residual {
                 let r = (hm[i][ch] - hm[c][ch]) as f64 - (g[i][ch] - g[c][ch]) as f64;
                 self.penalty.apply(ei, ec, r)
+            } else {
+                self.penalty.apply(ei, ec, 0.0)
             }
         };
         if self.shared {
@@ -191,22 +197,24 @@ impl CvPass<'_> {
         if let Some(p) = sc.panel.as_deref_mut() {
             let centre: [&[f32; P]; 3] = std::array::from_fn(|ch| cube.row_padded::<P>(c, ch));
             let mut rows = Rows { d: centre.map(|r| [r; MAX_K]), dc: centre };
+            // One pass over the set gathers everything: rows, norms, weights and the values
+            // the combination needs.
             for (j, &i) in idx.iter().enumerate() {
+                let i = i as usize;
+                let (gi, hi) = (g[i], hm[i]);
                 for ch in 0..3 {
-                    rows.d[ch][j] = cube.row_padded::<P>(i as usize, ch);
-                    p.w[ch][j] = self.weight(i as usize, c, ch);
-                    p.sq[ch][j] = cube.sq[i as usize][ch];
+                    rows.d[ch][j] = cube.row_padded::<P>(i, ch);
+                    p.sq[ch][j] = cube.sq[i][ch];
+                    sc.gs3[ch][j] = gi[ch] as f64;
+                    sc.hs3[ch][j] = hi[ch] as f64;
                 }
+                p.w.iter_mut().enumerate().for_each(|(ch, w)| w[j] = self.weight(i, c, ch));
             }
             let outcomes = p.solve::<S>(&rows, n, s, self.ridge);
             for ch in 0..3 {
                 let beta = &mut p.beta[ch][..n];
                 st.record(outcomes[ch], beta, self.include_centre);
-                for (j, &i) in idx.iter().enumerate() {
-                    sc.gs[j] = g[i as usize][ch] as f64;
-                    sc.hs[j] = hm[i as usize][ch] as f64;
-                }
-                out[ch] = combine(g[c][ch] as f64, &sc.gs[..n], &sc.hs[..n], beta) as f32;
+                out[ch] = combine(g[c][ch] as f64, &sc.gs3[ch][..n], &sc.hs3[ch][..n], beta) as f32;
             }
             return out;
         }
