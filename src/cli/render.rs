@@ -16,6 +16,8 @@ use std::time::Instant;
 
 /// Image width used when neither --width nor --height is given.
 const DEFAULT_WIDTH: u32 = 256;
+/// Batches per stream when --batches is not given: the estimators' measured default.
+const DEFAULT_BATCHES: u32 = 16;
 
 #[derive(clap::Args, Debug)]
 pub struct RenderArgs {
@@ -27,7 +29,7 @@ pub struct RenderArgs {
     /// Samples per pixel of each stream (or of the reference).
     #[arg(long, default_value_t = 64)]
     pub spp: u32,
-    /// Batches per stream (must divide --spp; default 8). Not used with --reference.
+    /// Batches per stream (must divide --spp; default 16, the measured default of the estimators, see docs/estimators.md). Not used with --reference.
     #[arg(long)]
     pub batches: Option<u32>,
     /// Random seed: the same seed and settings give bit-identical output.
@@ -74,7 +76,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let batches = match (args.reference, args.batches) {
         (true, Some(_)) => bail!("--batches does not apply to --reference renders (they have a single PT stream)"),
         (true, None) => 1,
-        (false, b) => b.unwrap_or(8),
+        (false, b) => b.unwrap_or(DEFAULT_BATCHES),
     };
     if args.reference && args.pass_spp == 0 {
         bail!("--pass-spp must be at least 1");
