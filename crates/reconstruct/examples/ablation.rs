@@ -10,7 +10,7 @@
 //! cargo run --release -p cvtrace-reconstruct --example ablation -- --quick # 3 seeds, 1 spp level
 //! ```
 use cvtrace_reconstruct::estimators::{Cv, Iduw, Ours};
-use cvtrace_reconstruct::metrics::{rel_bias_variance, rel_mse};
+use cvtrace_eval::{Reference, SeedAccumulator};
 use cvtrace_reconstruct::synthetic::{RenderSpec, SoftShadowScene};
 use cvtrace_reconstruct::*;
 use cvtrace_streams::Image;
@@ -196,7 +196,13 @@ fn main() {
             "\n### bias / variance of the selections (relative, over seeds)\n\n| selection | squared bias | variance |\n|---|---|---|"
         );
         for (label, outs) in &bv_outputs {
-            let (b, var) = rel_bias_variance(outs, &reference);
+            let reference = Reference::new(reference.clone(), "synthetic truth").unwrap();
+            let mut acc = SeedAccumulator::new(&reference, label.to_string());
+            for o in outs {
+                acc.add(o).unwrap();
+            }
+            let stats = acc.finish().unwrap();
+            let (b, var) = (stats.bias2.unwrap_or(f64::NAN), stats.variance.unwrap_or(f64::NAN));
             println!("| {label} | {b:.3e} | {var:.3e} |");
         }
     }
@@ -207,4 +213,9 @@ fn mean_se(x: &[f64]) -> (f64, f64) {
     let m = x.iter().sum::<f64>() / n;
     let var = x.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
     (m, (var / n).sqrt())
+}
+
+/// relMSE as the evaluation layer defines it (one definition for the whole project).
+fn rel_mse(x: &Image, reference: &Image) -> f64 {
+    cvtrace_eval::metrics::rel_mse(x, reference).expect("images of one size")
 }

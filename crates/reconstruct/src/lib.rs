@@ -49,7 +49,6 @@ pub mod estimators;
 mod fast_exp;
 mod input;
 mod method;
-pub mod metrics;
 mod named;
 mod panel;
 mod penalty;
