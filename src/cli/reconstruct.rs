@@ -47,7 +47,7 @@ pub struct EstimatorArgs {
     /// ours/cv: side of the window the k pixels are chosen from (odd).
     #[arg(long)]
     pub search_window: Option<usize>,
-    /// ours: PT error estimates (cbf, variance, oracle — oracle needs --reference).
+    /// ours: PT error estimates (cbf, variance, cbf-residual, oracle — oracle needs --reference).
     #[arg(long)]
     pub errors: Option<ErrorEstimate>,
     /// ours: symmetric penalty on neighbours' error estimates (none, avg, max, residual).
