@@ -47,6 +47,17 @@ pub(crate) struct PassStats {
 }
 
 impl PassStats {
+    /// The shares every control-variate pass reports, per solved pixel-channel.
+    pub(crate) fn report(&self, d: &mut crate::Diagnostics) {
+        let solves = self.solves.max(1) as f64;
+        d.float("beta_sum_mean", self.beta_sum / solves)
+            .float("regularised_share", self.regularised as f64 / solves)
+            .float("degenerate_share", self.degenerate as f64 / solves)
+            .float("failed_share", self.failed as f64 / solves);
+    }
+}
+
+impl PassStats {
     fn add(&mut self, o: &PassStats) {
         self.solves += o.solves;
         self.centre_weight += o.centre_weight;

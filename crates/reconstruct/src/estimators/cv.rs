@@ -96,12 +96,8 @@ impl Estimator for Cv {
         };
         let (image, st) = pass.run();
         let mut d = Diagnostics::default();
-        let solves = st.solves.max(1) as f64;
-        d.float("beta_sum_mean", st.beta_sum / solves)
-            .float("regularised_share", st.regularised as f64 / solves)
-            .float("degenerate_share", st.degenerate as f64 / solves)
-            .float("failed_share", st.failed as f64 / solves)
-            .int("batches", set.batch_count() as i64);
+        st.report(&mut d);
+        d.int("batches", set.batch_count() as i64);
         Ok(finish(image, d, start))
     }
 }

@@ -145,13 +145,9 @@ impl Estimator for Ours {
         };
         let (image, st) = pass.run();
         let mut d = Diagnostics::default();
-        let solves = st.solves.max(1) as f64;
-        d.float("centre_weight_mean", st.centre_weight / solves)
-            .float("beta_sum_mean", st.beta_sum / solves)
-            .float("regularised_share", st.regularised as f64 / solves)
-            .float("degenerate_share", st.degenerate as f64 / solves)
-            .float("failed_share", st.failed as f64 / solves)
-            .float("set_size_mean", st.set_size as f64 / st.pixels.max(1) as f64)
+        d.float("centre_weight_mean", st.centre_weight / st.solves.max(1) as f64);
+        st.report(&mut d);
+        d.float("set_size_mean", st.set_size as f64 / st.pixels.max(1) as f64)
             .int("batches", set.batch_count() as i64)
             .float("seconds_prepare", t_prepare);
         Ok(finish(image, d, start))
