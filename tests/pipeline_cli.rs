@@ -120,7 +120,13 @@ fn study_resumes_and_report_builds_the_viewer() {
     let rel = |r: &StudyResults| r.scenes[0].methods.iter().map(|m| m.relmse_mean).collect::<Vec<_>>();
     assert_eq!(rel(&again), rel(&results), "a resumed study gives the same numbers");
 
-    ok(&cvtrace(d, &["--log", "warn", "report", "study", "-o", "report"]));
+    ok(&cvtrace(d, &["--log", "warn", "report", "study", "-o", "report", "--markdown", "summary.md"]));
+    let md = std::fs::read_to_string(d.join("summary.md")).unwrap();
+    assert!(md.contains("| cornell-box (8+8) |") && md.contains("Ours, 5×5 window selection"), "{md}");
+    // The summary is not overwritten without --force.
+    let again = cvtrace(d, &["--log", "warn", "report", "study", "-o", "report2", "--markdown", "summary.md"]);
+    assert!(!again.status.success() && stderr(&again).contains("summary.md"), "{}", stderr(&again));
+    assert!(!d.join("report2").exists(), "nothing written when the summary cannot be");
     let index = std::fs::read_to_string(d.join("report/index.html")).unwrap();
     assert!(index.contains("data.js"));
     let data = std::fs::read_to_string(d.join("report/data.js")).unwrap();

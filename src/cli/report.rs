@@ -14,7 +14,11 @@ pub struct ReportArgs {
     /// Page title.
     #[arg(long, default_value = "cvtrace")]
     pub title: String,
-    /// Replace an existing report.
+    /// Also write the cross-scene Markdown summary (every method's relMSE per scene, the headline
+    /// ratios with their geometric means, the ablations, then each scene's table) to this file.
+    #[arg(long, value_name = "FILE")]
+    pub markdown: Option<PathBuf>,
+    /// Replace an existing report (and Markdown file).
     #[arg(long)]
     pub force: bool,
 }
@@ -80,7 +84,15 @@ pub fn run(args: ReportArgs) -> Result<()> {
         }
     }
     let results = StudyResults::new(scenes);
+    if let Some(md) = &args.markdown {
+        cvtrace_streams::atomic::check_writable(md, args.force)?;
+    }
     let index = write_report(&results, &root, &args.output, &ReportOptions { title: args.title.clone(), overwrite: args.force })?;
     println!("report: {}", index.display());
+    if let Some(md) = &args.markdown {
+        let text = cvtrace_eval::table::markdown_summary(&results);
+        cvtrace_streams::atomic::write_atomically(md, args.force, |tmp| std::fs::write(tmp, &text))?;
+        println!("summary: {}", md.display());
+    }
     Ok(())
 }

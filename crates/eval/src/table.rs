@@ -2,7 +2,7 @@
 //!
 //! Numbers use one rule everywhere (terminal, Markdown, viewer): four significant digits,
 //! plain decimals from 1e-3 to 1e5, scientific notation outside. CSV keeps full precision.
-use crate::results::{keys, MethodResult, Ratio, SceneResult, StudyResults};
+use crate::results::{keys, MethodResult, Ratio, SceneResult, StudyResults, HEADLINE_RATIOS};
 use crate::EvalError;
 use std::path::Path;
 
@@ -179,10 +179,10 @@ pub fn terminal_report(results: &StudyResults) -> String {
 /// A Markdown table of one scene (methods and ablations), for the project's docs.
 pub fn markdown_table(scene: &SceneResult) -> String {
     let mut out = format!("**{}**\n\n", scene_title(scene));
-    out += &format!("| {} |\n", HEADERS.join(" | "));
+    out += &md_row(&HEADERS.map(String::from));
     out += &format!("|{}\n", "---|".repeat(HEADERS.len()));
     for r in rows(scene, false).into_iter().chain(rows(scene, true)) {
-        out += &format!("| {} |\n", r.iter().map(|c| c.replace('|', "\\|")).collect::<Vec<_>>().join(" | "));
+        out += &md_row(&r);
     }
     let ratios = scene.ratios();
     if !ratios.is_empty() {
@@ -191,6 +191,114 @@ pub fn markdown_table(scene: &SceneResult) -> String {
         out += "\n";
     }
     out
+}
+
+/// Cross-scene Markdown for the project's results page: one row per scene with every method's
+/// relMSE, the headline ratios and the paper's own PT(2n) convention (PT(n)/2), a geometric-mean
+/// row; then the ablations as relative changes of `ours`; then each scene's full table.
+pub fn markdown_summary(results: &StudyResults) -> String {
+    let methods = [keys::PT, keys::CRN, keys::AVERAGE, keys::PT_2N, keys::IDUW, keys::CV, keys::OURS];
+    let mut out = String::new();
+    let mut header: Vec<String> = vec!["scene".into()];
+    header.extend(methods.iter().map(|k| short_label(k)));
+    header.extend(HEADLINE_RATIOS.iter().map(|(a, b)| format!("{}/{}", short_label(a), short_label(b))));
+    header.push("ours/(PT(n)/2)".into());
+    header.push("ref. noise ÷ best".into());
+    out += &md_row(&header);
+    out += &format!("|{}\n", "---|".repeat(header.len()));
+    let mut paper_logs = Vec::new();
+    for s in &results.scenes {
+        let mut row = vec![format!("{} ({}+{})", s.name, s.spp_per_stream, s.spp_per_stream)];
+        row.extend(methods.iter().map(|k| s.method(k).map(|m| fmt_num(m.relmse_mean)).unwrap_or_else(|| "–".into())));
+        row.extend(HEADLINE_RATIOS.iter().map(|(a, b)| s.ratio(a, b).map(|r| fmt_ratio(&r)).unwrap_or_else(|| "–".into())));
+        let paper = paper_pt2n_ratio(s);
+        if let Some(p) = paper {
+            paper_logs.push(p.ln());
+        }
+        row.push(fmt_opt(paper));
+        row.push(fmt_opt(s.reference.noise.as_ref().zip(s.best_relmse()).map(|(n, b)| n.relmse / b)));
+        out += &md_row(&row);
+    }
+    if results.scenes.len() > 1 {
+        let mut row = vec![format!("**geometric mean ({} scenes)**", results.scenes.len())];
+        row.extend(methods.iter().map(|_| String::new()));
+        let g = results.geomean_ratios();
+        row.extend(HEADLINE_RATIOS.iter().map(|(a, b)| {
+            g.iter().find(|r| r.numerator == *a && r.denominator == *b).map(|r| format!("**{}**", fmt_num(r.value))).unwrap_or_default()
+        }));
+        row.push(if paper_logs.is_empty() {
+            String::new()
+        } else {
+            format!("**{}**", fmt_num((paper_logs.iter().sum::<f64>() / paper_logs.len() as f64).exp()))
+        });
+        row.push(String::new());
+        out += &md_row(&row);
+    }
+    let ablations = ablation_keys(results);
+    if !ablations.is_empty() {
+        out += "\nAblations of ours: relMSE change against the default `ours` of the same scene and seeds.\n\n";
+        let mut header = vec!["scene".to_string()];
+        header.extend(ablations.iter().map(|(_, label)| label.clone()));
+        out += &md_row(&header);
+        out += &format!("|{}\n", "---|".repeat(header.len()));
+        let mut logs = vec![Vec::new(); ablations.len()];
+        for s in &results.scenes {
+            let mut row = vec![s.name.clone()];
+            for (j, (key, _)) in ablations.iter().enumerate() {
+                let r = s.ratio(key, keys::OURS);
+                if let Some(r) = &r {
+                    logs[j].push(r.value.ln());
+                }
+                row.push(r.map(|r| fmt_change(r.value)).unwrap_or_else(|| "–".into()));
+            }
+            out += &md_row(&row);
+        }
+        if results.scenes.len() > 1 {
+            let mut row = vec!["**geometric mean**".to_string()];
+            row.extend(logs.iter().map(|l| {
+                if l.is_empty() {
+                    String::new()
+                } else {
+                    format!("**{}**", fmt_change((l.iter().sum::<f64>() / l.len() as f64).exp()))
+                }
+            }));
+            out += &md_row(&row);
+        }
+    }
+    for s in &results.scenes {
+        out += "\n";
+        out += &markdown_table(s);
+    }
+    out
+}
+
+/// ours ÷ (PT(n)/2): the paper's PT(2n) column is half of PT(n)'s relMSE, not a render.
+fn paper_pt2n_ratio(scene: &SceneResult) -> Option<f64> {
+    let (ours, pt) = (scene.method(keys::OURS)?, scene.method(keys::PT)?);
+    (pt.relmse_mean > 0.0).then(|| ours.relmse_mean / (pt.relmse_mean / 2.0))
+}
+
+/// Ablation method keys and labels in first-seen order over all scenes.
+fn ablation_keys(results: &StudyResults) -> Vec<(String, String)> {
+    let mut out: Vec<(String, String)> = Vec::new();
+    for m in results.scenes.iter().flat_map(|s| s.methods.iter()).filter(|m| m.ablation) {
+        if !out.iter().any(|(k, _)| *k == m.name) {
+            out.push((m.name.clone(), m.label.clone()));
+        }
+    }
+    out
+}
+
+/// A ratio as a signed percentage change: 1.24 → `+24%`.
+fn fmt_change(ratio: f64) -> String {
+    if !ratio.is_finite() {
+        return "–".into();
+    }
+    format!("{:+.0}%", (ratio - 1.0) * 100.0)
+}
+
+fn md_row(cells: &[String]) -> String {
+    format!("| {} |\n", cells.iter().map(|c| c.replace('|', "\\|")).collect::<Vec<_>>().join(" | "))
 }
 
 fn csv_field(s: &str) -> String {
@@ -261,6 +369,60 @@ mod tests {
             let back: f64 = fmt_num(v).parse().unwrap();
             assert!((back - v).abs() <= 5e-4 * v.abs(), "{v} -> {}", fmt_num(v));
         }
+    }
+
+    fn scene(name: &str, relmse: &[(&str, f64, bool)]) -> SceneResult {
+        SceneResult {
+            name: name.into(),
+            width: 4,
+            height: 4,
+            spp_per_stream: 96,
+            seeds: 1,
+            reference: crate::results::ReferenceInfo { path: "ref.exr".into(), spp: None, image: None, noise: None },
+            methods: relmse
+                .iter()
+                .map(|&(k, v, ablation)| MethodResult {
+                    name: k.into(),
+                    label: format!("label {k}"),
+                    spp_total: 192,
+                    relmse_mean: v,
+                    relmse_se: None,
+                    bias2: None,
+                    variance: None,
+                    mse_mean: v,
+                    relmse_per_seed: vec![v],
+                    time_seconds: Default::default(),
+                    image: None,
+                    error_map: None,
+                    ablation,
+                })
+                .collect(),
+            convergence: Vec::new(),
+            error_map_scale: None,
+            warnings: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn markdown_summary_has_a_row_per_scene_and_geometric_means() {
+        let a = scene("a", &[("pt", 0.4, false), ("pt2n", 0.2, false), ("iduw", 0.1, false), ("cv", 0.08, false), ("ours", 0.05, false), ("ours-window", 0.06, true)]);
+        let b = scene("b", &[("pt", 0.2, false), ("pt2n", 0.1, false), ("iduw", 0.02, false), ("cv", 0.04, false), ("ours", 0.01, false), ("ours-window", 0.015, true)]);
+        let md = markdown_summary(&StudyResults::new(vec![a, b]));
+        assert!(md.contains("| a (96+96) |"), "{md}");
+        assert!(md.contains("| b (96+96) |"), "{md}");
+        // ours/IDUW: 0.5 and 0.5 → 0.5; ours/CV: 0.625 and 0.25 → sqrt(0.15625); ours/PT(2n): 0.25, 0.1.
+        let geo = md.lines().find(|l| l.contains("geometric mean (2 scenes)")).expect("geomean row");
+        assert!(geo.contains("**0.5000**"), "{geo}");
+        assert!(geo.contains(&format!("**{}**", fmt_num(0.15625f64.sqrt()))), "{geo}");
+        assert!(geo.contains(&format!("**{}**", fmt_num((0.25f64 * 0.1).sqrt()))), "{geo}");
+        // The paper's convention, ours / (PT(n)/2): 0.25 and 0.1 again here.
+        assert!(md.lines().find(|l| l.starts_with("| a ")).unwrap().ends_with("| 0.2500 | – |"), "{md}");
+        // Ablations: +20% and +50%, geometric mean sqrt(1.2·1.5) − 1 = +34%.
+        let abl = md.lines().find(|l| l.starts_with("| a |")).expect("ablation row");
+        assert!(abl.contains("+20%"), "{abl}");
+        assert!(md.contains("**+34%**"), "{md}");
+        // Per-scene tables follow.
+        assert_eq!(md.matches("**a — ").count(), 1, "{md}");
     }
 
     #[test]
