@@ -1,0 +1,463 @@
+#!/usr/bin/env python3
+"""Converts the third-party models of issue 5 into cvtrace scenes (glTF 2.0 + sidecar).
+
+Stdlib-only and deterministic (same input bytes -> same output bytes). One sub-command per
+scene; SRC_DIR is the folder `scripts/fetch_scene_sources.sh` filled:
+
+    python3 scripts/import_scenes.py sponza  SRC_DIR scenes/sponza
+    python3 scripts/import_scenes.py engine  SRC_DIR scenes/engine
+    python3 scripts/import_scenes.py head    SRC_DIR scenes/head
+    python3 scripts/import_scenes.py teapots SRC_DIR scenes/teapots
+
+Each writes OUT_DIR/scene.gltf + scene.bin (+ textures / environment map) and
+OUT_DIR/scene.cvtrace.toml. The teapots scene also needs `oiiotool` (OpenImageIO) to turn the
+generated sky.pfm into sky.exr; the exact command is printed and recorded in its SOURCE.md.
+Light units follow the project convention: glTF photometric units are read 1:1 as linear-RGB
+radiometric units (emissive radiance = emissiveFactor x emissive_strength; sun irradiance =
+color x intensity).
+"""
+import argparse
+import json
+import math
+import os
+import struct
+import subprocess
+import sys
+
+# --------------------------------------------------------------------------------------------
+# Small vector / matrix helpers (column-major 4x4 matrices as flat lists, as glTF stores them)
+
+IDENTITY = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]
+
+
+def add(a, b):
+    return [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+
+
+def sub(a, b):
+    return [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+
+
+def scale(a, s):
+    return [a[0] * s, a[1] * s, a[2] * s]
+
+
+def dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def cross(a, b):
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def normalize(a):
+    n = math.sqrt(dot(a, a))
+    return [a[0] / n, a[1] / n, a[2] / n] if n > 0 else [0.0, 0.0, 0.0]
+
+
+def node_matrix(nd):
+    if "matrix" in nd:
+        return [float(v) for v in nd["matrix"]]
+    t = nd.get("translation", [0, 0, 0])
+    x, y, z, w = nd.get("rotation", [0, 0, 0, 1])
+    s = nd.get("scale", [1, 1, 1])
+    r = [1 - 2 * (y * y + z * z), 2 * (x * y + z * w), 2 * (x * z - y * w),
+         2 * (x * y - z * w), 1 - 2 * (x * x + z * z), 2 * (y * z + x * w),
+         2 * (x * z + y * w), 2 * (y * z - x * w), 1 - 2 * (x * x + y * y)]
+    return [r[0] * s[0], r[1] * s[0], r[2] * s[0], 0.0, r[3] * s[1], r[4] * s[1], r[5] * s[1], 0.0,
+            r[6] * s[2], r[7] * s[2], r[8] * s[2], 0.0, t[0], t[1], t[2], 1.0]
+
+
+def mat_mul(a, b):
+    return [sum(a[k * 4 + r] * b[c * 4 + k] for k in range(4)) for c in range(4) for r in range(4)]
+
+
+def mat_point(m, p):
+    return [m[r] * p[0] + m[4 + r] * p[1] + m[8 + r] * p[2] + m[12 + r] for r in range(3)]
+
+
+def look_at_quaternion(eye, target, up=(0.0, 1.0, 0.0)):
+    """Rotation (x, y, z, w) turning a glTF camera (looking down -Z, up +Y) towards target."""
+    f = normalize(sub(target, eye))
+    r = normalize(cross(f, list(up)))
+    u = cross(r, f)
+    b = scale(f, -1.0)
+    # Rotation matrix with columns r, u, b -> quaternion.
+    m00, m01, m02 = r[0], u[0], b[0]
+    m10, m11, m12 = r[1], u[1], b[1]
+    m20, m21, m22 = r[2], u[2], b[2]
+    tr = m00 + m11 + m22
+    if tr > 0:
+        s = math.sqrt(tr + 1.0) * 2
+        q = [(m21 - m12) / s, (m02 - m20) / s, (m10 - m01) / s, 0.25 * s]
+    elif m00 > m11 and m00 > m22:
+        s = math.sqrt(1.0 + m00 - m11 - m22) * 2
+        q = [0.25 * s, (m01 + m10) / s, (m02 + m20) / s, (m21 - m12) / s]
+    elif m11 > m22:
+        s = math.sqrt(1.0 + m11 - m00 - m22) * 2
+        q = [(m01 + m10) / s, 0.25 * s, (m12 + m21) / s, (m02 - m20) / s]
+    else:
+        s = math.sqrt(1.0 + m22 - m00 - m11) * 2
+        q = [(m02 + m20) / s, (m12 + m21) / s, 0.25 * s, (m10 - m01) / s]
+    return rounded(q, 7)
+
+
+def rounded(v, digits=6):
+    if isinstance(v, (list, tuple)):
+        return [rounded(x, digits) for x in v]
+    r = round(float(v), digits)
+    return 0.0 if r == 0 else r
+
+
+# --------------------------------------------------------------------------------------------
+# glTF writer
+
+
+class Gltf:
+    """Accumulates a glTF document and its single binary buffer."""
+
+    def __init__(self, doc=None, blob=b""):
+        self.doc = doc if doc is not None else {"asset": {"version": "2.0"}}
+        self.bin = bytearray(blob)
+        for key in ("bufferViews", "accessors", "meshes", "materials", "nodes"):
+            self.doc.setdefault(key, [])
+
+    def _list(self, key):
+        return self.doc.setdefault(key, [])
+
+    def view(self, data, target=None):
+        while len(self.bin) % 4:
+            self.bin.append(0)
+        v = {"buffer": 0, "byteOffset": len(self.bin), "byteLength": len(data)}
+        if target is not None:
+            v["target"] = target
+        self.bin += data
+        self.doc["bufferViews"].append(v)
+        return len(self.doc["bufferViews"]) - 1
+
+    def accessor(self, values, kind):
+        """values: list of tuples (VEC2/VEC3 floats) or ints (SCALAR indices, uint32)."""
+        if kind == "SCALAR":
+            data = struct.pack("<%dI" % len(values), *values)
+            acc = {"bufferView": self.view(data, 34963), "componentType": 5125, "count": len(values),
+                   "type": "SCALAR"}
+        else:
+            n = len(values[0])
+            flat = [float(c) for v in values for c in v]
+            data = struct.pack("<%df" % len(flat), *flat)
+            acc = {"bufferView": self.view(data, 34962), "componentType": 5126, "count": len(values),
+                   "type": kind}
+            if kind == "VEC3":
+                # min/max of the float32 values actually stored (POSITION needs them).
+                stored = struct.unpack("<%df" % len(flat), data)
+                acc["min"] = [min(stored[i::n]) for i in range(n)]
+                acc["max"] = [max(stored[i::n]) for i in range(n)]
+        self.doc["accessors"].append(acc)
+        return len(self.doc["accessors"]) - 1
+
+    def material(self, m):
+        self.doc["materials"].append(m)
+        return len(self.doc["materials"]) - 1
+
+    def mesh(self, name, prims):
+        """prims: list of (positions, normals or None, uvs or None, indices, material)."""
+        out = []
+        for pos, nrm, uv, idx, mat in prims:
+            attrs = {"POSITION": self.accessor(pos, "VEC3")}
+            if nrm is not None:
+                attrs["NORMAL"] = self.accessor(nrm, "VEC3")
+            if uv is not None:
+                attrs["TEXCOORD_0"] = self.accessor(uv, "VEC2")
+            out.append({"attributes": attrs, "indices": self.accessor(idx, "SCALAR"), "material": mat, "mode": 4})
+        self.doc["meshes"].append({"name": name, "primitives": out})
+        return len(self.doc["meshes"]) - 1
+
+    def node(self, nd):
+        self.doc["nodes"].append(nd)
+        return len(self.doc["nodes"]) - 1
+
+    def camera_node(self, name, eye, target, yfov_deg, aspect=16 / 9):
+        cams = self._list("cameras")
+        cams.append({"name": name, "type": "perspective",
+                     "perspective": {"aspectRatio": rounded(aspect), "yfov": rounded(math.radians(yfov_deg)),
+                                     "znear": 0.01, "zfar": 1000.0}})
+        return self.node({"name": name, "camera": len(cams) - 1, "translation": rounded(eye),
+                          "rotation": look_at_quaternion(eye, target)})
+
+    def write(self, out_dir, stem="scene"):
+        os.makedirs(out_dir, exist_ok=True)
+        while len(self.bin) % 4:
+            self.bin.append(0)
+        self.doc["buffers"] = [{"uri": stem + ".bin", "byteLength": len(self.bin)}]
+        for key in ("bufferViews", "accessors", "meshes", "materials", "nodes"):
+            if not self.doc[key]:
+                del self.doc[key]
+        used = set()
+        for m in self.doc.get("materials", []):
+            used.update(m.get("extensions", {}).keys())
+        for n in self.doc.get("nodes", []):
+            used.update(n.get("extensions", {}).keys())
+        used.update(self.doc.get("extensions", {}).keys())
+        if used:
+            self.doc["extensionsUsed"] = sorted(used)
+        else:
+            self.doc.pop("extensionsUsed", None)
+        with open(os.path.join(out_dir, stem + ".bin"), "wb") as f:
+            f.write(self.bin)
+        with open(os.path.join(out_dir, stem + ".gltf"), "w", encoding="utf-8", newline="\n") as f:
+            f.write(json.dumps(self.doc, indent=1, ensure_ascii=False))
+            f.write("\n")
+
+
+def read_glb(path):
+    data = open(path, "rb").read()
+    magic, version, _length = struct.unpack_from("<III", data, 0)
+    if magic != 0x46546C67 or version != 2:
+        sys.exit("%s: not a glTF 2.0 binary" % path)
+    json_len, _ = struct.unpack_from("<II", data, 12)
+    doc = json.loads(data[20:20 + json_len].decode("utf-8"))
+    off = 20 + json_len
+    bin_len, _ = struct.unpack_from("<II", data, off)
+    return doc, data[off + 8:off + 8 + bin_len]
+
+
+def glb_bounds(doc, blob, roots, root_matrix=IDENTITY):
+    """World-space bounds of every mesh vertex under `roots` (float32 VEC3 positions)."""
+    lo, hi = [1e30] * 3, [-1e30] * 3
+
+    def walk(n, m):
+        nd = doc["nodes"][n]
+        m = mat_mul(m, node_matrix(nd))
+        if "mesh" in nd:
+            for prim in doc["meshes"][nd["mesh"]]["primitives"]:
+                acc = doc["accessors"][prim["attributes"]["POSITION"]]
+                bv = doc["bufferViews"][acc["bufferView"]]
+                off = bv.get("byteOffset", 0) + acc.get("byteOffset", 0)
+                stride = bv.get("byteStride", 12)
+                for i in range(acc["count"]):
+                    p = mat_point(m, struct.unpack_from("<3f", blob, off + i * stride))
+                    for k in range(3):
+                        lo[k], hi[k] = min(lo[k], p[k]), max(hi[k], p[k])
+        for c in nd.get("children", []):
+            walk(c, m)
+
+    for r in roots:
+        walk(r, root_matrix)
+    return lo, hi
+
+
+# --------------------------------------------------------------------------------------------
+# Materials and simple geometry
+
+
+def diffuse(name, color, double_sided=True):
+    return {"name": name, "doubleSided": double_sided,
+            "pbrMetallicRoughness": {"baseColorFactor": rounded(list(color) + [1.0]), "metallicFactor": 0.0,
+                                     "roughnessFactor": 1.0},
+            "extensions": {"KHR_materials_specular": {"specularFactor": 0.0}}}
+
+
+def dielectric(name, color, roughness, double_sided=True):
+    """Base colour under a dielectric specular layer (glTF's default F0 = 0.04)."""
+    return {"name": name, "doubleSided": double_sided,
+            "pbrMetallicRoughness": {"baseColorFactor": rounded(list(color) + [1.0]), "metallicFactor": 0.0,
+                                     "roughnessFactor": roughness}}
+
+
+def metal(name, f0, roughness, double_sided=True):
+    return {"name": name, "doubleSided": double_sided,
+            "pbrMetallicRoughness": {"baseColorFactor": rounded(list(f0) + [1.0]), "metallicFactor": 1.0,
+                                     "roughnessFactor": roughness}}
+
+
+def glass(name, roughness, ior=1.5, tint=(1.0, 1.0, 1.0)):
+    return {"name": name, "doubleSided": True,
+            "pbrMetallicRoughness": {"baseColorFactor": rounded(list(tint) + [1.0]), "metallicFactor": 0.0,
+                                     "roughnessFactor": roughness},
+            "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0},
+                           "KHR_materials_ior": {"ior": ior}}}
+
+
+def emitter(name, color, strength):
+    """One-sided area light: emits from the counter-clockwise (front) side only."""
+    return {"name": name, "doubleSided": False,
+            "pbrMetallicRoughness": {"baseColorFactor": [0.0, 0.0, 0.0, 1.0], "metallicFactor": 0.0,
+                                     "roughnessFactor": 1.0},
+            "emissiveFactor": rounded(color),
+            "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": strength},
+                           "KHR_materials_specular": {"specularFactor": 0.0}}}
+
+
+class MeshBuilder:
+    """Flat-shaded triangles collected per material."""
+
+    def __init__(self):
+        self.groups = {}
+
+    def _group(self, mat):
+        return self.groups.setdefault(mat, ([], [], []))
+
+    def quad(self, mat, c, u, v):
+        """Rectangle centred at c with half-edges u, v; front face (CCW) towards u x v."""
+        pos, nrm, idx = self._group(mat)
+        n = normalize(cross(u, v))
+        base = len(pos)
+        for su, sv in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
+            pos.append(rounded(add(c, add(scale(u, su), scale(v, sv)))))
+            nrm.append(rounded(n))
+        idx += [base, base + 1, base + 2, base, base + 2, base + 3]
+
+    def box(self, mat, lo, hi, outward=True, skip=()):
+        """Axis-aligned box; faces point out (or in for a room). skip: face names to leave out."""
+        cx, cy, cz = [(lo[i] + hi[i]) / 2 for i in range(3)]
+        hx, hy, hz = [(hi[i] - lo[i]) / 2 for i in range(3)]
+        s = 1 if outward else -1
+        faces = {
+            "+x": ([cx + hx, cy, cz], [0, 0, -hz * s], [0, hy, 0]),
+            "-x": ([cx - hx, cy, cz], [0, 0, hz * s], [0, hy, 0]),
+            "+y": ([cx, cy + hy, cz], [hx * s, 0, 0], [0, 0, -hz]),
+            "-y": ([cx, cy - hy, cz], [hx * s, 0, 0], [0, 0, hz]),
+            "+z": ([cx, cy, cz + hz], [hx * s, 0, 0], [0, hy, 0]),
+            "-z": ([cx, cy, cz - hz], [-hx * s, 0, 0], [0, hy, 0]),
+        }
+        for name in ("+x", "-x", "+y", "-y", "+z", "-z"):
+            if name not in skip:
+                self.quad(mat, *faces[name])
+
+    def triangles(self):
+        return sum(len(g[2]) // 3 for g in self.groups.values())
+
+    def add_to(self, g, name):
+        prims = [(pos, nrm, None, idx, mat) for mat, (pos, nrm, idx) in sorted(self.groups.items())]
+        return g.mesh(name, prims)
+
+
+def write_sidecar(out_dir, environment=None, comment=None):
+    lines = []
+    if comment:
+        lines += ["# " + c for c in comment.splitlines()]
+    lines += ["[render]", "width = 320", "height = 180", "max_depth = -1", "rr_depth = 5"]
+    if environment:
+        lines += ["", "[environment]"]
+        for k, v in environment:
+            lines.append("%s = %s" % (k, v))
+    with open(os.path.join(out_dir, "scene.cvtrace.toml"), "w", encoding="utf-8", newline="\n") as f:
+        f.write("\n".join(lines) + "\n")
+
+
+def count_triangles(doc):
+    """Triangles of the default scene, counting every mesh instance."""
+    total = 0
+
+    def walk(n):
+        nonlocal total
+        nd = doc["nodes"][n]
+        if "mesh" in nd:
+            for p in doc["meshes"][nd["mesh"]]["primitives"]:
+                acc = p.get("indices", p["attributes"]["POSITION"])
+                total += doc["accessors"][acc]["count"] // 3
+        for c in nd.get("children", []):
+            walk(c)
+
+    for r in doc["scenes"][doc.get("scene", 0)]["nodes"]:
+        walk(r)
+    return total
+
+
+# --------------------------------------------------------------------------------------------
+# engine: Khronos' 2CylinderEngine (assimp-testmodels) in a studio
+
+ENGINE_GLB = "assimp/usr/share/assimp/models/glTF2/2CylinderEngine-glTF-Binary/2CylinderEngine.glb"
+
+# Source material name (COLLADA2GLTF "Material_NN", one flat colour each) -> new material.
+ENGINE_MATERIALS = {
+    "Material_16": lambda n: dielectric(n + " (blue paint)", (0.05, 0.12, 0.45), 0.35),  # source (0, 0, 0.85)
+    "Material_17": lambda n: metal(n + " (brass)", (0.91, 0.73, 0.40), 0.3),  # source orange (0.85, 0.56, 0)
+    "Material_18": lambda n: dielectric(n + " (red paint)", (0.55, 0.04, 0.03), 0.3),  # source (0.85, 0, 0)
+    "Material_19": lambda n: metal(n + " (polished aluminium)", (0.91, 0.92, 0.92), 0.2),  # source grey 0.85
+    "Material_20": lambda n: metal(n + " (brushed steel)", (0.62, 0.62, 0.61), 0.35),  # source grey 0.85
+    "Material_21": lambda n: dielectric(n + " (black enamel)", (0.02, 0.02, 0.02), 0.25),  # source black
+    "Material_22": lambda n: dielectric(n + " (teal paint)", (0.03, 0.25, 0.25), 0.4),  # source (0, 0.43, 0.43)
+    "Material_23": lambda n: metal(n + " (cast iron, blued)", (0.45, 0.5, 0.58), 0.45),  # source (0, 0.56, 0.85)
+}
+
+ENGINE_ROOM = {"half_x": 2.5, "half_z": 2.0, "height": 2.6}
+
+
+def cmd_engine(src, out):
+    doc, blob = read_glb(os.path.join(src, ENGINE_GLB))
+    # The source's root list is [81 (its camera), 0 (the engine)]. Drop the camera node (the last
+    # node, referenced by nothing else) and its camera; ours is added below.
+    cam_node = doc["scenes"][0]["nodes"][0]
+    assert cam_node == len(doc["nodes"]) - 1 and "camera" in doc["nodes"][cam_node]
+    doc["nodes"].pop()
+    del doc["cameras"]
+    engine_root = doc["scenes"][0]["nodes"][1]
+    lo, hi = glb_bounds(doc, blob, [engine_root])
+    # Units are millimetres (the engine is ~0.74 m long): scale to metres, centre it on the
+    # origin in x/z and stand its lowest point on the floor (y = 0).
+    # Turned 180 degrees about y (x -> -x, z -> -z) so the brass gear train faces the camera.
+    s = 0.001
+    t = [(lo[0] + hi[0]) / 2 * s, -lo[1] * s, (lo[2] + hi[2]) / 2 * s]
+    doc["materials"] = [ENGINE_MATERIALS[m["name"]](m["name"]) for m in doc["materials"]]
+
+    g = Gltf(doc, blob)
+    g.doc["asset"] = {"version": "2.0", "generator": "cvtrace scripts/import_scenes.py engine",
+                      "copyright": "2CylinderEngine: see SOURCE.md", "extras": {"defaultResolution": [320, 180]}}
+    wall = g.material(diffuse("wall (light grey)", (0.7, 0.7, 0.68)))
+    accent = g.material(diffuse("wall (warm beige)", (0.66, 0.5, 0.38)))
+    floor = g.material(dielectric("floor (grey epoxy)", (0.32, 0.31, 0.3), 0.5))
+    plinth = g.material(dielectric("plinth (grey lacquer)", (0.45, 0.45, 0.45), 0.3))
+    panel = g.material(emitter("ceiling panel", (1.0, 0.95, 0.88), 8.0))
+    softbox = g.material(emitter("softbox", (1.0, 1.0, 1.0), 14.0))
+
+    r = ENGINE_ROOM
+    mb = MeshBuilder()
+    mb.box(wall, [-r["half_x"], 0.0, -r["half_z"]], [r["half_x"], r["height"], r["half_z"]], outward=False,
+           skip=("-y", "-x"))
+    # The left wall is a warm colour, for some colour bleeding.
+    mb.quad(accent, [-r["half_x"], r["height"] / 2, 0.0], [0.0, 0.0, -r["half_z"]], [0.0, r["height"] / 2, 0.0])
+    mb.quad(floor, [0.0, 0.0, 0.0], [r["half_x"], 0.0, 0.0], [0.0, 0.0, -r["half_z"]])
+    # Low plinth the engine stands on.
+    plinth_h = 0.12
+    mb.box(plinth, [-0.55, 0.0, -0.3], [0.55, plinth_h, 0.3], skip=("-y",))
+    # Ceiling panel, 1.6 x 1.0 m, 2 cm below the ceiling, facing down.
+    mb.quad(panel, [0.0, r["height"] - 0.02, 0.0], [0.8, 0.0, 0.0], [0.0, 0.0, 0.5])
+    # Softbox: 1.0 x 0.8 m, left of the engine, tilted towards it.
+    sb_c = [-1.9, 1.3, 0.6]
+    aim = normalize(sub([0.0, 0.35, 0.0], sb_c))
+    su = scale(normalize(cross([0.0, 1.0, 0.0], aim)), 0.5)
+    sv = scale(normalize(cross(aim, su)), 0.4)
+    mb.quad(softbox, sb_c, su, sv)
+    assert dot(normalize(cross(su, sv)), aim) > 0.99
+    room_mesh = mb.add_to(g, "studio")
+
+    t[1] += plinth_h
+    eng = g.node({"name": "engine (mm -> m, turned 180 deg)", "children": [engine_root], "scale": [s, s, s],
+                  "rotation": [0.0, 1.0, 0.0, 0.0], "translation": rounded(t)})
+    room = g.node({"name": "studio", "mesh": room_mesh})
+    cam = g.camera_node("camera", [0.95, 0.68, 1.1], [0.0, 0.28, 0.0], 36.0)
+    g.doc["scenes"] = [{"name": "engine", "nodes": [cam, eng, room]}]
+    g.doc["scene"] = 0
+    g.write(out)
+    write_sidecar(out)
+    print("engine: %d triangles (engine %d, studio %d)" % (count_triangles(g.doc), count_triangles(g.doc) -
+                                                           mb.triangles(), mb.triangles()))
+
+
+# --------------------------------------------------------------------------------------------
+
+COMMANDS = ("sponza", "engine", "head", "teapots")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("scene", choices=COMMANDS)
+    ap.add_argument("src_dir", help="folder filled by scripts/fetch_scene_sources.sh")
+    ap.add_argument("out_dir", help="scene folder to write, e.g. scenes/engine")
+    a = ap.parse_args()
+    globals()["cmd_" + a.scene](a.src_dir, a.out_dir)
+
+
+if __name__ == "__main__":
+    main()
