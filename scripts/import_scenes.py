@@ -445,6 +445,113 @@ def cmd_engine(src, out):
                                                            mb.triangles(), mb.triangles()))
 
 
+def read_accessor(doc, blob, index):
+    """Tuples (VEC2/VEC3 float) or ints (SCALAR) of a tightly indexed, non-sparse accessor."""
+    acc = doc["accessors"][index]
+    bv = doc["bufferViews"][acc["bufferView"]]
+    n = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}[acc["type"]]
+    fmt = {5126: "f", 5125: "I", 5123: "H", 5121: "B"}[acc["componentType"]]
+    size = struct.calcsize("<" + fmt)
+    stride = bv.get("byteStride", n * size)
+    off = bv.get("byteOffset", 0) + acc.get("byteOffset", 0)
+    out = [struct.unpack_from("<%d%s" % (n, fmt), blob, off + i * stride) for i in range(acc["count"])]
+    return [v[0] for v in out] if n == 1 else out
+
+
+# --------------------------------------------------------------------------------------------
+# head: the textured head of easy-gltf's tests, on a pedestal in a small room
+
+HEAD_GLB = "easy-gltf-1.1.5/tests/head.glb"
+
+
+def cmd_head(src, out):
+    doc, blob = read_glb(os.path.join(src, HEAD_GLB))
+    head_node = doc["nodes"][0]
+    assert head_node["mesh"] == 0 and len(doc["meshes"]) == 1 and len(doc["meshes"][0]["primitives"]) == 1
+    prim = doc["meshes"][0]["primitives"][0]
+    lo, hi = glb_bounds(doc, blob, [0])
+
+    g = Gltf()
+    g.doc["asset"] = {"version": "2.0", "generator": "cvtrace scripts/import_scenes.py head",
+                      "copyright": "head: easy-gltf 1.1.5 tests/head.glb (MIT), see SOURCE.md",
+                      "extras": {"defaultResolution": [320, 180]}}
+    # The base-colour texture (PNG in the source's buffer view 4) becomes a file next to the glTF.
+    img = doc["images"][0]
+    assert img["mimeType"] == "image/png"
+    bv = doc["bufferViews"][img["bufferView"]]
+    png = blob[bv.get("byteOffset", 0):bv.get("byteOffset", 0) + bv["byteLength"]]
+    os.makedirs(out, exist_ok=True)
+    with open(os.path.join(out, "head_diffuse.png"), "wb") as f:
+        f.write(png)
+    g.doc["images"] = [{"name": "african_head_diffuse", "uri": "head_diffuse.png", "mimeType": "image/png"}]
+    g.doc["samplers"] = [{"magFilter": 9729, "minFilter": 9987, "wrapS": 10497, "wrapT": 10497}]
+    g.doc["textures"] = [{"source": 0, "sampler": 0}]
+    src_mat = doc["materials"][0]
+    skin = g.material({"name": "head (" + src_mat["name"] + ")", "doubleSided": True,
+                       "pbrMetallicRoughness": {"baseColorTexture": {"index": 0, "texCoord": 0},
+                                                "metallicFactor": 0.0, "roughnessFactor": 0.5}})
+    attrs = prim["attributes"]
+    head_mesh = g.mesh("head", [(read_accessor(doc, blob, attrs["POSITION"]), read_accessor(doc, blob, attrs["NORMAL"]),
+                                 read_accessor(doc, blob, attrs["TEXCOORD_0"]),
+                                 read_accessor(doc, blob, prim["indices"]), skin)])
+
+    wall = g.material(diffuse("wall (off-white plaster)", (0.72, 0.7, 0.66)))
+    back = g.material(diffuse("back wall (muted green)", (0.36, 0.46, 0.38)))
+    floor = g.material(dielectric("floor (oak)", (0.42, 0.27, 0.15), 0.45))
+    stone = g.material(dielectric("pedestal (light marble)", (0.6, 0.59, 0.57), 0.25))
+    wood = g.material(dielectric("shelf (walnut)", (0.25, 0.15, 0.08), 0.4))
+    books = [g.material(diffuse("book (%s)" % n, c)) for n, c in
+             (("red", (0.5, 0.08, 0.06)), ("blue", (0.08, 0.14, 0.4)), ("ochre", (0.6, 0.45, 0.15)))]
+    frame = g.material(dielectric("window frame (white paint)", (0.8, 0.8, 0.78), 0.4))
+    window = g.material(emitter("window (daylight)", (0.9, 0.95, 1.0), 12.0))
+
+    hx, hz, h = 1.5, 1.5, 2.6
+    mb = MeshBuilder()
+    mb.box(wall, [-hx, 0.0, -hz], [hx, h, hz], outward=False, skip=("-y", "-z"))
+    mb.quad(back, [0.0, h / 2, -hz], [hx, 0.0, 0.0], [0.0, h / 2, 0.0])
+    mb.quad(floor, [0.0, 0.0, 0.0], [hx, 0.0, 0.0], [0.0, 0.0, -hz])
+    # Window in the right (+x) wall: an emitting pane 1 cm inside the wall, facing -x, with a
+    # frame and a cross of mullions 5 cm in front of it that cast soft shadows.
+    wc, ww, wh = [hx - 0.01, 1.55, -0.1], 0.45, 0.6  # centre, half width (z), half height
+    mb.quad(window, wc, [0.0, 0.0, ww], [0.0, wh, 0.0])
+    fx0, fx1, t = hx - 0.08, hx - 0.005, 0.035
+    mb.box(frame, [fx0, wc[1] - wh - t, wc[2] - ww - t], [fx1, wc[1] - wh, wc[2] + ww + t])  # sill
+    mb.box(frame, [fx0, wc[1] + wh, wc[2] - ww - t], [fx1, wc[1] + wh + t, wc[2] + ww + t])  # head
+    mb.box(frame, [fx0, wc[1] - wh, wc[2] - ww - t], [fx1, wc[1] + wh, wc[2] - ww])
+    mb.box(frame, [fx0, wc[1] - wh, wc[2] + ww], [fx1, wc[1] + wh, wc[2] + ww + t])
+    m = 0.012
+    mb.box(frame, [fx0, wc[1] - wh, wc[2] - m], [fx1, wc[1] + wh, wc[2] + m])  # mullion
+    mb.box(frame, [fx0, wc[1] - m, wc[2] - ww], [fx1, wc[1] + m, wc[2] + ww])  # transom
+    # Pedestal in the middle of the room.
+    top = 1.25
+    mb.box(stone, [-0.16, 0.0, -0.16], [0.16, top, 0.16], skip=("-y",))
+    # Shelf on the back wall with a few books.
+    sy = 1.45
+    mb.box(wood, [-1.2, sy - 0.03, -hz], [-0.2, sy, -hz + 0.28], skip=("-z",))
+    x = -1.15
+    for i, (w, bh) in enumerate(((0.05, 0.24), (0.04, 0.21), (0.06, 0.26), (0.035, 0.22), (0.05, 0.25), (0.045, 0.2))):
+        mb.box(books[i % 3], [x, sy, -hz + 0.04], [x + w, sy + bh, -hz + 0.24], skip=("-y",))
+        x += w + 0.004
+    # A book lying flat at the right end of the shelf.
+    mb.box(books[1], [-0.6, sy, -hz + 0.05], [-0.32, sy + 0.045, -hz + 0.25], skip=("-y",))
+    room_mesh = mb.add_to(g, "room")
+
+    s = 0.075  # the head is ~3.5 units tall -> ~0.26 m
+    head_xf = {k: head_node[k] for k in ("rotation", "translation", "scale", "matrix") if k in head_node}
+    inner = g.node(dict({"name": head_node["name"], "mesh": head_mesh}, **head_xf))
+    t = [-(lo[0] + hi[0]) / 2 * s, top - lo[1] * s, -(lo[2] + hi[2]) / 2 * s]
+    outer = g.node({"name": "head (units -> m, on the pedestal)", "children": [inner], "scale": [s, s, s],
+                    "translation": rounded(t)})
+    room = g.node({"name": "room", "mesh": room_mesh})
+    cam = g.camera_node("camera", [-0.3, 1.46, 0.8], [0.08, 1.39, -0.2], 34.0)
+    g.doc["scenes"] = [{"name": "head", "nodes": [cam, outer, room]}]
+    g.doc["scene"] = 0
+    g.write(out)
+    write_sidecar(out)
+    n = count_triangles(g.doc)
+    print("head: %d triangles (head %d, room %d)" % (n, n - mb.triangles(), mb.triangles()))
+
+
 # --------------------------------------------------------------------------------------------
 
 COMMANDS = ("sponza", "engine", "head", "teapots")
