@@ -749,7 +749,7 @@ def build_door_ajar():
 # Scene 2: glass-of-water
 # ---------------------------------------------------------------------------------------------
 
-GLASS_LIGHT = 800.0
+GLASS_LIGHT = 600.0
 FILL_LIGHT = 0.6
 
 
@@ -809,7 +809,7 @@ def wine_glass_profile():
     top.append((ro - 0.0004, rim_y))
     top += arc((ro - 0.0004 - w / 2, rim_y), w / 2, 0, 180, 6)[1:]
     ri = ro - 0.0004 - w
-    ai, bi, yci = a - w, bb - w, yc + 0.003
+    ai, bi, yci = a - w, bb - w, yc
     phi_top = math.degrees(math.acos(min(1.0, ri / ai)))
     # the inner lip goes straight down to where the inner ellipse reaches radius ri
     y_join = yci + bi * math.sin(math.radians(phi_top))
@@ -830,14 +830,13 @@ def build_glass_of_water():
     s.material("ceiling", (0.80, 0.80, 0.78), specular=0.0)
     s.material("floor_wood", (1, 1, 1), roughness=0.5, specular=0.5, texture=("planks.png", tex_planks(seed=5)))
     s.material("table_wood", (1, 1, 1), roughness=0.3, specular=0.6,
-               texture=("oak.png", tex_wood_grain(seed=31, light=(206, 164, 118), dark=(160, 112, 70))))
+               texture=("oak.png", tex_wood_grain(seed=31, light=(212, 182, 146), dark=(168, 128, 90))))
     s.material("table_frame", (0.30, 0.20, 0.12), roughness=0.5, specular=0.5)
     s.material("glass", (1, 1, 1), roughness=0.0, transmission=1.0, ior=1.5)
     s.material("water", (1, 1, 1), roughness=0.0, transmission=1.0, ior=1.33)
     s.material("orange", (0.80, 0.32, 0.04), roughness=0.45, specular=0.5)
     s.material("book_red", (0.50, 0.08, 0.07), roughness=0.6, specular=0.4)
     s.material("book_blue", (0.10, 0.18, 0.35), roughness=0.6, specular=0.4)
-    s.material("pages", (0.85, 0.82, 0.74), specular=0.0)
     s.material("lamp_housing", (0.08, 0.08, 0.08), roughness=0.4, specular=0.5)
     s.material("light", (0, 0, 0), emission=(GLASS_LIGHT, GLASS_LIGHT * 0.95, GLASS_LIGHT * 0.85))
     s.material("fill", (0, 0, 0), emission=(FILL_LIGHT * 0.9, FILL_LIGHT * 0.95, FILL_LIGHT))
@@ -853,7 +852,7 @@ def build_glass_of_water():
     # Table near the back wall.
     ty = 0.75
     cx, cz = 0.0, -1.15
-    s.add("table_top", "table_wood", box((cx - 0.75, ty - 0.035, cz - 0.45), (cx + 0.75, ty, cz + 0.45), tile=1.2))
+    s.add("table_top", "table_wood", box((cx - 0.75, ty - 0.035, cz - 0.45), (cx + 0.75, ty, cz + 0.45), tile=0.7))
     frame = Geom()
     for lx in (cx - 0.7, cx + 0.65):
         for lz in (cz - 0.4, cz + 0.35):
