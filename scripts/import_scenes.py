@@ -553,6 +553,398 @@ def cmd_head(src, out):
 
 
 # --------------------------------------------------------------------------------------------
+# sponza: the Dabrovic Sponza atrium from obj-rs' test fixtures, lit by a sun and the sky
+
+SPONZA_OBJ = "obj-rs-0.7.4/tests/fixtures/sponza.obj"
+
+
+def read_obj(path):
+    """Positions, UVs and faces [(material, [(v, vt or None), ...])] of an OBJ file, in file order.
+
+    Handles negative (relative) indices; `usemtl` names are kept as the material key."""
+    pos, uv, faces = [], [], []
+    mtl = "default"
+    with open(path, "r", encoding="latin-1") as f:
+        for line in f:
+            parts = line.split()
+            if not parts:
+                continue
+            tag = parts[0]
+            if tag == "v":
+                pos.append(tuple(float(x) for x in parts[1:4]))
+            elif tag == "vt":
+                uv.append(tuple(float(x) for x in parts[1:3]))
+            elif tag == "usemtl":
+                mtl = parts[1]
+            elif tag == "f":
+                corners = []
+                for c in parts[1:]:
+                    fields = c.split("/")
+                    vi = int(fields[0])
+                    vi = vi - 1 if vi > 0 else len(pos) + vi
+                    ti = None
+                    if len(fields) > 1 and fields[1]:
+                        ti = int(fields[1])
+                        ti = ti - 1 if ti > 0 else len(uv) + ti
+                    corners.append((vi, ti))
+                faces.append((mtl, corners))
+    return pos, uv, faces
+
+
+def newell_normal(pts):
+    n = [0.0, 0.0, 0.0]
+    for i in range(len(pts)):
+        a, b = pts[i], pts[(i + 1) % len(pts)]
+        n[0] += (a[1] - b[1]) * (a[2] + b[2])
+        n[1] += (a[2] - b[2]) * (a[0] + b[0])
+        n[2] += (a[0] - b[0]) * (a[1] + b[1])
+    return n
+
+
+def triangulate(pts):
+    """Ear clipping of a simple (possibly concave) planar polygon; returns index triples in the
+    polygon's own winding. n-2 triangles for n corners."""
+    n = len(pts)
+    if n == 3:
+        return [(0, 1, 2)]
+    nrm = newell_normal(pts)
+    ax = max(range(3), key=lambda k: abs(nrm[k]))
+    i0, i1 = [(1, 2), (2, 0), (0, 1)][ax]
+    sign = 1.0 if nrm[ax] >= 0 else -1.0
+    p2 = [(p[i0], p[i1]) for p in pts]
+
+    def area2(a, b, c):
+        return ((p2[b][0] - p2[a][0]) * (p2[c][1] - p2[a][1]) - (p2[b][1] - p2[a][1]) * (p2[c][0] - p2[a][0])) * sign
+
+    def inside(p, a, b, c):
+        return area2(a, b, p) >= 0 and area2(b, c, p) >= 0 and area2(c, a, p) >= 0
+
+    idx = list(range(n))
+    tris = []
+    guard = 0
+    while len(idx) > 3:
+        m = len(idx)
+        for k in range(m):
+            a, b, c = idx[(k - 1) % m], idx[k], idx[(k + 1) % m]
+            if area2(a, b, c) <= 1e-12:
+                continue
+            if any(inside(j, a, b, c) for j in idx if j not in (a, b, c) and p2[j] not in (p2[a], p2[b], p2[c])):
+                continue
+            tris.append((a, b, c))
+            del idx[k]
+            break
+        else:
+            # No proper ear (degenerate/collinear corners): clip the first corner anyway.
+            tris.append((idx[-1], idx[0], idx[1]))
+            del idx[0]
+        guard += 1
+        assert guard < 10 * n
+    tris.append(tuple(idx))
+    return tris
+
+
+# usemtl name (Croatian: zid wall, pod floor, stup/stub column, baza base, kapitel capital, kut
+# corner, luk arch, svod vault, vijenac cornice, ploha face, prozor window, krug circle, vrata
+# door, kocka block, reljef relief, vani outside; _00/_01/_02 ground/first/second storey)
+# -> material class. The source has no .mtl, so these are our choices.
+SPONZA_CLASSES = {
+    "sp_00_pod": "floor",
+    "sp_00_zid": "wall", "sp_00_svod_zid": "wall", "sp_zid_vani": "wall", "sp_vijenac_ploha": "wall",
+    "sp_00_svod": "vault",
+    "sp_00_stup": "column", "sp_00_stup_kut": "column", "sp_01_stup": "column", "sp_01_stub": "column",
+    "sp_01_stub_kut": "column",
+    "sp_00_stup_kapitel": "trim", "sp_00_stup_kapitel_kut": "trim", "sp_01_stup_kapitel": "trim",
+    "sp_01_stub_kapitel": "trim", "sp_01_stub_kapitel_kut": "trim", "sp_01_stup_baza": "trim",
+    "sp_01_stub_baza": "trim", "sp_01_stub_baza_kut": "trim", "sp_svod_kapitel": "trim", "sp_vijenac": "trim",
+    "sp_00_luk_mali": "arch", "sp_00_luk_mali_V": "arch", "sp_00_luk_veliki": "arch",
+    "sp_00_lukveliki_V": "arch", "sp_01_luk_Va": "arch", "sp_01_luk_a": "arch", "sp_01_luk_veliki": "arch",
+    "sp_01_luk_veliki_V": "arch",
+    "sp_00_prozor": "frame", "sp_02_prozor": "frame", "sp_02_prozor_krug": "frame",
+    "sp_00_vrata_kocka": "door", "sp_00_vrata_krug": "frame",
+    "sp_02_reljef": "relief",
+}
+
+SPONZA_MATERIALS = {
+    # Light stone, diffuse with a slight rough specular layer (glTF's default F0 0.04).
+    "wall": lambda: dielectric("wall (warm plaster)", (0.6, 0.53, 0.45), 0.8),
+    "vault": lambda: dielectric("vault (light plaster)", (0.68, 0.63, 0.55), 0.85),
+    "arch": lambda: dielectric("arch (limestone)", (0.66, 0.6, 0.5), 0.7),
+    "column": lambda: dielectric("column (polished marble)", (0.72, 0.68, 0.6), 0.35),
+    "trim": lambda: dielectric("capital/base/cornice (limestone)", (0.6, 0.55, 0.46), 0.65),
+    "frame": lambda: dielectric("window/door surround (sandstone)", (0.55, 0.45, 0.33), 0.7),
+    # Glossy: polished stone floor.
+    "floor": lambda: dielectric("floor (polished stone tiles)", (0.42, 0.38, 0.33), 0.25),
+    "door": lambda: dielectric("door (dark oak)", (0.22, 0.13, 0.07), 0.5),
+    # One metal: the relief panel as bronze.
+    "relief": lambda: metal("relief (bronze)", (0.7, 0.5, 0.3), 0.35),
+}
+
+SPONZA_CREASE_DEG = 35.0
+
+# Sun: direction the light travels (from high above the -x end, slightly towards +z).
+SPONZA_SUN_DIR = (0.62, -1.0, 0.1)
+SPONZA_SUN = {"color": (1.0, 0.88, 0.72), "intensity": 30.0}
+SPONZA_SKY = {"color": (0.45, 0.6, 1.0), "strength": 2.0}
+
+
+def sun_rotation(direction):
+    """Quaternion turning local -Z into `direction` (glTF punctual lights shine along -Z)."""
+    d = normalize(list(direction))
+    up = [0.0, 1.0, 0.0] if abs(d[1]) < 0.99 else [1.0, 0.0, 0.0]
+    return look_at_quaternion([0.0, 0.0, 0.0], d, up)
+
+
+def cmd_sponza(src, out):
+    pos, _uv, faces = read_obj(os.path.join(src, SPONZA_OBJ))
+    classes = sorted(set(SPONZA_CLASSES.values()))
+    g = Gltf()
+    g.doc["asset"] = {"version": "2.0", "generator": "cvtrace scripts/import_scenes.py sponza",
+                      "copyright": "Sponza atrium by Marko Dabrovic (obj-rs 0.7.4 test fixture), see SOURCE.md",
+                      "extras": {"defaultResolution": [320, 180]}}
+    mat_index = {c: g.material(SPONZA_MATERIALS[c]()) for c in classes}
+    # One primitive per source material group (usemtl name), in first-use order; vertices are
+    # shared within a primitive where position and normal agree.
+    # Smooth vertex normals with a crease angle: a polygon corner averages the (area-weighted)
+    # normals of the polygons around its vertex that are within SPONZA_CREASE_DEG of its own, so
+    # curved vaults, arches and column shafts shade smoothly while edges stay sharp.
+    face_n = [newell_normal([pos[v] for v, _ in corners]) for _, corners in faces]
+    unit_n = [normalize(n) for n in face_n]
+    around = [[] for _ in pos]
+    for f, (_, corners) in enumerate(faces):
+        for v, _ in corners:
+            around[v].append(f)
+    cos_crease = math.cos(math.radians(SPONZA_CREASE_DEG))
+
+    def corner_normal(f, v):
+        acc = [0.0, 0.0, 0.0]
+        for o in around[v]:
+            if dot(unit_n[o], unit_n[f]) >= cos_crease:
+                acc = add(acc, face_n[o])
+        return tuple(rounded(normalize(acc), 5))
+
+    order, groups = [], {}
+    for f, (name, corners) in enumerate(faces):
+        if name not in groups:
+            groups[name] = ([], [], {}, [])
+            order.append(name)
+        gp, gn, remap, idx = groups[name]
+        pts = [pos[v] for v, _ in corners]
+        local = []
+        for v, _ in corners:
+            n = corner_normal(f, v)
+            key = (v, n)
+            if key not in remap:
+                remap[key] = len(gp)
+                gp.append(pos[v])
+                gn.append(n)
+            local.append(remap[key])
+        for a, b, c in triangulate(pts):
+            idx += [local[a], local[b], local[c]]
+    prims = [(groups[n][0], groups[n][1], None, groups[n][3], mat_index[SPONZA_CLASSES[n]]) for n in order]
+    # The primitives keep their source group names in the mesh's extras.
+    mesh = g.mesh("sponza", prims)
+    g.doc["meshes"][mesh]["extras"] = {"sourceGroups": order}
+    sponza = g.node({"name": "sponza", "mesh": mesh})
+    g.doc["extensions"] = {"KHR_lights_punctual": {"lights": [
+        {"name": "sun", "type": "directional", "color": rounded(SPONZA_SUN["color"]),
+         "intensity": SPONZA_SUN["intensity"]}]}}
+    sun = g.node({"name": "sun", "rotation": sun_rotation(SPONZA_SUN_DIR),
+                  "extensions": {"KHR_lights_punctual": {"light": 0}}})
+    # Human height (1.7 m) in the -x end of the atrium, looking along it towards +x.
+    cam = g.camera_node("camera", [-9.6, 1.7, 0.9], [4.0, 4.2, -0.2], 52.0)
+    g.doc["scenes"] = [{"name": "sponza", "nodes": [cam, sponza, sun]}]
+    g.doc["scene"] = 0
+    g.write(out)
+    write_sidecar(out, environment=[("color", rounded(SPONZA_SKY["color"])), ("strength", SPONZA_SKY["strength"])],
+                  comment="Sky: constant bluish radiance seen through the open roof (the sun is a\n"
+                          "KHR_lights_punctual directional light in scene.gltf).")
+    print("sponza: %d triangles" % count_triangles(g.doc))
+
+
+# --------------------------------------------------------------------------------------------
+# teapots: the Utah teapot (npm `teapot`) in a glass/metal material study
+
+TEAPOT_JS = "package/teapot.js"
+TEAPOT_SCALE = 0.014  # the model is 15.75 units tall -> 0.22 m
+
+# Procedural sky (world directions, +y up): sun direction (towards the sun) and radiances.
+SKY = {
+    "width": 256, "height": 128,
+    "sun_dir": (0.8, 0.58, 0.12),  # 35 deg up, through the window in the +x wall
+    "sun_radius_deg": 5.0, "sun_radiance": (420.0, 380.0, 320.0),
+    "zenith": (0.22, 0.4, 0.9), "horizon": (0.85, 0.9, 1.0), "ground": (0.28, 0.25, 0.21),
+}
+
+
+def read_teapot(path):
+    text = open(path, "r", encoding="utf-8").read()
+
+    def array(name):
+        key = "exports.%s=" % name
+        start = text.index(key) + len(key)
+        end = text.index("]];", start) + 2
+        return json.loads(text[start:end])
+
+    return [tuple(p) for p in array("positions")], [tuple(c) for c in array("cells")]
+
+
+def smooth_normals(pos, tris):
+    """Area-weighted vertex normals, accumulated over vertices at the same position (the
+    patches' seam vertices are duplicated in the source, which would otherwise show creases)."""
+    key = {}
+    welded = [key.setdefault(p, i) for i, p in enumerate(pos)]
+    acc = [[0.0, 0.0, 0.0] for _ in pos]
+    for a, b, c in tris:
+        n = cross(sub(pos[b], pos[a]), sub(pos[c], pos[a]))  # length = 2 x area
+        for v in (a, b, c):
+            w = acc[welded[v]]
+            w[0] += n[0]
+            w[1] += n[1]
+            w[2] += n[2]
+    return [rounded(normalize(acc[welded[i]]), 6) for i in range(len(pos))]
+
+
+def sky_radiance(d):
+    sd = normalize(list(SKY["sun_dir"]))
+    cosang = max(-1.0, min(1.0, dot(d, sd)))
+    ang = math.degrees(math.acos(cosang))
+    y = d[1]
+    if y >= 0:
+        t = math.sqrt(y)
+        base = [SKY["horizon"][k] * (1 - t) + SKY["zenith"][k] * t for k in range(3)]
+        glow = 1.5 * math.exp(-ang / 12.0) + 0.4 * math.exp(-ang / 40.0)
+        base = [base[k] + glow * SKY["sun_radiance"][k] / SKY["sun_radiance"][0] for k in range(3)]
+    else:
+        t = min(1.0, -y * 8.0)
+        base = [SKY["horizon"][k] * (1 - t) + SKY["ground"][k] * t for k in range(3)]
+    if ang < SKY["sun_radius_deg"]:
+        base = [base[k] + SKY["sun_radiance"][k] for k in range(3)]
+    return base
+
+
+def write_sky_pfm(path):
+    """Lat-long map (cvtrace convention: u = 0.5 + atan2(x, -z) / 2pi, v = acos(y) / pi, row 0 at
+    the top), 3x3 supersampled, as a little-endian colour PFM (rows stored bottom to top)."""
+    w, h = SKY["width"], SKY["height"]
+    rows = []
+    for j in range(h):
+        row = []
+        for i in range(w):
+            acc = [0.0, 0.0, 0.0]
+            for sj in range(3):
+                for si in range(3):
+                    u = (i + (si + 0.5) / 3) / w
+                    v = (j + (sj + 0.5) / 3) / h
+                    phi = (u - 0.5) * 2 * math.pi
+                    theta = v * math.pi
+                    d = [math.sin(theta) * math.sin(phi), math.cos(theta), -math.sin(theta) * math.cos(phi)]
+                    r = sky_radiance(d)
+                    acc = [acc[k] + r[k] / 9 for k in range(3)]
+            row += acc
+        rows.append(struct.pack("<%df" % (3 * w), *row))
+    with open(path, "wb") as f:
+        f.write(b"PF\n%d %d\n-1.0\n" % (w, h))
+        for r in reversed(rows):
+            f.write(r)
+
+
+# Fixed metadata (no Software/ImageHistory, a constant DateTime) keeps the EXR bytes deterministic.
+OIIOTOOL_SKY = ["oiiotool", "--nosoftwareattrib", "sky.pfm", "--attrib", "DateTime", "2000:01:01 00:00:00",
+                "-d", "half", "--compression", "zip", "-o", "sky.exr"]
+
+
+def cmd_teapots(src, out):
+    pos, cells = read_teapot(os.path.join(src, TEAPOT_JS))
+    nrm = smooth_normals(pos, cells)
+    lo = [min(p[k] for p in pos) for k in range(3)]
+    hi = [max(p[k] for p in pos) for k in range(3)]
+    g = Gltf()
+    g.doc["asset"] = {"version": "2.0", "generator": "cvtrace scripts/import_scenes.py teapots",
+                      "copyright": "Utah teapot (Martin Newell, 1975; npm teapot 1.0.0, public domain), see SOURCE.md",
+                      "extras": {"defaultResolution": [320, 180]}}
+    m_glass = g.material(glass("clear glass", 0.0, 1.5))
+    m_gold = g.material(metal("rough gold", (1.0, 0.77, 0.34), 0.3))
+    m_copper = g.material(metal("polished copper", (0.96, 0.64, 0.54), 0.08))
+    # One set of accessors shared by three meshes that differ only in their material.
+    p_acc = g.accessor(pos, "VEC3")
+    n_acc = g.accessor(nrm, "VEC3")
+    i_acc = g.accessor([i for c in cells for i in c], "SCALAR")
+    teapot_meshes = []
+    for name, m in (("teapot (clear glass)", m_glass), ("teapot (rough gold)", m_gold),
+                    ("teapot (polished copper)", m_copper)):
+        g.doc["meshes"].append({"name": name, "primitives": [
+            {"attributes": {"POSITION": p_acc, "NORMAL": n_acc}, "indices": i_acc, "material": m, "mode": 4}]})
+        teapot_meshes.append(len(g.doc["meshes"]) - 1)
+
+    wall = g.material(diffuse("wall (white paint)", (0.78, 0.77, 0.74)))
+    back = g.material(diffuse("back wall (pale blue-grey)", (0.5, 0.56, 0.62)))
+    floor = g.material(dielectric("floor (light wood)", (0.5, 0.36, 0.22), 0.4))
+    table = g.material(dielectric("table top (white laminate)", (0.72, 0.72, 0.7), 0.3))
+    legs = g.material(metal("table legs (brushed steel)", (0.6, 0.6, 0.6), 0.35))
+    reveal = g.material(diffuse("window reveal (white paint)", (0.78, 0.77, 0.74)))
+    panel = g.material(emitter("ceiling panel", (1.0, 0.96, 0.9), 5.0))
+
+    hx, hz, h = 2.0, 2.0, 2.7
+    mb = MeshBuilder()
+    mb.box(wall, [-hx, 0.0, -hz], [hx, h, hz], outward=False, skip=("-y", "-z", "+x"))
+    mb.quad(back, [0.0, h / 2, -hz], [hx, 0.0, 0.0], [0.0, h / 2, 0.0])
+    mb.quad(floor, [0.0, 0.0, 0.0], [hx, 0.0, 0.0], [0.0, 0.0, -hz])
+    # +x wall with a large window opening (no glass): z in [-1.3, 1.1], y in [0.8, 2.3], 0.2 m deep.
+    wz0, wz1, wy0, wy1, d = -1.3, 1.1, 0.8, 2.3, 0.2
+
+    def xwall(z0, z1, y0, y1):  # inner face, facing -x
+        mb.quad(wall, [hx, (y0 + y1) / 2, (z0 + z1) / 2], [0.0, 0.0, (z1 - z0) / 2], [0.0, (y1 - y0) / 2, 0.0])
+
+    xwall(-hz, wz0, 0.0, h)
+    xwall(wz1, hz, 0.0, h)
+    xwall(wz0, wz1, 0.0, wy0)
+    xwall(wz0, wz1, wy1, h)
+    # Reveals (sill, head, jambs) from the inner face to the outer face of the wall.
+    mb.quad(reveal, [hx + d / 2, wy0, (wz0 + wz1) / 2], [d / 2, 0.0, 0.0], [0.0, 0.0, -(wz1 - wz0) / 2])
+    mb.quad(reveal, [hx + d / 2, wy1, (wz0 + wz1) / 2], [d / 2, 0.0, 0.0], [0.0, 0.0, (wz1 - wz0) / 2])
+    mb.quad(reveal, [hx + d / 2, (wy0 + wy1) / 2, wz0], [d / 2, 0.0, 0.0], [0.0, (wy1 - wy0) / 2, 0.0])
+    mb.quad(reveal, [hx + d / 2, (wy0 + wy1) / 2, wz1], [d / 2, 0.0, 0.0], [0.0, -(wy1 - wy0) / 2, 0.0])
+    # Outer face of that wall (seen from outside only through reflections; keeps the wall solid).
+    mb.box(wall, [hx, 0.0, -hz], [hx + d, h, hz], skip=("-x", "+y", "-y", "+z", "-z", "+x"))
+    for z0, z1, y0, y1 in ((-hz, wz0, 0.0, h), (wz1, hz, 0.0, h), (wz0, wz1, 0.0, wy0), (wz0, wz1, wy1, h)):
+        mb.quad(wall, [hx + d, (y0 + y1) / 2, (z0 + z1) / 2], [0.0, 0.0, -(z1 - z0) / 2], [0.0, (y1 - y0) / 2, 0.0])
+    # Ceiling panel 1.2 x 1.2 m facing down.
+    mb.quad(panel, [-0.4, h - 0.02, 0.0], [0.6, 0.0, 0.0], [0.0, 0.0, 0.6])
+    # Table 1.5 x 0.8 m, 0.75 m high.
+    top = 0.75
+    mb.box(table, [-0.75, top - 0.04, -0.4], [0.75, top, 0.4])
+    for x in (-0.7, 0.66):
+        for z in (-0.36, 0.32):
+            mb.box(legs, [x, 0.0, z], [x + 0.04, top - 0.04, z + 0.04], skip=("+y", "-y"))
+    room_mesh = mb.add_to(g, "room")
+
+    s = TEAPOT_SCALE
+    cx = (lo[0] + hi[0]) / 2
+    nodes = []
+    for mesh, x, z, yaw in zip(teapot_meshes, (0.0, -0.5, 0.5), (0.08, -0.12, -0.1), (-25.0, 30.0, 150.0)):
+        a = math.radians(yaw) / 2
+        nodes.append(g.node({"name": g.doc["meshes"][mesh]["name"], "mesh": mesh,
+                             "translation": rounded([x - cx * s * math.cos(2 * a), top - lo[1] * s,
+                                                     z + cx * s * math.sin(2 * a)]),
+                             "rotation": rounded([0.0, math.sin(a), 0.0, math.cos(a)], 7),
+                             "scale": [s, s, s]}))
+    room = g.node({"name": "room", "mesh": room_mesh})
+    cam = g.camera_node("camera", [-0.12, 1.2, 1.35], [0.0, 0.84, -0.05], 40.0)
+    g.doc["scenes"] = [{"name": "teapots", "nodes": [cam] + nodes + [room]}]
+    g.doc["scene"] = 0
+    g.write(out)
+    write_sky_pfm(os.path.join(out, "sky.pfm"))
+    print("(cd %s && %s)" % (out, " ".join(a if " " not in a else '"%s"' % a for a in OIIOTOOL_SKY)))
+    subprocess.run(OIIOTOOL_SKY, cwd=out, check=True)
+    os.remove(os.path.join(out, "sky.pfm"))
+    write_sidecar(out, environment=[("map", '"sky.exr"'), ("strength", 1.0)],
+                  comment="Sky: procedural lat-long map (gradient sky, sun disc) written by\n"
+                          "scripts/import_scenes.py teapots; seen through the window in the +x wall.")
+    n = count_triangles(g.doc)
+    print("teapots: %d triangles (3 x %d teapot, %d room)" % (n, len(cells), mb.triangles()))
+
+
+# --------------------------------------------------------------------------------------------
 
 COMMANDS = ("sponza", "engine", "head", "teapots")
 
