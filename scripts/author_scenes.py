@@ -526,7 +526,7 @@ class Scene:
             nodes.append({"name": name, "mesh": len(meshes) - 1})
 
         eye, target, yfov = self.camera
-        nodes.append({"name": "camera", "camera": 0, "translation": list(eye), "rotation": look_rotation(eye, target)})
+        nodes.append({"name": "camera", "camera": 0, "translation": [round(c, 9) + 0.0 for c in eye], "rotation": look_rotation(eye, target)})
         ext_used = set()
         for m in self.materials.values():
             ext_used.update(m.get("extensions", {}).keys())
@@ -536,7 +536,7 @@ class Scene:
             gl_lights = []
             for i, (name, light, position, rotation) in enumerate(self.lights):
                 gl_lights.append(dict(name=name, **light))
-                node = {"name": name, "translation": list(position), "extensions": {"KHR_lights_punctual": {"light": i}}}
+                node = {"name": name, "translation": [round(c, 9) + 0.0 for c in position], "extensions": {"KHR_lights_punctual": {"light": i}}}
                 if rotation is not None:
                     node["rotation"] = rotation
                 nodes.append(node)
@@ -894,20 +894,34 @@ def build_glass_of_water():
 # Scene 3: glossy-room
 # ---------------------------------------------------------------------------------------------
 
-PANEL_LIGHT = 6.0
+PANEL_LIGHT = 16.0
 SPOT_INTENSITY = 40.0
-POINT_INTENSITY = 6.0
+POINT_INTENSITY = 4.0
+
+
+def chair(x, z, facing, seat_y=0.45):
+    """A chair centred at (x, z) whose back is on the side opposite `facing` (degrees about +Y;
+    0 = the sitter faces -Z). Returns (lacquered seat and back, chrome legs)."""
+    top = Geom()
+    top.extend(box((x - 0.22, seat_y - 0.035, z - 0.21), (x + 0.22, seat_y, z + 0.21)))
+    top.extend(box((x - 0.22, seat_y + 0.22, z + 0.17), (x + 0.22, seat_y + 0.45, z + 0.2)))
+    legs = Geom()
+    for lx in (x - 0.19, x + 0.19):
+        for lz in (z - 0.18, z + 0.18):
+            legs.extend(cylinder((lx, 0, lz), 0.012, 0.0, seat_y - 0.035, 12))
+        legs.extend(cylinder((lx, 0, z + 0.185), 0.012, seat_y, seat_y + 0.22, 12))
+    return rot_y(top, facing, pivot=(x, 0, z)), rot_y(legs, facing, pivot=(x, 0, z))
 
 
 def build_glossy_room():
     s = Scene("glossy-room")
     s.render = dict(RENDER)
-    X0, X1, Z0, Z1, H = -3.0, 3.0, -2.5, 2.5, 2.8
+    X0, X1, Z0, Z1, H = -2.5, 2.5, -2.25, 2.25, 2.7
     s.material("floor_tiles", (1, 1, 1), roughness=0.08, specular=1.0,
                texture=("checker.png", tex_tiles(256, 2, 2, [(226, 220, 204), (52, 58, 70)], (120, 116, 110), 3)))
     s.material("wall_tiles", (1, 1, 1), roughness=0.12, specular=1.0,
-               texture=("wall_tiles.png", tex_tiles(256, 4, 3, [(196, 214, 226), (176, 198, 214), (210, 222, 230)],
-                                                    (150, 148, 140), 9, checker=False, mottle=0.12)))
+               texture=("wall_tiles.png", tex_tiles(256, 4, 3, [(200, 216, 226), (186, 204, 218), (210, 222, 230)],
+                                                    (150, 148, 140), 9, checker=False, mottle=0.08)))
     s.material("paint", (0.62, 0.55, 0.47), roughness=0.55, specular=0.5)
     s.material("ceiling", (0.80, 0.80, 0.78), specular=0.0)
     s.material("lacquer_wood", (1, 1, 1), roughness=0.05, specular=1.0, texture=("wood.png", tex_wood_grain(seed=41)))
@@ -917,10 +931,12 @@ def build_glossy_room():
     s.material("copper", (0.93, 0.58, 0.45), metallic=1.0, roughness=0.18)
     s.material("gold", (0.95, 0.75, 0.38), metallic=1.0, roughness=0.35)
     s.material("red_lacquer", (0.45, 0.04, 0.03), roughness=0.1, specular=1.0)
-    s.material("rug", (0.18, 0.22, 0.30), specular=0.0)
+    s.material("black_lacquer", (0.03, 0.03, 0.035), roughness=0.12, specular=1.0)
+    s.material("dark_gap", (0.02, 0.02, 0.02), specular=0.0)
     s.material("panel", (0, 0, 0), emission=(PANEL_LIGHT, PANEL_LIGHT * 0.97, PANEL_LIGHT * 0.9))
 
-    # Room shell.
+    # Room shell: glossy checker floor (0.5 m tiles), a glazed-tile back wall (10 cm tiles),
+    # satin painted side and front walls, a matte ceiling.
     s.add("floor", "floor_tiles", quad((X0, 0, Z0), (X1, 0, Z0), (X1, 0, Z1), (X0, 0, Z1), (0, 1, 0), tile=1.0))
     s.add("ceiling", "ceiling", quad((X0, H, Z0), (X1, H, Z0), (X1, H, Z1), (X0, H, Z1), (0, -1, 0)))
     s.add("back_wall", "wall_tiles", quad((X0, 0, Z0), (X1, 0, Z0), (X1, H, Z0), (X0, H, Z0), (0, 0, 1), tile=0.4))
@@ -929,86 +945,100 @@ def build_glossy_room():
     painted.extend(quad((X1, 0, Z0), (X1, 0, Z1), (X1, H, Z1), (X1, H, Z0), (-1, 0, 0)))
     painted.extend(quad((X0, 0, Z1), (X1, 0, Z1), (X1, H, Z1), (X0, H, Z1), (0, 0, -1)))
     s.add("painted_walls", "paint", painted)
-    # Emissive ceiling panel (diffuser) near the front.
-    s.add("ceiling_panel", "panel", quad((-0.8, H - 0.01, 0.6), (0.8, H - 0.01, 0.6), (0.8, H - 0.01, 1.2),
-                                         (-0.8, H - 0.01, 1.2), (0, -1, 0)))
+    # Emissive ceiling panel (a diffuser, facing down) in a steel frame.
+    px0, px1, pz0, pz1 = -0.3, 1.3, -0.3, 0.3
+    s.add("ceiling_panel", "panel", quad((px0, H - 0.01, pz0), (px1, H - 0.01, pz0), (px1, H - 0.01, pz1),
+                                         (px0, H - 0.01, pz1), (0, -1, 0)))
     pf = Geom()
-    pf.extend(box((-0.85, H - 0.008, 0.55), (-0.8, H, 1.25), skip=("+y",)))
-    pf.extend(box((0.8, H - 0.008, 0.55), (0.85, H, 1.25), skip=("+y",)))
-    pf.extend(box((-0.8, H - 0.008, 0.55), (0.8, H, 0.6), skip=("+y",)))
-    pf.extend(box((-0.8, H - 0.008, 1.2), (0.8, H, 1.25), skip=("+y",)))
+    pf.extend(box((px0 - 0.05, H - 0.02, pz0 - 0.05), (px0, H, pz1 + 0.05), skip=("+y",)))
+    pf.extend(box((px1, H - 0.02, pz0 - 0.05), (px1 + 0.05, H, pz1 + 0.05), skip=("+y",)))
+    pf.extend(box((px0, H - 0.02, pz0 - 0.05), (px1, H, pz0), skip=("+y",)))
+    pf.extend(box((px0, H - 0.02, pz1), (px1, H, pz1 + 0.05), skip=("+y",)))
     s.add("panel_frame", "steel", pf)
 
-    # Lacquered table with chrome legs.
-    tx, tz, ty = 0.0, -0.4, 0.74
-    s.add("table_top", "lacquer_wood", box((tx - 0.9, ty - 0.04, tz - 0.5), (tx + 0.9, ty, tz + 0.5), tile=1.8))
+    # Lacquered table with chrome legs, two chairs.
+    tx, tz, ty = 0.2, -0.3, 0.74
+    s.add("table_top", "lacquer_wood", box((tx - 0.8, ty - 0.04, tz - 0.45), (tx + 0.8, ty, tz + 0.45), tile=1.6))
     legs = Geom()
-    for lx in (tx - 0.8, tx + 0.8):
-        for lz in (tz - 0.4, tz + 0.4):
+    for lx in (tx - 0.72, tx + 0.72):
+        for lz in (tz - 0.37, tz + 0.37):
             legs.extend(cylinder((lx, 0, lz), 0.025, 0.0, ty - 0.04, 24))
     s.add("table_legs", "chrome", legs)
-    # On the table: a copper bowl and a gold vase.
+    seats, chair_legs = Geom(), Geom()
+    for cx, cz, f in ((tx - 0.35, tz + 0.62, 0.0), (tx + 1.1, tz + 0.05, 75.0)):
+        a, b = chair(cx, cz, f)
+        seats.extend(a)
+        chair_legs.extend(b)
+    s.add("chair_seats", "red_lacquer", seats)
+    s.add("chair_legs", "chrome", chair_legs)
+    # On the table: a copper bowl, a gold vase and a black lacquered sphere.
     bowl = [[(0.0, 0.0), (0.05, 0.0)],
             [(0.05, 0.0)] + [(0.05 + 0.1 * math.sin(math.radians(a)), 0.1 * (1 - math.cos(math.radians(a))) * 0.9)
                              for a in range(10, 91, 8)] + [(0.15, 0.09)],
             [(0.15, 0.09), (0.15, 0.095), (0.144, 0.095)],
             [(0.144, 0.095)] + [(0.144 - 0.094 * (1 - math.sin(math.radians(a))), 0.095 - 0.085 * math.cos(math.radians(a)))
                                 for a in range(90, 9, -8)] + [(0.0, 0.01)]]
-    s.add("bowl", "copper", lathe(bowl, 64, (tx + 0.35, ty, tz + 0.1)))
-    vase_outer = [(0.0, 0.0), (0.05, 0.0)]
+    s.add("bowl", "copper", lathe(bowl, 64, (tx + 0.3, ty, tz + 0.1)))
     vase_side = []
     for i in range(0, 25):
         t = i / 24
-        y = 0.005 + 0.34 * t
-        r = 0.055 + 0.05 * math.sin(math.pi * t * 1.1) - 0.03 * t
-        vase_side.append((r, y))
+        vase_side.append((0.055 + 0.05 * math.sin(math.pi * t * 1.1) - 0.03 * t, 0.005 + 0.34 * t))
     ro, yt = vase_side[-1]
     lip = [(ro, yt), (ro + 0.01, yt + 0.01), (ro + 0.006, yt + 0.014)]
     inner = [(ro + 0.006, yt + 0.014), (ro - 0.006, yt), (ro - 0.012, yt - 0.06), (0.0, yt - 0.06)]
-    s.add("vase", "gold", lathe([vase_outer, [(0.05, 0.0), (0.055, 0.005)] + vase_side[1:] + lip[1:], inner], 64,
-                                (tx - 0.4, ty, tz - 0.15)))
-    s.add("small_sphere", "red_lacquer", sphere((tx - 0.05, ty + 0.06, tz + 0.2), 0.06, 24, 48))
+    s.add("vase", "gold", lathe([[(0.0, 0.0), (0.05, 0.0)], [(0.05, 0.0), (0.055, 0.005)] + vase_side[1:] + lip[1:], inner],
+                                64, (tx - 0.4, ty, tz - 0.12)))
+    s.add("table_sphere", "black_lacquer", sphere((tx - 0.05, ty + 0.06, tz + 0.18), 0.06, 24, 48))
 
-    # Steel cabinet against the right wall, with chrome handles.
+    # Steel cabinet against the right wall: two doors, chrome handles.
+    cx0, cx1, cz0, cz1 = X1 - 0.5, X1, -1.9, -0.5
     cab = Geom()
-    cx0, cx1, cz0, cz1 = X1 - 0.5, X1, -1.6, -0.2
     cab.extend(box((cx0, 0.08, cz0), (cx1, 1.9, cz1), skip=("+x",)))
     cab.extend(box((cx0 + 0.03, 0.0, cz0 + 0.03), (cx1, 0.08, cz1 - 0.03), skip=("+x", "-y")))
     s.add("cabinet", "steel", cab)
+    zm = (cz0 + cz1) / 2
     handles = Geom()
-    for hz in (cz0 + 0.62, cz1 - 0.62):
-        handles.extend(box((cx0 - 0.03, 0.9, hz - 0.01), (cx0, 1.3, hz + 0.01), skip=("+x",)))
+    for hz in (zm - 0.06, zm + 0.06):
+        handles.extend(box((cx0 - 0.03, 0.85, hz - 0.01), (cx0, 1.25, hz + 0.01), skip=("+x",)))
     s.add("cabinet_handles", "chrome", handles)
-    # Seam between the two doors: a thin dark strip.
-    s.add("cabinet_seam", "rug", quad((cx0 - 0.001, 0.1, (cz0 + cz1) / 2 - 0.004), (cx0 - 0.001, 0.1, (cz0 + cz1) / 2 + 0.004),
-                                      (cx0 - 0.001, 1.88, (cz0 + cz1) / 2 + 0.004), (cx0 - 0.001, 1.88, (cz0 + cz1) / 2 - 0.004),
-                                      (-1, 0, 0)))
-    # A tall copper vase on the floor by the cabinet.
+    s.add("cabinet_seam", "dark_gap", quad((cx0 - 0.001, 0.1, zm - 0.004), (cx0 - 0.001, 0.1, zm + 0.004),
+                                           (cx0 - 0.001, 1.88, zm + 0.004), (cx0 - 0.001, 1.88, zm - 0.004), (-1, 0, 0)))
+    # Brass and copper vessels on the cabinet, a tall copper vase on the floor beside it.
+    s.add("cabinet_urn", "brass", lathe([[(0.0, 0.0), (0.06, 0.0)],
+                                         [(0.06, 0.0)] + [(0.06 + 0.05 * math.sin(math.pi * i / 10), 0.22 * i / 10)
+                                                          for i in range(1, 11)],
+                                         [(0.06, 0.22), (0.05, 0.22), (0.05, 0.2), (0.0, 0.2)]],
+                                        48, (cx0 + 0.25, 1.9, cz0 + 0.35)))
     fv = [(0.0, 0.0), (0.08, 0.0)]
     fside = [(0.08, 0.0)] + [(0.08 + 0.05 * math.sin(math.pi * i / 16) - 0.045 * i / 16, 0.6 * i / 16) for i in range(1, 17)]
     ro, yt = fside[-1]
     finner = [(ro, yt), (ro - 0.008, yt), (ro - 0.01, yt - 0.08), (0.0, yt - 0.08)]
-    s.add("floor_vase", "copper", lathe([fv, fside, finner], 48, (X1 - 0.35, 0.0, 0.2)))
+    s.add("floor_vase", "copper", lathe([fv, fside, finner], 48, (X1 - 0.3, 0.0, 0.0)))
 
-    # Floor lamp (brass) in the back-left corner: base, pole, conical shade (a thin closed shell).
-    lx, lz = X0 + 0.6, Z0 + 0.7
+    # Black lacquered sideboard along the back wall, left of centre.
+    s.add("sideboard", "black_lacquer", box((-2.3, 0.1, Z0), (-0.7, 0.8, Z0 + 0.45), skip=("-z",)))
+    s.add("sideboard_feet", "steel", box((-2.25, 0.0, Z0 + 0.05), (-0.75, 0.1, Z0 + 0.4), skip=("-y",)))
+    s.add("sideboard_bowl", "steel", lathe(bowl, 48, (-1.1, 0.8, Z0 + 0.22)))
+
+    # Floor lamp (brass) against the tiled wall, right of the sideboard: base, pole, conical
+    # shade (a thin closed shell, open at top and bottom) around the point light.
+    lx, lz = -0.35, Z0 + 0.4
     s.add("lamp_base", "brass", lathe([[(0, 0), (0.16, 0)], [(0.16, 0), (0.16, 0.015), (0.12, 0.03)],
                                        [(0.12, 0.03), (0.02, 0.04), (0, 0.04)]], 48, (lx, 0, lz)))
     s.add("lamp_pole", "brass", cylinder((lx, 0, lz), 0.012, 0.04, 1.45, 16))
     shade = [[(0.24, 1.35), (0.09, 1.65)], [(0.09, 1.65), (0.084, 1.65)], [(0.084, 1.65), (0.233, 1.352)],
              [(0.233, 1.352), (0.24, 1.35)]]
     s.add("lamp_shade", "brass", lathe(shade, 64, (lx, 0, lz)))
-    s.add("rug", "rug", box((-1.6, 0, -1.4), (1.6, 0.008, 0.7), skip=("-y",)))
 
     # Punctual lights (KHR_lights_punctual): a spot from the ceiling onto the table and a bare
     # bulb (point light) inside the lamp shade.
     s.light("spot", {"type": "spot", "color": [1.0, 0.92, 0.8], "intensity": SPOT_INTENSITY,
-                     "spot": {"innerConeAngle": round(math.radians(16), 6), "outerConeAngle": round(math.radians(26), 6)}},
-            (0.6, H - 0.05, 0.9), (tx, ty, tz), up=(0, 1, 0))
+                     "spot": {"innerConeAngle": round(math.radians(14), 6), "outerConeAngle": round(math.radians(22), 6)}},
+            (-0.4, H - 0.05, 0.9), (tx, ty, tz))
     s.light("lamp_bulb", {"type": "point", "color": [1.0, 0.85, 0.65], "intensity": POINT_INTENSITY},
-            (lx, 1.42, lz), None)
+            (lx, 1.45, lz), None)
 
-    s.camera = ((2.3, 1.55, 2.25), (-0.4, 0.75, -1.0), 50.0)
+    s.camera = ((-1.9, 1.55, 2.0), (0.55, 0.8, -1.0), 50.0)
     return s
 
 
