@@ -4,21 +4,32 @@
 //! What is read: triangles (lists, strips and fans; points and lines are skipped with a
 //! warning), `POSITION`, `NORMAL`, `TEXCOORD_0`; metallic-roughness materials with their
 //! textures, `KHR_materials_specular`, `KHR_materials_transmission`, `KHR_materials_ior`,
-//! `KHR_materials_emissive_strength`; the perspective camera of the first node (depth-first
-//! from the scene roots) that has one, with the resolution from `asset.extras.defaultResolution`
-//! if given, else 512 on the long side of the camera's aspect ratio. Unsupported *required* extensions are an error; other
-//! unsupported extensions are ignored with a warning. Every error names the file.
+//! `KHR_materials_emissive_strength`; `KHR_lights_punctual` lights on nodes (one light per node
+//! instance, placed by the node's world transform, shining along its local −Z; `range` is
+//! ignored); the perspective camera of the first node (depth-first from the scene roots) that
+//! has one, with the resolution from `asset.extras.defaultResolution` if given, else 512 on the
+//! long side of the camera's aspect ratio. Then the sidecar `<stem>.cvtrace.toml`, if present,
+//! adds the environment light and the render defaults ([`crate::sidecar`]). Unsupported
+//! *required* extensions are an error; other unsupported extensions are ignored with a
+//! warning. Every error names the file (and the light, for bad lights).
 use crate::camera::Camera;
+use crate::lights::Punctual;
 use crate::material::Material;
 use crate::scene::{default_camera, Scene, SceneError, SceneParts};
+use crate::sidecar::Sidecar;
 use crate::texture::{srgb_to_linear, Texture};
 use glam::{Mat3, Mat4, Vec2, Vec3};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 /// Extensions cvtrace understands, so a file may list them in `extensionsRequired`.
-pub const SUPPORTED_EXTENSIONS: &[&str] =
-    &["KHR_materials_specular", "KHR_materials_transmission", "KHR_materials_ior", "KHR_materials_emissive_strength"];
+pub const SUPPORTED_EXTENSIONS: &[&str] = &[
+    "KHR_materials_specular",
+    "KHR_materials_transmission",
+    "KHR_materials_ior",
+    "KHR_materials_emissive_strength",
+    "KHR_lights_punctual",
+];
 
 /// Node hierarchies deeper than this are treated as cyclic (the spec forbids cycles).
 const MAX_NODE_DEPTH: usize = 1024;
@@ -69,6 +80,15 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     let mut parts = parts;
     if let (Some((w, h)), Some(cam)) = (resolution, parts.camera.as_mut()) {
         (cam.width, cam.height) = (w, h);
+    }
+    if let Some(sidecar) = Sidecar::discover(path)? {
+        parts.environment = sidecar.environment()?;
+        parts.render_defaults = sidecar.render;
+    }
+    // Precedence of the size: sidecar, then the glTF's hint (flags override both later).
+    let d = &mut parts.render_defaults;
+    if let (None, None, Some((w, h))) = (d.width, d.height, resolution) {
+        (d.width, d.height) = (Some(w), Some(h));
     }
     Scene::from_parts_named(parts, path)
 }
@@ -231,9 +251,6 @@ impl<'a> Builder<'a> {
                 self.doc.nodes().filter(|n| !is_child[n.index()]).collect()
             }
         };
-        if self.doc.lights().map(|mut l| l.next().is_some()).unwrap_or(false) {
-            tracing::warn!("{}: punctual lights (KHR_lights_punctual) are ignored; only emissive surfaces emit", self.path.display());
-        }
         for root in roots {
             self.visit(&root, Mat4::IDENTITY, 0)?;
         }
@@ -271,9 +288,40 @@ impl<'a> Builder<'a> {
         if let Some(mesh) = node.mesh() {
             self.add_mesh(&mesh, world)?;
         }
+        if let Some(light) = node.light() {
+            self.add_light(&light, node.index(), world)?;
+        }
         for child in node.children() {
             self.visit(&child, world, depth + 1)?;
         }
+        Ok(())
+    }
+
+    /// One `KHR_lights_punctual` light at a node instance: position from the world transform,
+    /// direction its local −Z (scale ignored), radiometric value `colour × intensity`.
+    fn add_light(&mut self, light: &gltf::khr_lights_punctual::Light, node: usize, world: Mat4) -> Result<(), SceneError> {
+        use gltf::khr_lights_punctual::Kind;
+        let name = match light.name() {
+            Some(n) => format!("light {} `{n}` (node {node})", light.index()),
+            None => format!("light {} (node {node})", light.index()),
+        };
+        let intensity = light.intensity();
+        if !(intensity.is_finite() && intensity >= 0.0) {
+            return Err(self.err(format!("{name}: intensity {intensity} must be finite and non-negative")));
+        }
+        let value = Vec3::from(light.color()) * intensity;
+        let position = world.transform_point3(Vec3::ZERO);
+        let direction = world.transform_vector3(Vec3::NEG_Z).normalize_or_zero();
+        let l = match light.kind() {
+            Kind::Point => Punctual::Point { position, intensity: value },
+            Kind::Spot { inner_cone_angle, outer_cone_angle } => {
+                Punctual::spot(position, direction, value, inner_cone_angle, outer_cone_angle)
+                    .map_err(|m| self.err(format!("{name}: {m}")))?
+            }
+            Kind::Directional => Punctual::Directional { direction, irradiance: value },
+        };
+        l.validate().map_err(|m| self.err(format!("{name}: {m}")))?;
+        self.parts.lights.push(l);
         Ok(())
     }
 
@@ -473,6 +521,152 @@ fn convert_image(data: &gltf::image::Data, srgb: bool) -> Option<Texture> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sidecar::RenderDefaults;
+
+    fn base64(data: &[u8]) -> String {
+        const T: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+        let mut out = String::new();
+        for c in data.chunks(3) {
+            let n = (c[0] as u32) << 16 | (*c.get(1).unwrap_or(&0) as u32) << 8 | *c.get(2).unwrap_or(&0) as u32;
+            for k in 0..4 {
+                out.push(if k <= c.len() { T[(n >> (18 - 6 * k) & 63) as usize] as char } else { '=' });
+            }
+        }
+        out
+    }
+
+    /// A floor quad and three lights: the point light (light 0) on two nodes, one of them under
+    /// a translated, scaled parent; a spot (light 1) turned to face down; a sun (light 2) turned
+    /// to shine along −X, under a scale. `spot` and `point_intensity` are spliced in.
+    fn lights_gltf(spot: &str, point_intensity: &str, extras: &str) -> String {
+        let mut buf = Vec::new();
+        for p in [[-1f32, 0., 1.], [1., 0., 1.], [1., 0., -1.], [-1., 0., -1.]] {
+            for c in p {
+                buf.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        for i in [0u16, 1, 2, 0, 2, 3] {
+            buf.extend_from_slice(&i.to_le_bytes());
+        }
+        let h = std::f32::consts::FRAC_1_SQRT_2;
+        format!(
+            r#"{{
+  "asset": {{"version": "2.0"{extras}}},
+  "extensionsUsed": ["KHR_lights_punctual"],
+  "extensionsRequired": ["KHR_lights_punctual"],
+  "extensions": {{"KHR_lights_punctual": {{"lights": [
+    {{"type": "point", "name": "bulb", "color": [1, 0.5, 0.25], "intensity": {point_intensity}, "range": 3}},
+    {{"type": "spot", "intensity": 3, "spot": {spot}}},
+    {{"type": "directional", "color": [1, 1, 0.5], "intensity": 2}}
+  ]}}}},
+  "scene": 0,
+  "scenes": [{{"nodes": [0, 1, 3, 4, 5]}}],
+  "nodes": [
+    {{"mesh": 0}},
+    {{"translation": [1, 2, 3], "scale": [2, 2, 2], "children": [2]}},
+    {{"translation": [0, 1, 0], "extensions": {{"KHR_lights_punctual": {{"light": 0}}}}}},
+    {{"translation": [-4, 0, 0], "extensions": {{"KHR_lights_punctual": {{"light": 0}}}}}},
+    {{"translation": [0, 5, 0], "rotation": [-{h}, 0, 0, {h}], "extensions": {{"KHR_lights_punctual": {{"light": 1}}}}}},
+    {{"rotation": [0, {h}, 0, {h}], "scale": [3, 3, 3], "extensions": {{"KHR_lights_punctual": {{"light": 2}}}}}}
+  ],
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "indices": 1}}]}}],
+  "buffers": [{{"byteLength": 60, "uri": "data:application/octet-stream;base64,{}"}}],
+  "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 48}}, {{"buffer": 0, "byteOffset": 48, "byteLength": 12}}],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [-1, 0, -1], "max": [1, 0, 1]}},
+    {{"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"}}
+  ]
+}}"#,
+            base64(&buf)
+        )
+    }
+
+    #[test]
+    fn punctual_lights_are_placed_by_their_node_instances() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("lights.gltf");
+        std::fs::write(&path, lights_gltf(r#"{"innerConeAngle": 0.2, "outerConeAngle": 0.5}"#, "8", "")).unwrap();
+        let scene = Scene::load(&path).unwrap();
+        let lights = scene.lights().punctual();
+        assert_eq!(lights.len(), 4, "{lights:?}");
+        let near = |a: Vec3, b: Vec3| (a - b).length() < 1e-5;
+        let i = Vec3::new(8.0, 4.0, 2.0);
+        match &lights[0] {
+            Punctual::Point { position, intensity } => assert!(near(*position, Vec3::new(1.0, 4.0, 3.0)) && *intensity == i, "{:?}", lights[0]),
+            l => panic!("{l:?}"),
+        }
+        match &lights[1] {
+            Punctual::Point { position, intensity } => assert!(near(*position, Vec3::new(-4.0, 0.0, 0.0)) && *intensity == i),
+            l => panic!("{l:?}"),
+        }
+        match &lights[2] {
+            Punctual::Spot { position, direction, intensity, cos_inner, cos_outer } => {
+                assert!(near(*position, Vec3::new(0.0, 5.0, 0.0)) && near(*direction, Vec3::NEG_Y), "{:?}", lights[2]);
+                assert_eq!(*intensity, Vec3::splat(3.0));
+                assert!((cos_inner - 0.2f32.cos()).abs() < 1e-6 && (cos_outer - 0.5f32.cos()).abs() < 1e-6);
+            }
+            l => panic!("{l:?}"),
+        }
+        match &lights[3] {
+            Punctual::Directional { direction, irradiance } => {
+                assert!(near(*direction, Vec3::NEG_X), "{direction}");
+                assert_eq!(*irradiance, Vec3::new(2.0, 2.0, 1.0));
+            }
+            l => panic!("{l:?}"),
+        }
+        assert_eq!(scene.lights().len(), 4, "four lights, no emissive triangles");
+        assert!(scene.lights().environment().is_none());
+        assert_eq!(*scene.render_defaults(), RenderDefaults::default());
+    }
+
+    #[test]
+    fn bad_lights_are_errors_naming_the_file_and_the_light() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("bad.gltf");
+        for (spot, intensity, needle) in [
+            (r#"{"innerConeAngle": 0.6, "outerConeAngle": 0.5}"#, "8", "light 1"),
+            (r#"{"innerConeAngle": 0.1, "outerConeAngle": 2.0}"#, "8", "light 1"),
+            (r#"{"innerConeAngle": 0.1, "outerConeAngle": 0.5}"#, "-1", "light 0 `bulb`"),
+        ] {
+            std::fs::write(&path, lights_gltf(spot, intensity, "")).unwrap();
+            let e = Scene::load(&path).unwrap_err().to_string();
+            assert!(e.contains("bad.gltf") && e.contains(needle), "{e}");
+        }
+    }
+
+    #[test]
+    fn the_sidecar_adds_the_environment_and_render_defaults() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("scene.gltf");
+        let spot = r#"{"innerConeAngle": 0.2, "outerConeAngle": 0.5}"#;
+        // Without a sidecar, the glTF's size hint is the default size.
+        std::fs::write(&path, lights_gltf(spot, "8", r#", "extras": {"defaultResolution": [300, 200]}"#)).unwrap();
+        let s = Scene::load(&path).unwrap();
+        assert_eq!((s.render_defaults().width, s.render_defaults().height), (Some(300), Some(200)));
+        // The sidecar's size wins over the hint.
+        let sidecar = dir.path().join("scene.cvtrace.toml");
+        std::fs::write(&sidecar, "[render]
+width = 320
+height = 180
+reference_spp = 512
+
+[environment]
+color = [0.5, 0.5, 1]
+").unwrap();
+        let s = Scene::load(&path).unwrap();
+        let d = s.render_defaults();
+        assert_eq!((d.width, d.height, d.reference_spp, d.spp), (Some(320), Some(180), Some(512), None));
+        assert_eq!(s.lights().environment().unwrap().eval(Vec3::Y), Vec3::new(0.5, 0.5, 1.0));
+        assert_eq!(s.lights().len(), 5);
+        // A broken sidecar fails the load, naming itself.
+        std::fs::write(&sidecar, "[render]
+width = 320
+[environment]
+colour = [1, 1, 1]
+").unwrap();
+        let e = Scene::load(&path).unwrap_err().to_string();
+        assert!(e.contains("scene.cvtrace.toml") && e.contains("colour") && e.contains("line 4"), "{e}");
+    }
 
     #[test]
     fn uri_decoding_and_triangulation() {

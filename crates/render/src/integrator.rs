@@ -1,5 +1,12 @@
-//! Unidirectional path tracing with next-event estimation on emissive triangles, multiple
-//! importance sampling (power heuristic) between BSDF and light sampling, and Russian roulette.
+//! Unidirectional path tracing with next-event estimation, multiple importance sampling (power
+//! heuristic) between BSDF and light sampling, and Russian roulette.
+//!
+//! **Lights.** Each non-specular vertex samples one emitter from [`crate::lights::LightSet`]
+//! (emissive triangles, punctual lights, the environment, chosen by power). Area lights and the
+//! environment are also found by BSDF sampling (a hit on an emitter's front, or a ray that
+//! escapes the scene), so both estimates are MIS-weighted; punctual lights are deltas reached
+//! only by light sampling (weight 1). Shadow rays towards the environment or a sun go to
+//! infinity.
 //!
 //! **Path length (Mitsuba 3's convention).** `max_depth = N` keeps paths of at most `N`
 //! segments counted from the camera: `1` shows only directly visible emitters, `2` adds direct
@@ -14,6 +21,7 @@
 //! CRN paths of neighbouring pixels make the same decisions at the same depths.
 use crate::bsdf::Bsdf;
 use crate::intersect::{Intersector, Ray};
+use crate::lights::ShadowEnd;
 use crate::sampler::{dims, SampleSampler};
 use crate::scene::Scene;
 use glam::Vec3;
@@ -21,7 +29,8 @@ use glam::Vec3;
 /// First-hit features of one sample (for denoising-style estimators).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FirstHit {
-    /// Base colour at the first hit; emission for emitters seen from the front; 0 for a miss.
+    /// Base colour at the first hit; emission for emitters seen from the front; the
+    /// environment's radiance for a miss (0 without an environment).
     pub albedo: Vec3,
     /// Shading normal facing the camera (world space); 0 for a miss.
     pub normal: Vec3,
@@ -83,7 +92,19 @@ pub fn radiance<T: Intersector>(
     let mut prev_delta = true;
     // Segments so far, including `ray`.
     let mut depth = 1u32;
-    while let Some(hit) = tracer.intersect(&ray) {
+    loop {
+        let Some(hit) = tracer.intersect(&ray) else {
+            // Escaped: the environment, MIS-weighted against its light sampling.
+            if let Some(env) = lights.environment() {
+                let (le, pdf_light) = if prev_delta { (env.eval(ray.dir), 0.0) } else { lights.environment_radiance(ray.dir) };
+                let w = if prev_delta { 1.0 } else { power_heuristic(prev_pdf, pdf_light) };
+                l += beta * le * w;
+                if let Some(f) = first.take() {
+                    *f = FirstHit { albedo: le, normal: Vec3::ZERO, depth: 0.0 };
+                }
+            }
+            break;
+        };
         let sp = scene.surface(hit.prim, hit.u, hit.v);
         let material = &scene.materials()[sp.material as usize];
         let front = ray.dir.dot(sp.ng) < 0.0;
@@ -114,35 +135,21 @@ pub fn radiance<T: Intersector>(
         let bsdf = Bsdf::new(&params, sp.ns, sp.ng, wo);
         let vertex = depth - 1;
 
-        // Next-event estimation: one point on one emissive triangle.
+        // Next-event estimation: one point or direction on one emitter.
         if bsdf.has_non_delta() && !lights.is_empty() {
             let u_sel = sampler.get1d(dims::at(vertex, dims::LIGHT_SELECT));
             let u_pos = sampler.get2d(dims::at(vertex, dims::LIGHT_POS));
-            if let Some(ls) = lights.sample(u_sel, u_pos, |p| scene.triangle_vertices(p)) {
-                let to_light = ls.point - sp.p;
-                let dist2 = to_light.length_squared();
-                let n_l = scene.geometric_normal(ls.prim);
-                if dist2 > 0.0 {
-                    let dist = dist2.sqrt();
-                    let wi = to_light / dist;
-                    let cos_l = -wi.dot(n_l);
-                    if cos_l > 0.0 {
-                        let (f, pdf_bsdf) = bsdf.eval_pdf(wi);
-                        if f != Vec3::ZERO {
-                            let light_mat = scene.material_of(ls.prim);
-                            let uv = light_uv(scene, ls.prim, ls.bary);
-                            let le = light_mat.emission_at(textures, uv);
-                            let pdf_light = ls.pdf_area * dist2 / cos_l;
-                            if le != Vec3::ZERO && pdf_light > 0.0 {
-                                let origin = spawn_origin(sp.p, sp.ng, wi, eps);
-                                let target = ls.point + n_l * eps;
-                                let shadow = Ray { origin, dir: target - origin, tmin: 0.0, tmax: 1.0 };
-                                if !tracer.occluded(&shadow) {
-                                    let w = power_heuristic(pdf_light, pdf_bsdf);
-                                    l += beta * f * le * (w / pdf_light);
-                                }
-                            }
-                        }
+            if let Some(ls) = lights.sample(scene, sp.p, u_sel, u_pos) {
+                let (f, pdf_bsdf) = bsdf.eval_pdf(ls.wi);
+                if f != Vec3::ZERO {
+                    let origin = spawn_origin(sp.p, sp.ng, ls.wi, eps);
+                    let shadow = match ls.end {
+                        ShadowEnd::Point(target) => Ray { origin, dir: target - origin, tmin: 0.0, tmax: 1.0 },
+                        ShadowEnd::Infinite => Ray { origin, dir: ls.wi, tmin: 0.0, tmax: f32::INFINITY },
+                    };
+                    if !tracer.occluded(&shadow) {
+                        let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, pdf_bsdf) };
+                        l += beta * f * ls.li * (w / ls.pdf);
                     }
                 }
             }
@@ -172,14 +179,4 @@ pub fn radiance<T: Intersector>(
         depth += 1;
     }
     l
-}
-
-/// Texture coordinates of a point on a light (only needed for textured emitters).
-#[inline]
-fn light_uv(scene: &Scene, prim: u32, bary: glam::Vec2) -> glam::Vec2 {
-    if scene.material_of(prim).emissive_texture.is_some() {
-        scene.surface(prim, bary.x, bary.y).uv
-    } else {
-        glam::Vec2::ZERO
-    }
 }

@@ -3,7 +3,8 @@
 //! the same random vector), for the reconstruction stage.
 //!
 //! Data flow: [`Scene::load`] flattens a glTF file into world-space triangle arrays,
-//! materials, textures and area lights → the caller builds an acceleration structure from
+//! materials, textures and lights (emissive triangles, `KHR_lights_punctual`, and the
+//! environment and render defaults of the [`sidecar`] file) → the caller builds an acceleration structure from
 //! [`Scene::positions`]/[`Scene::triangles`] and implements [`Intersector`] (Embree in the root
 //! crate, [`testing::BruteForce`] in tests) → [`render_streams`] traces every pixel's PT and
 //! CRN samples in parallel tiles ([`integrator`], keyed by the counter-based [`sampler`]) and
@@ -20,6 +21,7 @@ pub mod material;
 pub mod render;
 pub mod sampler;
 pub mod scene;
+pub mod sidecar;
 pub mod testing;
 pub mod texture;
 
@@ -27,5 +29,7 @@ pub use camera::Camera;
 pub use intersect::{Hit, Intersector, Ray};
 pub use material::Material;
 pub use render::{render_reference_pass, render_streams, ReferenceAccum, RenderError, RenderSettings};
+pub use lights::{Environment, Punctual};
 pub use scene::{Scene, SceneError, SceneParts};
+pub use sidecar::{RenderDefaults, Sidecar};
 pub use texture::Texture;

@@ -1,8 +1,11 @@
 //! The render-ready scene: world-space triangles in flat arrays (positions, index triples,
 //! per-vertex normals/UVs, per-triangle material id, normal and area), materials, textures,
-//! the light distribution and the camera. `Hit.prim` indexes [`Scene::triangles`].
+//! the light distribution over every emitter (emissive triangles, punctual lights, the
+//! environment), the camera and the render defaults of the scene's sidecar file.
+//! `Hit.prim` indexes [`Scene::triangles`].
 use crate::camera::Camera;
-use crate::lights::{triangle_power, LightSet};
+use crate::lights::{triangle_power, Environment, LightSet, Punctual};
+use crate::sidecar::RenderDefaults;
 use crate::material::Material;
 use crate::texture::Texture;
 use glam::{Vec2, Vec3};
@@ -45,6 +48,12 @@ pub struct SceneParts {
     pub textures: Vec<Texture>,
     /// `None`: a default camera looking at the scene bounds.
     pub camera: Option<Camera>,
+    /// Point, spot and directional lights (world space).
+    pub lights: Vec<Punctual>,
+    /// Light from infinitely far away, seen by rays that escape.
+    pub environment: Option<Environment>,
+    /// Defaults for the render (from the sidecar file), all optional.
+    pub render_defaults: RenderDefaults,
 }
 
 /// A surface point reconstructed from a hit.
@@ -75,6 +84,7 @@ pub struct Scene {
     camera: Camera,
     bounds: (Vec3, Vec3),
     ray_epsilon: f32,
+    render_defaults: RenderDefaults,
 }
 
 const MEMORY: &str = "<memory>";
@@ -92,7 +102,19 @@ impl Scene {
 
     /// As [`Scene::from_parts`], naming `origin` in errors.
     pub fn from_parts_named(parts: SceneParts, origin: &Path) -> Result<Scene, SceneError> {
-        let SceneParts { positions, triangles, normals, uvs, triangle_materials, materials, textures, camera } = parts;
+        let SceneParts {
+            positions,
+            triangles,
+            normals,
+            uvs,
+            triangle_materials,
+            materials,
+            textures,
+            camera,
+            lights: punctual,
+            environment,
+            render_defaults,
+        } = parts;
         let bad = |m: String| Err(SceneError::invalid(origin, m));
         if triangles.is_empty() {
             return bad("the scene has no triangles".into());
@@ -144,13 +166,18 @@ impl Scene {
             tri_area.push(0.5 * len);
             tri_normal.push(if len > 0.0 { c / len } else { Vec3::Z });
         }
+        for (i, l) in punctual.iter().enumerate() {
+            l.validate().map_err(|m| SceneError::invalid(origin, format!("punctual light {i}: {m}")))?;
+        }
+        render_defaults.validate().map_err(|m| SceneError::invalid(origin, format!("render defaults: {m}")))?;
+        let (lo, hi) =
+            positions.iter().fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
         let mean_emission: Vec<Vec3> = materials.iter().map(|m| m.mean_emission(&textures)).collect();
         let power: Vec<f64> =
             triangle_materials.iter().zip(&tri_area).map(|(&m, &a)| triangle_power(mean_emission[m as usize], a)).collect();
-        let lights = LightSet::new(&power, &tri_area);
+        let radius = ((hi - lo).length() * 0.5).max(1e-3);
+        let lights = LightSet::new(&power, &tri_area, punctual, environment, radius);
 
-        let (lo, hi) =
-            positions.iter().fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
         let scale = lo.abs().max(hi.abs()).max_element().max((hi - lo).max_element()).max(1e-3);
         let camera = match camera {
             Some(c) => c,
@@ -171,6 +198,7 @@ impl Scene {
             camera,
             bounds: (lo, hi),
             ray_epsilon: 1e-5 * scale,
+            render_defaults,
         })
     }
 
@@ -205,8 +233,20 @@ impl Scene {
         &self.tri_material
     }
 
+    /// Every emitter and the selection distribution over them.
     pub fn lights(&self) -> &LightSet {
         &self.lights
+    }
+
+    /// Render settings the scene asks for (sidecar `[render]`, and the glTF's
+    /// `asset.extras.defaultResolution` when the sidecar gives no size); command-line flags
+    /// override them.
+    pub fn render_defaults(&self) -> &RenderDefaults {
+        &self.render_defaults
+    }
+
+    pub fn set_render_defaults(&mut self, d: RenderDefaults) {
+        self.render_defaults = d;
     }
 
     /// Axis-aligned bounds `(min, max)` of all vertices.

@@ -1,11 +1,14 @@
 //! Test support, public so the Embree side can compare against it: a brute-force
-//! [`Intersector`] (Möller–Trumbore with Embree's `(u, v)` convention) and small procedural
-//! scenes (a Cornell-style box, a closed furnace box).
+//! [`Intersector`] (Möller–Trumbore with Embree's `(u, v)` convention), small procedural
+//! scenes (a Cornell-style box, a closed furnace box, a plane for light tests) and a
+//! radiance estimator along one ray.
 use crate::camera::Camera;
+use crate::integrator::{radiance, PathLimits};
 use crate::intersect::{Hit, Intersector, Ray};
 use crate::material::Material;
+use crate::sampler::{StreamKind, StreamSampler};
 use crate::scene::{Scene, SceneParts};
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 /// Tests every triangle for every ray: O(n) per ray, exact and obviously correct.
 pub struct BruteForce {
@@ -169,6 +172,37 @@ pub fn furnace_box(le: f32, albedo: f32) -> Scene {
         height: 16,
     });
     Scene::from_parts(parts).expect("the furnace box is valid")
+}
+
+/// A square Lambertian plane `[−half, half]²` in `y = 0` facing +Y with albedo `rho`
+/// (material 0), seen from above; add lights, occluders or an environment to the parts.
+pub fn plane_parts(rho: f32, half: f32) -> SceneParts {
+    let mut parts = SceneParts { materials: vec![Material::diffuse(Vec3::splat(rho))], ..Default::default() };
+    let v = Vec3::new;
+    add_quad(&mut parts, [v(-half, 0.0, half), v(half, 0.0, half), v(half, 0.0, -half), v(-half, 0.0, -half)], 0);
+    parts.camera = Some(Camera { eye: v(0.0, 3.0, 0.01), target: Vec3::ZERO, up: Vec3::NEG_Z, vfov_deg: 60.0, width: 16, height: 16 });
+    parts
+}
+
+/// Mean and standard error (per channel) of the path tracer's radiance along `ray` over PT
+/// samples `0..n` of `seed` (one pixel key, so the samples are independent).
+pub fn estimate_radiance<T: Intersector>(scene: &Scene, tracer: &T, ray: Ray, max_depth: i32, n: u32, seed: u64) -> (Vec3, Vec3) {
+    let st = StreamSampler::new(seed, StreamKind::Pt);
+    let limits = PathLimits { max_depth, rr_depth: 5 };
+    let (mut sum, mut sq) = (DVec3::ZERO, DVec3::ZERO);
+    for s in 0..n {
+        let v = radiance(scene, tracer, limits, ray, &st.sample(0, s), None).as_dvec3();
+        sum += v;
+        sq += v * v;
+    }
+    let mean = sum / n as f64;
+    let var = (sq / n as f64 - mean * mean).max(DVec3::ZERO) * (n as f64 / (n as f64 - 1.0).max(1.0));
+    (mean.as_vec3(), (var / n as f64).map(f64::sqrt).as_vec3())
+}
+
+/// A ray from `eye` through `target` (unit direction).
+pub fn ray_through(eye: Vec3, target: Vec3) -> Ray {
+    Ray { origin: eye, dir: (target - eye).normalize(), tmin: 0.0, tmax: f32::INFINITY }
 }
 
 #[cfg(test)]
