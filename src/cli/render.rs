@@ -3,10 +3,14 @@
 //!
 //! Everything that can be checked cheaply (flags, output path, scene) is checked before the
 //! render starts, so a long render never fails at the end for a reason known at the start.
+//!
+//! Settings not given as flags come from the scene's sidecar `<stem>.cvtrace.toml`
+//! (`[render]`, docs/scene-format.md), then the glTF's `asset.extras.defaultResolution` (size
+//! only), then the built-in defaults.
 //! Outputs are written atomically: an error or interruption never leaves a partial file.
 use anyhow::{bail, Context, Result};
 use cvtrace::{set_flush_denormals, EmbreeScene};
-use cvtrace_render::{render_reference_pass, render_streams, Camera, ReferenceAccum, RenderSettings, Scene};
+use cvtrace_render::{render_reference_pass, render_streams, Camera, ReferenceAccum, RenderDefaults, RenderSettings, Scene};
 use cvtrace_streams::atomic::check_writable;
 use cvtrace_streams::exr_io::{write_rgb, AttrValue, ExrChannels};
 use glam::Vec3;
@@ -14,8 +18,13 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// Image width used when neither --width nor --height is given.
+/// Image width used when neither the flags nor the scene give a size.
 const DEFAULT_WIDTH: u32 = 256;
+/// Samples per pixel when neither --spp nor the sidecar gives them.
+const DEFAULT_SPP: u32 = 64;
+/// Path-length defaults when neither the flags nor the sidecar give them.
+const DEFAULT_MAX_DEPTH: i32 = -1;
+const DEFAULT_RR_DEPTH: u32 = 5;
 /// Batches per stream when --batches is not given: the estimators' measured default.
 const DEFAULT_BATCHES: u32 = 16;
 
@@ -26,9 +35,10 @@ pub struct RenderArgs {
     /// Output: a stream file (e.g. cbox.streams.exr), or with --reference an RGB EXR.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Samples per pixel of each stream (or of the reference).
-    #[arg(long, default_value_t = 64)]
-    pub spp: u32,
+    /// Samples per pixel of each stream (or of the reference) [default: the sidecar's `spp`, or
+    /// `reference_spp` with --reference, else 64].
+    #[arg(long)]
+    pub spp: Option<u32>,
     /// Batches per stream (must divide --spp; default 16, the measured default of the estimators, see docs/estimators.md). Not used with --reference.
     #[arg(long)]
     pub batches: Option<u32>,
@@ -52,20 +62,23 @@ pub struct RenderArgs {
 }
 
 /// What is rendered, shared by `render` and `study`: image size, camera, path-length limits.
+/// Unset values come from the scene (see the module doc).
 #[derive(clap::Args, Debug, Clone)]
 pub struct ViewArgs {
-    /// Image width (default 256, or from --height and the camera's aspect ratio).
+    /// Image width [default: the scene's (sidecar, else the glTF's defaultResolution), else 256;
+    /// with only --height given, from the camera's aspect ratio].
     #[arg(long)]
     pub width: Option<u32>,
-    /// Image height (default: from the width and the camera's aspect ratio).
+    /// Image height [default: the scene's, else from the width and the camera's aspect ratio].
     #[arg(long)]
     pub height: Option<u32>,
-    /// Longest path in segments from the camera (Mitsuba convention), -1 for unlimited.
-    #[arg(long, default_value_t = -1, allow_negative_numbers = true)]
-    pub max_depth: i32,
-    /// Path depth at which Russian roulette starts.
-    #[arg(long, default_value_t = 5)]
-    pub rr_depth: u32,
+    /// Longest path in segments from the camera (Mitsuba convention), -1 for unlimited
+    /// [default: the sidecar's max_depth, else -1].
+    #[arg(long, allow_negative_numbers = true)]
+    pub max_depth: Option<i32>,
+    /// Path depth at which Russian roulette starts [default: the sidecar's rr_depth, else 5].
+    #[arg(long)]
+    pub rr_depth: Option<u32>,
     /// Override the scene camera: "ex,ey,ez:tx,ty,tz:vfov_degrees" (eye, target, vertical FOV; up stays).
     #[arg(long, value_name = "EYE:TARGET:FOV")]
     pub camera: Option<String>,
@@ -81,15 +94,11 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if args.reference && args.pass_spp == 0 {
         bail!("--pass-spp must be at least 1");
     }
-    let provisional = RenderSettings {
-        width: args.view.width.unwrap_or(DEFAULT_WIDTH),
-        height: args.view.height.unwrap_or(DEFAULT_WIDTH),
-        spp: args.spp,
-        batches,
-        seed: args.seed,
-        max_depth: args.view.max_depth,
-        rr_depth: args.view.rr_depth,
-    };
+    // The flags alone (scene defaults filled in after loading); a flag given is checked now.
+    let flag_size = (args.view.width.unwrap_or(DEFAULT_WIDTH), args.view.height.unwrap_or(DEFAULT_WIDTH));
+    let mut provisional = resolve_settings(&args, batches, &RenderDefaults::default(), flag_size);
+    // Without --spp the count comes from the scene, so only --batches itself is checked here.
+    provisional.spp = args.spp.unwrap_or(batches);
     provisional.validate()?;
     let camera_override = args.view.camera.as_deref().map(parse_camera).transpose()?;
     check_writable(&args.output, args.force)?;
@@ -120,9 +129,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
         camera.validate().map_err(|m| anyhow::anyhow!("--camera: {m}"))?;
         scene.set_camera(camera);
     }
-    let (width, height) = image_size(args.view.width, args.view.height, scene.camera());
-    let settings = RenderSettings { width, height, ..provisional };
-    settings.validate()?;
+    let size = image_size(&args.view, scene.render_defaults(), scene.camera());
+    let settings = resolve_settings(&args, batches, scene.render_defaults(), size);
+    settings.validate().with_context(|| format!("{}: settings from the command line and the scene", args.scene.display()))?;
 
     let tracer = EmbreeScene::build(scene.positions(), scene.triangles()).context("building the Embree BVH")?;
     // FTZ/DAZ in every render thread (Embree's advice), whatever the thread count: a local
@@ -474,8 +483,25 @@ fn parse_camera(s: &str) -> Result<CameraView> {
     Ok(CameraView { eye: vec3(parts[0])?, target: vec3(parts[1])?, vfov_deg })
 }
 
-/// The render size: explicit flags win; a missing side follows the camera's aspect ratio.
-fn image_size(width: Option<u32>, height: Option<u32>, camera: &Camera) -> (u32, u32) {
+/// Flags first, then the scene's defaults, then the built-in ones; `size` is already resolved.
+fn resolve_settings(args: &RenderArgs, batches: u32, d: &RenderDefaults, (width, height): (u32, u32)) -> RenderSettings {
+    let scene_spp = if args.reference { d.reference_spp } else { d.spp };
+    RenderSettings {
+        width,
+        height,
+        spp: args.spp.or(scene_spp).unwrap_or(DEFAULT_SPP),
+        batches,
+        seed: args.seed,
+        max_depth: args.view.max_depth.or(d.max_depth).unwrap_or(DEFAULT_MAX_DEPTH),
+        rr_depth: args.view.rr_depth.or(d.rr_depth).unwrap_or(DEFAULT_RR_DEPTH),
+    }
+}
+
+/// The render size: flags win (if either side is given, the scene's size is not used); else the
+/// scene's default size; a missing side follows the camera's aspect ratio.
+fn image_size(view: &ViewArgs, defaults: &RenderDefaults, camera: &Camera) -> (u32, u32) {
+    let (width, height) =
+        if view.width.is_some() || view.height.is_some() { (view.width, view.height) } else { (defaults.width, defaults.height) };
     let aspect = camera.width.max(1) as f64 / camera.height.max(1) as f64;
     let from_aspect = |v: f64| v.round().clamp(1.0, u32::MAX as f64) as u32;
     match (width, height) {
@@ -522,13 +548,54 @@ mod tests {
         }
     }
 
+    fn view(width: Option<u32>, height: Option<u32>) -> ViewArgs {
+        ViewArgs { width, height, max_depth: None, rr_depth: None, camera: None }
+    }
+
     #[test]
     fn missing_side_follows_the_camera_aspect() {
         let cam = Camera { width: 640, height: 480, ..Camera::default() };
-        assert_eq!(image_size(None, None, &cam), (256, 192));
-        assert_eq!(image_size(Some(320), None, &cam), (320, 240));
-        assert_eq!(image_size(None, Some(300), &cam), (400, 300));
-        assert_eq!(image_size(Some(7), Some(9), &cam), (7, 9));
+        let none = RenderDefaults::default();
+        assert_eq!(image_size(&view(None, None), &none, &cam), (256, 192));
+        assert_eq!(image_size(&view(Some(320), None), &none, &cam), (320, 240));
+        assert_eq!(image_size(&view(None, Some(300)), &none, &cam), (400, 300));
+        assert_eq!(image_size(&view(Some(7), Some(9)), &none, &cam), (7, 9));
+    }
+
+    #[test]
+    fn flags_override_the_scene_size_which_overrides_the_built_in_one() {
+        let cam = Camera { width: 640, height: 480, ..Camera::default() };
+        let scene = RenderDefaults { width: Some(320), height: Some(180), ..Default::default() };
+        assert_eq!(image_size(&view(None, None), &scene, &cam), (320, 180));
+        // A flag for either side replaces the scene's size (the other side follows the aspect).
+        assert_eq!(image_size(&view(Some(64), None), &scene, &cam), (64, 48));
+        assert_eq!(image_size(&view(None, Some(30)), &scene, &cam), (40, 30));
+        let only_width = RenderDefaults { width: Some(100), ..Default::default() };
+        assert_eq!(image_size(&view(None, None), &only_width, &cam), (100, 75));
+    }
+
+    #[test]
+    fn spp_and_depths_come_from_flags_then_the_sidecar_then_built_ins() {
+        let args = |reference: bool, spp: Option<u32>, max_depth: Option<i32>| RenderArgs {
+            scene: PathBuf::from("s.gltf"),
+            output: PathBuf::from("o.exr"),
+            spp,
+            batches: None,
+            seed: 0,
+            view: ViewArgs { max_depth, ..view(None, None) },
+            reference,
+            pass_spp: 64,
+            force: false,
+            stop_after_passes: None,
+        };
+        let d = RenderDefaults { spp: Some(96), reference_spp: Some(8192), max_depth: Some(7), rr_depth: Some(3), ..Default::default() };
+        let s = resolve_settings(&args(false, None, None), 16, &d, (1, 1));
+        assert_eq!((s.spp, s.max_depth, s.rr_depth), (96, 7, 3));
+        assert_eq!(resolve_settings(&args(true, None, None), 1, &d, (1, 1)).spp, 8192);
+        let s = resolve_settings(&args(true, Some(5), Some(-1)), 1, &d, (1, 1));
+        assert_eq!((s.spp, s.max_depth), (5, -1));
+        let s = resolve_settings(&args(false, None, None), 16, &RenderDefaults::default(), (1, 1));
+        assert_eq!((s.spp, s.max_depth, s.rr_depth), (64, -1, 5));
     }
 
     #[test]

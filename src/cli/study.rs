@@ -13,6 +13,7 @@ use cvtrace_eval::falsecolor::{scale_for_maps, write_false_color_png};
 use cvtrace_eval::reference_noise::{from_variance_image, too_noisy_warning};
 use cvtrace_eval::results::{keys, ConvergencePoint, MethodResult, ReferenceInfo, SceneResult, StageTimes, StudyResults};
 use cvtrace_eval::{table, Reference, SeedAccumulator};
+use cvtrace_render::Sidecar;
 use cvtrace_reconstruct::{build, ErrorEstimate, Estimator, Input, Method, Options, Penalty, Selection};
 use cvtrace_streams::exr_io::{read_rgb, take_rgb, AttrValue, ExrChannels};
 use cvtrace_streams::preview::write_png;
@@ -24,6 +25,8 @@ use std::time::Instant;
 const PT2N_SEED_OFFSET: u64 = 1 << 32;
 /// Seed of a reference rendered by the study (distinct from every stream seed).
 const REFERENCE_SEED: u64 = 0x7265_6665_7265_6e63;
+/// Reference spp when neither --reference-spp nor the scene's sidecar gives one.
+const DEFAULT_REFERENCE_SPP: u32 = 4096;
 
 #[derive(clap::Args, Debug)]
 pub struct StudyArgs {
@@ -45,9 +48,10 @@ pub struct StudyArgs {
     /// Reference EXR; rendered (PT, --reference-spp) when the file does not exist.
     #[arg(long)]
     pub reference: PathBuf,
-    /// Samples per pixel of a reference the study renders itself.
-    #[arg(long, default_value_t = 4096)]
-    pub reference_spp: u32,
+    /// Samples per pixel of a reference the study renders itself [default: the scene sidecar's
+    /// reference_spp, else 4096].
+    #[arg(long)]
+    pub reference_spp: Option<u32>,
     /// Study folder (created; reused to resume).
     #[arg(short, long)]
     pub output: PathBuf,
@@ -138,8 +142,12 @@ pub fn run(args: StudyArgs) -> Result<()> {
 
     // The reference: reuse the file, or render it (resumable through render's checkpoint).
     if !args.reference.exists() {
-        tracing::info!("{} does not exist: rendering a {} spp reference first", args.reference.display(), args.reference_spp);
-        render_cli::run(render_args(&args, args.reference_spp, None, REFERENCE_SEED, &args.reference, true))?;
+        let reference_spp = match args.reference_spp {
+            Some(n) => n,
+            None => Sidecar::discover(&args.scene)?.and_then(|s| s.render.reference_spp).unwrap_or(DEFAULT_REFERENCE_SPP),
+        };
+        tracing::info!("{} does not exist: rendering a {reference_spp} spp reference first", args.reference.display());
+        render_cli::run(render_args(&args, reference_spp, None, REFERENCE_SEED, &args.reference, true))?;
     }
     let mut ref_file = ExrChannels::read(&args.reference)?;
     let reference = Reference::new(take_rgb(&mut ref_file, &args.reference, "")?, args.reference.display().to_string())?;
@@ -321,9 +329,10 @@ fn render_args(args: &StudyArgs, spp: u32, batches: Option<u32>, seed: u64, outp
     RenderArgs {
         scene: args.scene.clone(),
         output: output.to_path_buf(),
-        spp,
+        spp: Some(spp),
         batches,
         seed,
+        // Unset size and path limits are resolved by `render` from the scene's sidecar.
         view: args.view.clone(),
         reference,
         pass_spp: if reference { spp.clamp(1, 256) } else { 64 },
