@@ -47,6 +47,24 @@ fn renders_at_the_sidecar_settings_and_flags_override_them() {
 }
 
 #[test]
+fn study_takes_the_reference_spp_and_view_from_the_sidecar() {
+    let dir = tempfile::tempdir().unwrap();
+    scene_folder(dir.path(), SIDECAR);
+    let out = cvtrace(
+        dir.path(),
+        &["--log", "warn", "study", "scene.gltf", "--spp", "4", "--seeds", "1", "--batches", "4", "--reference", "ref.exr", "-o", "study"],
+    );
+    ok(&out);
+    // The reference it rendered has reference_spp samples and the sidecar's view.
+    let ch = ExrChannels::read(&dir.path().join("ref.exr")).unwrap();
+    assert_eq!((ch.width, ch.height), (24, 16));
+    assert_eq!(ch.attr("cvtrace.spp"), Some(&AttrValue::Int(6)));
+    assert_eq!(ch.attr("cvtrace.maxDepth"), Some(&AttrValue::Int(3)));
+    let set = StreamSet::read(&dir.path().join("study/spp00004/seed-000.streams.exr")).unwrap();
+    assert_eq!((set.width, set.height, set.meta.spp, set.meta.max_depth), (24, 16, 4, 3));
+}
+
+#[test]
 fn an_environment_map_lights_the_open_box() {
     let dir = tempfile::tempdir().unwrap();
     // The Cornell box is open towards the camera: a bright sky behind the camera adds light.

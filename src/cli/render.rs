@@ -441,9 +441,13 @@ fn load_checkpoint(path: &Path, identity: &CheckpointIdentity) -> Result<Option<
     }))
 }
 
-/// FNV-1a over the scene's debug form: any change in geometry, materials, textures or
-/// camera changes it, without needing a serialisation format.
+/// FNV-1a over the scene's debug form: any change in geometry, materials, textures, lights or
+/// camera changes it, without needing a serialisation format. The sidecar's render defaults
+/// are left out: they do not change the image (the resolved settings are compared on their
+/// own), so editing e.g. `reference_spp` does not orphan a checkpoint.
 fn scene_hash(scene: &Scene) -> u64 {
+    let mut scene = scene.clone();
+    scene.set_render_defaults(RenderDefaults::default());
     struct Fnv(u64);
     impl std::fmt::Write for Fnv {
         fn write_str(&mut self, s: &str) -> std::fmt::Result {
@@ -596,6 +600,21 @@ mod tests {
         assert_eq!((s.spp, s.max_depth), (5, -1));
         let s = resolve_settings(&args(false, None, None), 16, &RenderDefaults::default(), (1, 1));
         assert_eq!((s.spp, s.max_depth, s.rr_depth), (64, -1, 5));
+    }
+
+    #[test]
+    fn scene_hash_ignores_render_defaults_but_not_lights() {
+        let scene = cvtrace_render::testing::cornell_box();
+        let mut with_defaults = scene.clone();
+        with_defaults.set_render_defaults(RenderDefaults { reference_spp: Some(8192), width: Some(320), ..Default::default() });
+        assert_eq!(scene_hash(&scene), scene_hash(&with_defaults));
+        let plane = |env: Option<f32>| {
+            let mut p = cvtrace_render::testing::plane_parts(0.5, 1.0);
+            p.environment = env.map(|c| cvtrace_render::Environment::constant(Vec3::splat(c)).unwrap());
+            Scene::from_parts(p).unwrap()
+        };
+        assert_ne!(scene_hash(&plane(None)), scene_hash(&plane(Some(1.0))));
+        assert_ne!(scene_hash(&plane(Some(1.0))), scene_hash(&plane(Some(2.0))));
     }
 
     #[test]
