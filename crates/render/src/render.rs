@@ -111,7 +111,7 @@ impl<T: Intersector> Context<'_, T> {
 fn context<'a, T: Intersector>(scene: &'a Scene, tracer: &'a T, settings: &RenderSettings) -> Result<Context<'a, T>, RenderError> {
     scene.camera().validate().map_err(RenderError::Camera)?;
     if scene.lights().is_empty() {
-        tracing::warn!("the scene has no emissive surfaces: the image will be black");
+        tracing::warn!("the scene has no lights (emissive surfaces, glTF lights or a sidecar environment): the image will be black");
     }
     Ok(Context {
         scene,
