@@ -771,7 +771,7 @@ TEAPOT_SCALE = 0.014  # the model is 15.75 units tall -> 0.22 m
 SKY = {
     "width": 256, "height": 128,
     "sun_dir": (0.8, 0.58, 0.12),  # 35 deg up, through the window in the +x wall
-    "sun_radius_deg": 5.0, "sun_radiance": (420.0, 380.0, 320.0),
+    "sun_radius_deg": 5.0, "sun_radiance": (300.0, 270.0, 225.0),
     "zenith": (0.22, 0.4, 0.9), "horizon": (0.85, 0.9, 1.0), "ground": (0.28, 0.25, 0.21),
 }
 
@@ -879,7 +879,7 @@ def cmd_teapots(src, out):
     wall = g.material(diffuse("wall (white paint)", (0.78, 0.77, 0.74)))
     back = g.material(diffuse("back wall (pale blue-grey)", (0.5, 0.56, 0.62)))
     floor = g.material(dielectric("floor (light wood)", (0.5, 0.36, 0.22), 0.4))
-    table = g.material(dielectric("table top (white laminate)", (0.72, 0.72, 0.7), 0.3))
+    table = g.material(dielectric("table top (oiled oak)", (0.4, 0.28, 0.17), 0.3))
     legs = g.material(metal("table legs (brushed steel)", (0.6, 0.6, 0.6), 0.35))
     reveal = g.material(diffuse("window reveal (white paint)", (0.78, 0.77, 0.74)))
     panel = g.material(emitter("ceiling panel", (1.0, 0.96, 0.9), 5.0))
