@@ -933,6 +933,7 @@ def build_glossy_room():
     s.material("red_lacquer", (0.45, 0.04, 0.03), roughness=0.1, specular=1.0)
     s.material("black_lacquer", (0.03, 0.03, 0.035), roughness=0.12, specular=1.0)
     s.material("dark_gap", (0.02, 0.02, 0.02), specular=0.0)
+    s.material("lining", (0.85, 0.82, 0.75), specular=0.0)
     s.material("panel", (0, 0, 0), emission=(PANEL_LIGHT, PANEL_LIGHT * 0.97, PANEL_LIGHT * 0.9))
 
     # Room shell: glossy checker floor (0.5 m tiles), a glazed-tile back wall (10 cm tiles),
@@ -1021,14 +1022,16 @@ def build_glossy_room():
     s.add("sideboard_bowl", "steel", lathe(bowl, 48, (-1.1, 0.8, Z0 + 0.22)))
 
     # Floor lamp (brass) against the tiled wall, right of the sideboard: base, pole, conical
-    # shade (a thin closed shell, open at top and bottom) around the point light.
+    # shade (a thin closed shell, open at top and bottom, brass outside and a white diffuse
+    # lining inside) around the point light, 5 cm above the top of the pole.
     lx, lz = -0.35, Z0 + 0.4
     s.add("lamp_base", "brass", lathe([[(0, 0), (0.16, 0)], [(0.16, 0), (0.16, 0.015), (0.12, 0.03)],
                                        [(0.12, 0.03), (0.02, 0.04), (0, 0.04)]], 48, (lx, 0, lz)))
     s.add("lamp_pole", "brass", cylinder((lx, 0, lz), 0.012, 0.04, 1.45, 16))
-    shade = [[(0.24, 1.35), (0.09, 1.65)], [(0.09, 1.65), (0.084, 1.65)], [(0.084, 1.65), (0.233, 1.352)],
-             [(0.233, 1.352), (0.24, 1.35)]]
+    shade = [[(0.24, 1.35), (0.09, 1.65)], [(0.09, 1.65), (0.084, 1.65)], [(0.233, 1.352), (0.24, 1.35)]]
+    lining = [[(0.084, 1.65), (0.233, 1.352)]]
     s.add("lamp_shade", "brass", lathe(shade, 64, (lx, 0, lz)))
+    s.add("lamp_shade_lining", "lining", lathe(lining, 64, (lx, 0, lz)))
 
     # Punctual lights (KHR_lights_punctual): a spot from the ceiling onto the table and a bare
     # bulb (point light) inside the lamp shade.
@@ -1036,7 +1039,7 @@ def build_glossy_room():
                      "spot": {"innerConeAngle": round(math.radians(14), 6), "outerConeAngle": round(math.radians(22), 6)}},
             (-0.4, H - 0.05, 0.9), (tx, ty, tz))
     s.light("lamp_bulb", {"type": "point", "color": [1.0, 0.85, 0.65], "intensity": POINT_INTENSITY},
-            (lx, 1.45, lz), None)
+            (lx, 1.5, lz), None)
 
     s.camera = ((-1.9, 1.55, 2.0), (0.55, 0.8, -1.0), 50.0)
     return s
