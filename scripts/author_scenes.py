@@ -579,6 +579,7 @@ class Scene:
         lines = ["# Render defaults of this scene (written by scripts/author_scenes.py).", "[render]"]
         for k in ("width", "height", "max_depth", "rr_depth"):
             lines.append(f"{k} = {self.render[k]}")
+        lines.append(f"reference_spp = {REFERENCE_SPP[self.name]}")
         if self.environment:
             lines += ["", "[environment]"] + [f"{k} = {v}" for k, v in self.environment]
         with open(os.path.join(out_dir, "scene.cvtrace.toml"), "w", encoding="utf-8") as f:
@@ -589,6 +590,8 @@ class Scene:
 
 
 RENDER = {"width": 320, "height": 180, "max_depth": -1, "rr_depth": 5}
+# Samples per pixel of each committed reference (scene.ref.exr), recorded as the scene's default.
+REFERENCE_SPP = {"door-ajar": 8192, "glass-of-water": 8192, "glossy-room": 4096}
 
 
 # ---------------------------------------------------------------------------------------------

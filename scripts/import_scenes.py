@@ -332,11 +332,16 @@ class MeshBuilder:
         return g.mesh(name, prims)
 
 
-def write_sidecar(out_dir, environment=None, comment=None):
+# Samples per pixel of each committed reference (scene.ref.exr), recorded as the scene's default.
+REFERENCE_SPP = {"sponza": 4096, "engine": 4096, "head": 8192, "teapots": 4096}
+
+
+def write_sidecar(out_dir, scene, environment=None, comment=None):
     lines = []
     if comment:
         lines += ["# " + c for c in comment.splitlines()]
-    lines += ["[render]", "width = 320", "height = 180", "max_depth = -1", "rr_depth = 5"]
+    lines += ["[render]", "width = 320", "height = 180", "max_depth = -1", "rr_depth = 5",
+              "reference_spp = %d" % REFERENCE_SPP[scene]]
     if environment:
         lines += ["", "[environment]"]
         for k, v in environment:
@@ -440,7 +445,7 @@ def cmd_engine(src, out):
     g.doc["scenes"] = [{"name": "engine", "nodes": [cam, eng, room]}]
     g.doc["scene"] = 0
     g.write(out)
-    write_sidecar(out)
+    write_sidecar(out, "engine")
     print("engine: %d triangles (engine %d, studio %d)" % (count_triangles(g.doc), count_triangles(g.doc) -
                                                            mb.triangles(), mb.triangles()))
 
@@ -547,7 +552,7 @@ def cmd_head(src, out):
     g.doc["scenes"] = [{"name": "head", "nodes": [cam, outer, room]}]
     g.doc["scene"] = 0
     g.write(out)
-    write_sidecar(out)
+    write_sidecar(out, "head")
     n = count_triangles(g.doc)
     print("head: %d triangles (head %d, room %d)" % (n, n - mb.triangles(), mb.triangles()))
 
@@ -755,7 +760,7 @@ def cmd_sponza(src, out):
     g.doc["scenes"] = [{"name": "sponza", "nodes": [cam, sponza, sun]}]
     g.doc["scene"] = 0
     g.write(out)
-    write_sidecar(out, environment=[("color", rounded(SPONZA_SKY["color"])), ("strength", SPONZA_SKY["strength"])],
+    write_sidecar(out, "sponza", environment=[("color", rounded(SPONZA_SKY["color"])), ("strength", SPONZA_SKY["strength"])],
                   comment="Sky: constant bluish radiance seen through the open roof (the sun is a\n"
                           "KHR_lights_punctual directional light in scene.gltf).")
     print("sponza: %d triangles" % count_triangles(g.doc))
@@ -937,7 +942,7 @@ def cmd_teapots(src, out):
     print("(cd %s && %s)" % (out, " ".join(a if " " not in a else '"%s"' % a for a in OIIOTOOL_SKY)))
     subprocess.run(OIIOTOOL_SKY, cwd=out, check=True)
     os.remove(os.path.join(out, "sky.pfm"))
-    write_sidecar(out, environment=[("map", '"sky.exr"'), ("strength", 1.0)],
+    write_sidecar(out, "teapots", environment=[("map", '"sky.exr"'), ("strength", 1.0)],
                   comment="Sky: procedural lat-long map (gradient sky, sun disc) written by\n"
                           "scripts/import_scenes.py teapots; seen through the window in the +x wall.")
     n = count_triangles(g.doc)
