@@ -131,4 +131,28 @@ fn study_resumes_and_report_builds_the_viewer() {
     assert!(index.contains("data.js"));
     let data = std::fs::read_to_string(d.join("report/data.js")).unwrap();
     assert!(data.contains("cornell-box") && data.contains("\"ours\""));
+    let pngs = |dir: &str| -> Vec<String> {
+        walk(&d.join(dir)).into_iter().filter(|p| p.ends_with(".png")).map(|p| p.rsplit('/').next().unwrap().to_string()).collect()
+    };
+    assert!(pngs("report").contains(&"ours-window.png".to_string()));
+
+    // A lighter viewer: the ablations keep their numbers but lose their pictures.
+    ok(&cvtrace(d, &["--log", "warn", "report", "study", "-o", "light", "--no-ablation-images"]));
+    let light = pngs("light");
+    assert!(light.contains(&"ours.png".to_string()) && !light.iter().any(|p| p.starts_with("ours-")), "{light:?}");
+    assert!(std::fs::read_to_string(d.join("light/data.js")).unwrap().contains("ours-window"));
+}
+
+/// Every file under `dir`, as paths.
+fn walk(dir: &std::path::Path) -> Vec<String> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap() {
+        let p = e.unwrap().path();
+        if p.is_dir() {
+            out.extend(walk(&p));
+        } else {
+            out.push(p.to_string_lossy().into_owned());
+        }
+    }
+    out
 }

@@ -18,6 +18,9 @@ pub struct ReportArgs {
     /// ratios with their geometric means, the ablations, then each scene's table) to this file.
     #[arg(long, value_name = "FILE")]
     pub markdown: Option<PathBuf>,
+    /// Leave the ablations' images out of the viewer (their numbers stay): a lighter folder to publish.
+    #[arg(long)]
+    pub no_ablation_images: bool,
     /// Replace an existing report (and Markdown file).
     #[arg(long)]
     pub force: bool,
@@ -77,6 +80,9 @@ pub fn run(args: ReportArgs) -> Result<()> {
         for mut s in r.scenes {
             rebase(&mut s.reference.image, &prefix);
             for m in &mut s.methods {
+                if args.no_ablation_images && m.ablation {
+                    (m.image, m.error_map) = (None, None);
+                }
                 rebase(&mut m.image, &prefix);
                 rebase(&mut m.error_map, &prefix);
             }
