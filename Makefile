@@ -9,7 +9,7 @@ BATCHES ?= 8
 SEEDS  ?= 4
 REF_SPP ?= 4096
 
-.PHONY: setup build demo test bench clean-demo
+.PHONY: setup build demo study test bench clean-demo
 
 setup:
 	@bash scripts/setup.sh
@@ -24,6 +24,11 @@ demo: build
 		--reference $(OUT)/reference.exr --reference-spp $(REF_SPP) -o $(OUT)/study
 	$(BIN) report $(OUT)/study -o $(OUT)/report --force
 	@echo "demo: open $(OUT)/report/index.html"
+
+# The estimator study of docs/results.md over every bundled scene, against the committed references
+# (about an hour on 2 cores; resumable): out/study/<spp>/<scene>, viewers and Markdown summaries.
+study: build
+	BIN=$(BIN) bash scripts/study_scenes.sh
 
 test: setup
 	$(CARGO) test --workspace --locked
