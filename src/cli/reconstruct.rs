@@ -1,7 +1,7 @@
 //! `cvtrace reconstruct`: run one or all estimators on a stream file (or IDUW's layout).
 use anyhow::{bail, Context, Result};
 use cvtrace_reconstruct::{
-    build, ErrorEstimate, Estimator, Input, Method, MethodChoice, Options, Output, Penalty, Selection,
+    build, ErrorEstimate, Estimator, FloorMode, FloorSource, Input, Method, MethodChoice, Options, Output, Penalty, Selection,
 };
 use cvtrace_streams::exr_io::{read_rgb, write_rgb, AttrValue};
 use cvtrace_streams::iduw_layout::{parse_iduw_name, read_iduw};
@@ -59,6 +59,18 @@ pub struct EstimatorArgs {
     /// ours/cv: one coefficient vector for all channels instead of one per channel.
     #[arg(long)]
     pub shared_coefficients: bool,
+    /// ours: τ of the independent-noise floor on the CRN covariance (0 = off).
+    #[arg(long)]
+    pub crn_floor: Option<f64>,
+    /// ours: shape of the floor: common (noise shared by the set) or independent (diagonal).
+    #[arg(long)]
+    pub crn_floor_mode: Option<FloorMode>,
+    /// ours: the floor's variance ṽ: pt (the PT error estimates) or crn (filtered CRN variance).
+    #[arg(long)]
+    pub crn_floor_source: Option<FloorSource>,
+    /// ours: estimate β on one half of the CRN batches and apply it to the other half (and vice versa).
+    #[arg(long)]
+    pub cross_fit: bool,
     /// cv: ridge, relative to the mean diagonal of V_g.
     #[arg(long)]
     pub cv_ridge: Option<f64>,
@@ -98,6 +110,18 @@ impl EstimatorArgs {
         if self.shared_coefficients {
             o.ours.shared_coefficients = true;
             o.cv.shared_coefficients = true;
+        }
+        if let Some(t) = self.crn_floor {
+            o.ours.crn_floor = t;
+        }
+        if let Some(m) = self.crn_floor_mode {
+            o.ours.crn_floor_mode = m;
+        }
+        if let Some(src) = self.crn_floor_source {
+            o.ours.crn_floor_source = src;
+        }
+        if self.cross_fit {
+            o.ours.cross_fit = true;
         }
         if let Some(r) = self.cv_ridge {
             o.cv.ridge = r;

@@ -57,6 +57,40 @@ impl BatchCube {
         BatchCube { batches: b, stride, data, sq }
     }
 
+    /// Frees the last batch column for a floor and fills it: every row's `B` deviations sum to
+    /// zero, so rotating them by an orthonormal Helmert basis (first `B − 1` columns orthogonal
+    /// to the all-ones vector, the last one along it) leaves `D·Dᵀ` unchanged and the last
+    /// column zero. That column then holds `√(δ_i / s)`, `δ_i = max(0, τ·v_i − s·‖D_i‖²)`, so
+    /// that `s·D·Dᵀ` gains the rank-one term `u·uᵀ`, `u_i = √δ_i` per channel: a noise
+    /// component fully shared by the pixels of a set, the way CRN's rare bright paths are.
+    /// `sq` is updated to the new row norms. Needs `B ≥ 2`.
+    pub fn rotate_and_floor(&mut self, values: &[[f32; 3]], tau: f64, s: f64) {
+        let (b, stride) = (self.batches, self.stride);
+        assert!(b >= 2 && values.len() == self.sq.len());
+        let coef: Vec<(f64, f64)> = (1..b).map(|j| (1.0 / ((j * (j + 1)) as f64).sqrt(), j as f64)).collect();
+        self.data.par_chunks_mut(3 * stride).zip(self.sq.par_iter_mut()).zip(values.par_iter()).for_each(|((px, sq), v)| {
+            let mut z = [0.0f64; crate::solve::MAX_BATCHES];
+            for ch in 0..3 {
+                let row = &mut px[ch * stride..ch * stride + b];
+                // Helmert: z_{j−1} = (Σ_{a<j} d_a − j·d_j) / √(j(j+1)), j = 1..B−1.
+                let mut prefix = 0.0f64;
+                let mut ss = 0.0f64;
+                for j in 1..b {
+                    prefix += row[j - 1] as f64;
+                    let (c, jf) = coef[j - 1];
+                    z[j - 1] = (prefix - jf * row[j] as f64) * c;
+                    ss += z[j - 1] * z[j - 1];
+                }
+                let delta = (tau * v[ch] as f64 - s * ss).max(0.0);
+                z[b - 1] = (delta / s).sqrt();
+                for (dst, src) in row.iter_mut().zip(&z[..b]) {
+                    *dst = *src as f32;
+                }
+                sq[ch] = row.iter().map(|x| x * x).sum();
+            }
+        });
+    }
+
     /// The deviations of pixel `i` in channel `ch`.
     #[inline]
     pub fn row(&self, i: usize, ch: usize) -> &[f32] {
@@ -78,6 +112,45 @@ impl BatchCube {
         debug_assert_eq!(self.stride, self.batches);
         let b = self.batches;
         &self.data[i * 3 * b..(i + 1) * 3 * b]
+    }
+}
+
+#[cfg(test)]
+mod floor_tests {
+    use super::*;
+
+    #[test]
+    fn rotation_keeps_the_gram_matrix_and_the_floor_adds_u_ut() {
+        let b = 6;
+        let batches: Vec<Image> =
+            (0..b).map(|k| Image::from_fn(3, 1, |x, _| [((k * 5 + x * 3) % 7) as f32 * 0.3, (k * x) as f32 * 0.1, 0.0])).collect();
+        let s = Stream::from_batches(batches);
+        let plain = BatchCube::deviations(&s, 8);
+        let mut rot = BatchCube::deviations(&s, 8);
+        // Zero floor: the Gram matrix of every channel is unchanged, the last column is 0.
+        rot.rotate_and_floor(&[[0.0; 3]; 3], 1.0, 0.1);
+        let gram = |c: &BatchCube, i: usize, j: usize, ch: usize| -> f64 {
+            c.row(i, ch).iter().zip(c.row(j, ch)).map(|(a, b)| *a as f64 * *b as f64).sum()
+        };
+        for ch in 0..2 {
+            for i in 0..3 {
+                assert!(rot.row(i, ch)[b - 1].abs() < 1e-6);
+                assert!((rot.sq[i][ch] as f64 - gram(&plain, i, i, ch)).abs() < 1e-4);
+                for j in 0..3 {
+                    assert!((gram(&rot, i, j, ch) - gram(&plain, i, j, ch)).abs() < 1e-4, "ch {ch} ({i},{j})");
+                }
+            }
+        }
+        // A floor of τ·v = 1 on an all-zero channel (ch 2): s·D·Dᵀ becomes u·uᵀ with u_i = 1.
+        let mut fl = BatchCube::deviations(&s, 8);
+        fl.rotate_and_floor(&[[0.0, 0.0, 0.5]; 3], 2.0, 0.1);
+        for i in 0..3 {
+            for j in 0..3 {
+                assert!((0.1 * gram(&fl, i, j, 2) - 1.0).abs() < 1e-5);
+            }
+            // Channel 0 has real variance above a zero floor: unchanged.
+            assert!((gram(&fl, i, i, 0) - gram(&plain, i, i, 0)).abs() < 1e-4);
+        }
     }
 }
 

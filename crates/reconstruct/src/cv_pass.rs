@@ -11,12 +11,13 @@
 //! Without FMA contraction both builds do the same IEEE operations, so they agree bit for bit.
 use crate::batch_stats::BatchCube;
 use crate::control_variate::combine;
+use crate::floor::{blend_towards_centre, Floor, FloorMode};
 use crate::panel::{Panel, Rows};
 use crate::penalty::Penalty;
 use crate::selection::{SelectScratch, Selector};
 use crate::simd::{Portable, Simd};
 use crate::solve::{Form, Outcome, Workspace, MAX_BATCHES, MAX_K};
-use cvtrace_streams::{Image, StreamSet};
+use cvtrace_streams::{Image, Stream, StreamSet};
 use rayon::prelude::*;
 
 pub(crate) struct CvPass<'a> {
@@ -31,6 +32,11 @@ pub(crate) struct CvPass<'a> {
     pub shared: bool,
     /// Whether the selector puts the centre first in the set (ours) or leaves it out (cv).
     pub include_centre: bool,
+    /// The independent-noise floor on the CRN covariance (ours only: needs the centre first).
+    pub floor: Option<Floor<'a>>,
+    /// Cross-fitting: coefficients from one half of the batches, applied to the other half's
+    /// CRN means, and the two results averaged (needs at least 4 batches).
+    pub cross_fit: bool,
 }
 
 /// Sums over pixel-channel solves.
@@ -118,23 +124,54 @@ impl<const P: usize> Scratch<P> {
     }
 }
 
+/// The batches one set of coefficients is estimated from, and the CRN means it is applied to.
+/// Without cross-fitting there is one half (all batches, the stream mean); with it, two
+/// (batches `0..B/2` and `B/2..B`, each with its own mean), and the coefficients estimated on
+/// one are applied to the other's means.
+struct Half<'a> {
+    cube: BatchCube,
+    mean: &'a [[f32; 3]],
+}
+
 impl CvPass<'_> {
     pub fn run(&self) -> (Image, PassStats) {
         let b = self.set.batch_count();
         debug_assert!((2..=MAX_BATCHES).contains(&b));
         let crn = &self.set.crn;
-        if self.shared || b >= self.k {
-            return self.run_width::<0>(&BatchCube::deviations(crn, b));
+        let split: Vec<Stream>;
+        let parts: Vec<(&Stream, &[[f32; 3]])> = if self.cross_fit {
+            let h = b / 2;
+            split = vec![Stream::from_batches(crn.batches[..h].to_vec()), Stream::from_batches(crn.batches[h..2 * h].to_vec())];
+            split.iter().map(|st| (st, st.mean.pixels.as_slice())).collect()
+        } else {
+            vec![(crn, crn.mean.pixels.as_slice())]
+        };
+        let bh = parts[0].0.batches.len();
+        let s = 1.0 / (parts.len() * bh * (bh - 1)) as f64;
+        let halves = |stride: usize| -> Vec<Half> {
+            parts
+                .iter()
+                .map(|(st, mean)| {
+                    let mut cube = BatchCube::deviations(st, stride);
+                    if let Some(f) = self.floor.filter(|f| f.mode == FloorMode::Common) {
+                        cube.rotate_and_floor(f.values, f.tau, s);
+                    }
+                    Half { cube, mean }
+                })
+                .collect()
+        };
+        if self.shared || bh >= self.k {
+            return self.run_width::<0>(&halves(bh));
         }
-        match b {
-            0..=8 => self.run_width::<8>(&BatchCube::deviations(crn, 8)),
-            9..=16 => self.run_width::<16>(&BatchCube::deviations(crn, 16)),
-            17..=32 => self.run_width::<32>(&BatchCube::deviations(crn, 32)),
-            _ => self.run_width::<64>(&BatchCube::deviations(crn, 64)),
+        match bh {
+            0..=8 => self.run_width::<8>(&halves(8)),
+            9..=16 => self.run_width::<16>(&halves(16)),
+            17..=32 => self.run_width::<32>(&halves(32)),
+            _ => self.run_width::<64>(&halves(64)),
         }
     }
 
-    fn run_width<const P: usize>(&self, cube: &BatchCube) -> (Image, PassStats) {
+    fn run_width<const P: usize>(&self, halves: &[Half]) -> (Image, PassStats) {
         let (w, h) = (self.set.width, self.set.height);
         let mut image = Image::new(w, h);
         let mut rows = vec![PassStats::default(); h];
@@ -142,10 +179,10 @@ impl CvPass<'_> {
             #[cfg(target_arch = "x86_64")]
             if std::is_x86_feature_detected!("avx2") {
                 // SAFETY: the CPU supports AVX2 (checked just above).
-                unsafe { self.row_avx2::<P>(cube, y, row, sc, st) };
+                unsafe { self.row_avx2::<P>(halves, y, row, sc, st) };
                 return;
             }
-            self.row::<P, Portable>(cube, y, row, sc, st);
+            self.row::<P, Portable>(halves, y, row, sc, st);
         });
         let mut total = PassStats::default();
         for r in &rows {
@@ -156,14 +193,14 @@ impl CvPass<'_> {
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn row_avx2<const P: usize>(&self, cube: &BatchCube, y: usize, row: &mut [[f32; 3]], sc: &mut Scratch<P>, st: &mut PassStats) {
-        self.row::<P, crate::simd::Avx2>(cube, y, row, sc, st);
+    unsafe fn row_avx2<const P: usize>(&self, halves: &[Half], y: usize, row: &mut [[f32; 3]], sc: &mut Scratch<P>, st: &mut PassStats) {
+        self.row::<P, crate::simd::Avx2>(halves, y, row, sc, st);
     }
 
     #[inline(always)]
-    fn row<const P: usize, S: Simd>(&self, cube: &BatchCube, y: usize, row: &mut [[f32; 3]], sc: &mut Scratch<P>, st: &mut PassStats) {
+    fn row<const P: usize, S: Simd>(&self, halves: &[Half], y: usize, row: &mut [[f32; 3]], sc: &mut Scratch<P>, st: &mut PassStats) {
         for (x, px) in row.iter_mut().enumerate() {
-            *px = self.pixel::<P, S>(cube, x, y, sc, st);
+            *px = self.pixel::<P, S>(halves, x, y, sc, st);
         }
     }
 
@@ -191,71 +228,113 @@ impl CvPass<'_> {
     }
 
     #[inline(always)]
-    fn pixel<const P: usize, S: Simd>(&self, cube: &BatchCube, x: usize, y: usize, sc: &mut Scratch<P>, st: &mut PassStats) -> [f32; 3] {
+    fn pixel<const P: usize, S: Simd>(&self, halves: &[Half], x: usize, y: usize, sc: &mut Scratch<P>, st: &mut PassStats) -> [f32; 3] {
         let c = y * self.set.width + x;
         let n = self.selector.select(x, y, &mut sc.select, &mut sc.idx);
         let idx = &sc.idx[..n];
-        let g = &self.set.crn.mean.pixels;
         let hm = &self.set.pt.mean.pixels;
-        let b = cube.batches;
-        let s = 1.0 / (b * (b - 1)) as f64;
+        let nh = halves.len();
+        let b = halves[0].cube.batches;
+        // Covariances of the full CRN mean: with nh halves of b batches each, a half's batch
+        // covariance Σd²/(b(b−1)) estimates the covariance of a half's mean, nh times that of
+        // the full mean.
+        let s = 1.0 / (nh * b * (b - 1)) as f64;
         st.pixels += 1;
         st.set_size += n as u64;
-        let mut out = g[c];
         if n == 0 {
-            return out;
+            return self.set.crn.mean.pixels[c];
         }
+        debug_assert!(self.floor.is_none() || (self.include_centre && idx[0] as usize == c));
+        let mut acc = [0.0f64; 3];
         if let Some(p) = sc.panel.as_deref_mut() {
-            let centre: [&[f32; P]; 3] = std::array::from_fn(|ch| cube.row_padded::<P>(c, ch));
-            let mut rows = Rows { d: centre.map(|r| [r; MAX_K]), dc: centre };
-            // One pass over the set gathers everything: rows, norms, weights and the values
-            // the combination needs.
-            for (j, &i) in idx.iter().enumerate() {
-                let i = i as usize;
-                let (gi, hi) = (g[i], hm[i]);
-                for ch in 0..3 {
-                    rows.d[ch][j] = cube.row_padded::<P>(i, ch);
-                    p.sq[ch][j] = cube.sq[i][ch];
-                    sc.gs3[ch][j] = gi[ch] as f64;
-                    sc.hs3[ch][j] = hi[ch] as f64;
+            for (hi, half) in halves.iter().enumerate() {
+                let cube = &half.cube;
+                let target = halves[(hi + 1) % nh].mean;
+                let mut delta_c = [0.0f64; 3];
+                let centre: [&[f32; P]; 3] = std::array::from_fn(|ch| cube.row_padded::<P>(c, ch));
+                let mut rows = Rows { d: centre.map(|r| [r; MAX_K]), dc: centre };
+                // One pass over the set gathers everything: rows, norms, weights and the values
+                // the combination needs.
+                for (j, &i) in idx.iter().enumerate() {
+                    let i = i as usize;
+                    let (gi, hi) = (target[i], hm[i]);
+                    for ch in 0..3 {
+                        rows.d[ch][j] = cube.row_padded::<P>(i, ch);
+                        p.sq[ch][j] = cube.sq[i][ch];
+                        sc.gs3[ch][j] = gi[ch] as f64;
+                        sc.hs3[ch][j] = hi[ch] as f64;
+                    }
+                    p.w.iter_mut().enumerate().for_each(|(ch, w)| w[j] = self.weight(i, c, ch));
+                    if let Some(f) = self.floor.filter(|f| f.mode == FloorMode::Independent) {
+                        for ch in 0..3 {
+                            let d = f.delta(f.values[i][ch] as f64, s * p.sq[ch][j] as f64);
+                            p.w[ch][j] += d;
+                            if j == 0 {
+                                delta_c[ch] = d;
+                            }
+                        }
+                    }
                 }
-                p.w.iter_mut().enumerate().for_each(|(ch, w)| w[j] = self.weight(i, c, ch));
+                let outcomes = p.solve::<S>(&rows, n, s, self.ridge);
+                for ch in 0..3 {
+                    if matches!(outcomes[ch], Outcome::Solved | Outcome::Regularised) {
+                        let winv = p.centre_winv(ch);
+                        blend_towards_centre(&mut p.beta[ch][..n], delta_c[ch], winv);
+                    }
+                    let beta = &mut p.beta[ch][..n];
+                    st.record(outcomes[ch], beta, self.include_centre);
+                    acc[ch] += combine(target[c][ch] as f64, &sc.gs3[ch][..n], &sc.hs3[ch][..n], beta);
+                }
             }
-            let outcomes = p.solve::<S>(&rows, n, s, self.ridge);
-            for ch in 0..3 {
-                let beta = &mut p.beta[ch][..n];
-                st.record(outcomes[ch], beta, self.include_centre);
-                out[ch] = combine(g[c][ch] as f64, &sc.gs3[ch][..n], &sc.hs3[ch][..n], beta) as f32;
-            }
-            return out;
+            return acc.map(|v| (v / nh as f64) as f32);
         }
         let ws = sc.ws.as_deref_mut().expect("general workspace");
         let channels: &[usize] = if self.shared { &[0] } else { &[0, 1, 2] };
-        for &ch in channels {
-            let m = if self.shared { 3 * b } else { b };
-            let source = |i: usize| if self.shared { cube.pixel(i) } else { cube.row(i, ch) };
-            for (j, &i) in idx.iter().enumerate() {
-                for (dst, v) in ws.d[j * m..(j + 1) * m].iter_mut().zip(source(i as usize)) {
+        for (hi, half) in halves.iter().enumerate() {
+            let cube = &half.cube;
+            let target = halves[(hi + 1) % nh].mean;
+            for &ch in channels {
+                let m = if self.shared { 3 * b } else { b };
+                let source = |i: usize| if self.shared { cube.pixel(i) } else { cube.row(i, ch) };
+                for (j, &i) in idx.iter().enumerate() {
+                    for (dst, v) in ws.d[j * m..(j + 1) * m].iter_mut().zip(source(i as usize)) {
+                        *dst = *v as f64;
+                    }
+                    ws.w[j] = self.weight(i as usize, c, ch);
+                }
+                let mut delta_c = 0.0;
+                if let Some(f) = self.floor.filter(|f| f.mode == FloorMode::Independent) {
+                    for (j, &i) in idx.iter().enumerate() {
+                        let v = f.values[i as usize];
+                        let v = if self.shared { v.iter().map(|x| *x as f64).sum() } else { v[ch] as f64 };
+                        let row = &ws.d[j * m..(j + 1) * m];
+                        let d = f.delta(v, s * crate::solve::dot(row, row));
+                        ws.w[j] += d;
+                        if j == 0 {
+                            delta_c = d;
+                        }
+                    }
+                }
+                for (dst, v) in ws.dc[..m].iter_mut().zip(source(c)) {
                     *dst = *v as f64;
                 }
-                ws.w[j] = self.weight(i as usize, c, ch);
-            }
-            for (dst, v) in ws.dc[..m].iter_mut().zip(source(c)) {
-                *dst = *v as f64;
-            }
-            let outcome = ws.solve(n, m, s, self.ridge, Form::Auto);
-            let beta = &mut ws.beta[..n];
-            st.record(outcome, beta, self.include_centre);
-            let out_channels: &[usize] = if self.shared { &[0, 1, 2] } else { std::slice::from_ref(&ch) };
-            for &oc in out_channels {
-                for (j, &i) in idx.iter().enumerate() {
-                    sc.gs[j] = g[i as usize][oc] as f64;
-                    sc.hs[j] = hm[i as usize][oc] as f64;
+                let outcome = ws.solve(n, m, s, self.ridge, Form::Auto);
+                if matches!(outcome, Outcome::Solved | Outcome::Regularised) {
+                    blend_towards_centre(&mut ws.beta[..n], delta_c, 1.0 / (ws.w[0] + ws.lambda));
                 }
-                out[oc] = combine(g[c][oc] as f64, &sc.gs[..n], &sc.hs[..n], beta) as f32;
+                let beta = &mut ws.beta[..n];
+                st.record(outcome, beta, self.include_centre);
+                let out_channels: &[usize] = if self.shared { &[0, 1, 2] } else { std::slice::from_ref(&ch) };
+                for &oc in out_channels {
+                    for (j, &i) in idx.iter().enumerate() {
+                        sc.gs[j] = target[i as usize][oc] as f64;
+                        sc.hs[j] = hm[i as usize][oc] as f64;
+                    }
+                    acc[oc] += combine(target[c][oc] as f64, &sc.gs[..n], &sc.hs[..n], beta);
+                }
             }
         }
-        out
+        acc.map(|v| (v / nh as f64) as f32)
     }
 }
 
@@ -282,6 +361,8 @@ mod timing {
                 ridge: 1e-3,
                 shared: false,
                 include_centre: true,
+                floor: None,
+                cross_fit: false,
             };
             let n = (set.width * set.height) as f64;
             let t = std::time::Instant::now();
@@ -298,7 +379,7 @@ mod timing {
             let cube = BatchCube::deviations(&set.crn, 16);
             eprintln!("cube: {:.0} ns/pixel", t.elapsed().as_nanos() as f64 / n);
             let t = std::time::Instant::now();
-            let (_img, st) = pass.run_width::<16>(&cube);
+            let (_img, st) = pass.run_width::<16>(&[Half { cube, mean: &set.crn.mean.pixels }]);
             eprintln!("pass: {:.0} ns/pixel ({} solves)", t.elapsed().as_nanos() as f64 / n, st.solves);
         });
     }

@@ -54,6 +54,13 @@ impl<const P: usize> Panel<P> {
         })
     }
 
+    /// `1 / (w_0 + λ)` of channel `ch` in the last successful solve (control variate 0 is the
+    /// centre in `ours`).
+    #[inline]
+    pub fn centre_winv(&self, ch: usize) -> f64 {
+        self.winv[ch][0]
+    }
+
     /// β of each channel for `k` control variates; per channel the same contract as
     /// [`crate::solve::Workspace::solve`].
     #[inline(always)]

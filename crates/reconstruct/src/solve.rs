@@ -55,6 +55,8 @@ pub struct Workspace {
     pub w: [f64; MAX_K],
     /// The result (`k` values).
     pub beta: [f64; MAX_K],
+    /// The absolute ridge the last successful solve used (added to every `w`).
+    pub lambda: f64,
     mat: [f64; MAX_K * MAX_K],
     vec: [f64; MAX_COLS],
     winv: [f64; MAX_K],
@@ -68,6 +70,7 @@ impl Workspace {
             dc: [0.0; MAX_COLS],
             w: [0.0; MAX_K],
             beta: [0.0; MAX_K],
+            lambda: 0.0,
             mat: [0.0; MAX_K * MAX_K],
             vec: [0.0; MAX_COLS],
             winv: [0.0; MAX_K],
@@ -99,6 +102,7 @@ impl Workspace {
                 _ => self.direct(k, m, s, lambda),
             };
             if ok {
+                self.lambda = lambda;
                 return if attempt == 0 { Outcome::Solved } else { Outcome::Regularised };
             }
             lambda = (lambda * 10.0).max(1e-7 * scale);

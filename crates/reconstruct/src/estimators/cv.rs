@@ -93,6 +93,8 @@ impl Estimator for Cv {
             ridge: o.ridge,
             shared: o.shared_coefficients,
             include_centre: false,
+            floor: None,
+            cross_fit: false,
         };
         let (image, st) = pass.run();
         let mut d = Diagnostics::default();

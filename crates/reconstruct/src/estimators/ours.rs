@@ -6,10 +6,12 @@
 //! set, the estimator ranges over PT (`β = e_c`), CRN (`β = 0`) and every blend of
 //! neighbours in between. See docs/estimators.md for the defaults and their measurements.
 use super::finish;
+use crate::batch_stats::variance_of_mean;
 use crate::cv_pass::CvPass;
+use crate::floor::{Floor, FloorMode, FloorSource};
 use crate::input::BatchNeed;
 use crate::penalty::Penalty;
-use crate::pt_error::{pt_errors, CbfOptions, ErrorEstimate};
+use crate::pt_error::{cross_bilateral, pt_errors, CbfOptions, ErrorEstimate};
 use crate::selection::{Selection, Selector, MAX_SEARCH_WINDOW};
 use crate::solve::{MAX_BATCHES, MAX_K};
 use crate::{Diagnostics, Estimator, Input, Method, Needs, Output, ReconError};
@@ -35,6 +37,17 @@ pub struct OursOptions {
     pub cbf: CbfOptions,
     /// Seed of `select = random`.
     pub seed: u64,
+    /// `τ` of the floor on the CRN covariance (0 = off): each pixel's CRN variance is raised to
+    /// at least `τ` times its PT error estimate; see [`crate::FloorMode`] and docs/estimators.md.
+    pub crn_floor: f64,
+    /// How the floor is applied.
+    pub crn_floor_mode: FloorMode,
+    /// Where the floor's per-pixel variance comes from.
+    pub crn_floor_source: FloorSource,
+    /// Cross-fitting: β estimated from one half of the CRN batches is applied to the other
+    /// half's means (and vice versa, averaged), so that the coefficients are independent of
+    /// the CRN values they weight. Needs an even number of batches, at least 4.
+    pub cross_fit: bool,
 }
 
 impl Default for OursOptions {
@@ -49,6 +62,10 @@ impl Default for OursOptions {
             shared_coefficients: false,
             cbf: CbfOptions::default(),
             seed: 0,
+            crn_floor: 0.0,
+            crn_floor_mode: FloorMode::Common,
+            crn_floor_source: FloorSource::Pt,
+            cross_fit: false,
         }
     }
 }
@@ -77,6 +94,9 @@ pub(crate) fn check_selection(k: usize, search_window: usize, ridge: f64) -> Res
 impl OursOptions {
     pub fn validate(&self) -> Result<(), ReconError> {
         check_selection(self.k, self.search_window, self.ridge)?;
+        if !(self.crn_floor >= 0.0 && self.crn_floor.is_finite()) {
+            return Err(ReconError::option("crn-floor", self.crn_floor, "must be a finite number ≥ 0 (0 turns the floor off)"));
+        }
         self.cbf.validate()
     }
 }
@@ -104,7 +124,7 @@ impl Estimator for Ours {
 
     fn needs(&self) -> Needs {
         Needs {
-            batches: BatchNeed::Range { min: 2, max: MAX_BATCHES },
+            batches: BatchNeed::Range { min: if self.options.cross_fit { 4 } else { 2 }, max: MAX_BATCHES },
             features: (self.options.select == Selection::Gbuffer).then_some("with --select gbuffer"),
             reference: self.options.errors == ErrorEstimate::Oracle,
             spp: false,
@@ -123,6 +143,10 @@ impl Estimator for Ours {
             ("shared_coefficients", o.shared_coefficients.to_string()),
             ("cbf_radius", o.cbf.radius.to_string()),
             ("seed", o.seed.to_string()),
+            ("crn_floor", o.crn_floor.to_string()),
+            ("crn_floor_mode", o.crn_floor_mode.to_string()),
+            ("crn_floor_source", o.crn_floor_source.to_string()),
+            ("cross_fit", o.cross_fit.to_string()),
         ]
     }
 
@@ -131,7 +155,23 @@ impl Estimator for Ours {
         input.check(self.name(), &self.needs())?;
         let o = &self.options;
         let set = input.streams;
+        if o.cross_fit && set.batch_count() % 2 == 1 {
+            return Err(ReconError::BatchCount {
+                origin: input.streams_name.to_string(),
+                method: self.name(),
+                requirement: "an even number of".into(),
+                found: set.batch_count(),
+                hint: "cross-fitting splits the batches into two equal halves; re-render with an even --batches or drop --cross-fit".into(),
+            });
+        }
         let errors = pt_errors(o.errors, set, input.reference, &o.cbf);
+        let crn_variance = (o.crn_floor > 0.0 && o.crn_floor_source == FloorSource::Crn)
+            .then(|| cross_bilateral(&variance_of_mean(&set.crn), set, &o.cbf));
+        let floor = (o.crn_floor > 0.0).then(|| Floor {
+            tau: o.crn_floor,
+            mode: o.crn_floor_mode,
+            values: crn_variance.as_deref().unwrap_or(&errors),
+        });
         let t_prepare = start.elapsed().as_secs_f64();
         let pass = CvPass {
             set,
@@ -142,6 +182,8 @@ impl Estimator for Ours {
             ridge: o.ridge,
             shared: o.shared_coefficients,
             include_centre: true,
+            floor,
+            cross_fit: o.cross_fit,
         };
         let (image, st) = pass.run();
         let mut d = Diagnostics::default();
