@@ -127,7 +127,12 @@ fn follow(batches: usize, crn: f64, pt: f64) -> (f64, f64, f64) {
         |b, i| crn * (normal(1, b as u64) + normal(2, (b * 4096 + i) as u64)),
         |b, i| pt * normal(3, (b * 4096 + i) as u64),
     );
-    let out = build(Method::Ours, &Options::default()).unwrap().reconstruct(&Input::new(&set)).unwrap();
+    // The two streams get different per-pixel variances here, which renders of one integrand
+    // never have; the CRN floor's premise is Var(ḡ_i) = Var(h̄_i), so it is off for this test of
+    // the solve (with it, the V_h-dominant case moves from CRN towards neighbouring PT values).
+    let mut options = Options::default();
+    options.ours.crn_floor = 0.0;
+    let out = build(Method::Ours, &options).unwrap().reconstruct(&Input::new(&set)).unwrap();
     (msd(&out.image, &set.pt.mean), msd(&out.image, &set.crn.mean), centre_weight(&out))
 }
 

@@ -62,7 +62,7 @@ impl Default for OursOptions {
             shared_coefficients: false,
             cbf: CbfOptions::default(),
             seed: 0,
-            crn_floor: 0.0,
+            crn_floor: 0.05,
             crn_floor_mode: FloorMode::Common,
             crn_floor_source: FloorSource::Pt,
             cross_fit: false,
