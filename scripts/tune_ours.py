@@ -4,6 +4,11 @@ on every seed's streams against the scene's committed reference, and the mean re
 the default. Reconstruction only (the renders are reused), so a sweep takes minutes.
 
     python3 scripts/tune_ours.py out/study/96 door-ajar glass-of-water
+    VARIANTS="floor common 0.05" BASELINES=1 python3 scripts/tune_ours.py out/study/96 door-ajar
+
+VARIANTS (comma-separated labels) limits the sweep; the first variant is always `default` (the
+binary's defaults). BASELINES=1 also measures IDUW, CV (same binary, every seed) and the seeds'
+real PT(2n) renders, and prints ours/IDUW, ours/CV and ours/PT(2n) for every variant.
 """
 import math, os, re, subprocess, sys, tempfile
 
@@ -16,6 +21,14 @@ VARIANTS = [
     ("penalty none", ["--penalty", "none"]), ("penalty max", ["--penalty", "max"]), ("penalty residual", ["--penalty", "residual"]),
     ("errors variance", ["--errors", "variance"]), ("errors cbf-residual", ["--errors", "cbf-residual"]),
     ("shared coefficients", ["--shared-coefficients"]),
+    # Issue 5: the floor on the CRN covariance (docs/estimators.md) and cross-fitting.
+    ("floor 0", ["--crn-floor", "0"]), ("floor common 0.02", ["--crn-floor", "0.02"]),
+    ("floor common 0.05", ["--crn-floor", "0.05"]), ("floor common 0.1", ["--crn-floor", "0.1"]),
+    ("floor common 0.25", ["--crn-floor", "0.25"]), ("floor common 0.5", ["--crn-floor", "0.5"]),
+    ("floor common 1", ["--crn-floor", "1"]), ("floor common 2", ["--crn-floor", "2"]),
+    ("floor common 1 crn", ["--crn-floor", "1", "--crn-floor-source", "crn"]),
+    ("floor independent 1", ["--crn-floor", "1", "--crn-floor-mode", "independent"]),
+    ("cross-fit", ["--cross-fit"]),
 ]
 
 
@@ -24,6 +37,17 @@ def relmse(streams, ref, extra, out):
     text = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
     m = re.search(r"^ours\s+([0-9.eE+-]+)", text, re.M)
     return float(m.group(1))
+
+
+def baseline(streams, ref, out_dir):
+    """relMSE of iduw and cv on one seed's streams, and of its real PT(2n) render."""
+    text = subprocess.run([BIN, "--log", "warn", "reconstruct", streams, "--method", "all", "--reference", ref, "-o", out_dir, "--force"],
+                          check=True, capture_output=True, text=True).stdout
+    got = {m: float(re.search(rf"^{m}\s+([0-9.eE+-]+)", text, re.M).group(1)) for m in ("iduw", "cv")}
+    pt2n = streams.replace(".streams.exr", ".pt2n.exr")
+    text = subprocess.run([BIN, "--log", "warn", "compare", "--reference", ref, pt2n], check=True, capture_output=True, text=True).stdout
+    got["pt2n"] = float(re.search(r"pt2n\.exr\s+\d+\s+([0-9.eE+-]+)", text).group(1))
+    return got
 
 
 def main():
@@ -37,16 +61,32 @@ def main():
         d = os.path.join(study_root, s, f"spp{int(spp):05d}")
         seeds = sorted(f for f in os.listdir(d) if f.endswith(".streams.exr"))
         ref = f"scenes/{s}/scene.ref.exr"
+        print(f"{s:16} {len(seeds)} seeds", flush=True)
         for name, extra in variants:
             vals = [relmse(os.path.join(d, f), ref, extra, os.path.join(tmp, "x.exr")) for f in seeds]
             table[(s, name)] = sum(vals) / len(vals)
             print(f"{s:16} {name:22} {table[(s, name)]:.5g}", flush=True)
+        if os.environ.get("BASELINES"):
+            per = [baseline(os.path.join(d, f), ref, os.path.join(tmp, "all")) for f in seeds]
+            for m in ("iduw", "cv", "pt2n"):
+                table[(s, m)] = sum(p[m] for p in per) / len(per)
+                print(f"{s:16} {m:22} {table[(s, m)]:.5g}", flush=True)
     print("\n| variant | " + " | ".join(scenes) + " | geometric mean |")
     print("|---|" + "---|" * (len(scenes) + 1))
     for name, _ in variants:
         r = [table[(s, name)] / table[(s, "default")] for s in scenes]
         g = math.exp(sum(map(math.log, r)) / len(r))
         print(f"| {name} | " + " | ".join(f"{(x - 1) * 100:+.1f}%" for x in r) + f" | {(g - 1) * 100:+.1f}% |")
+    if os.environ.get("BASELINES"):
+        print("\n| scene | " + " | ".join(f"{n}: relMSE, /IDUW, /CV, /PT(2n)" for n, _ in variants) + " |")
+        print("|---|" + "---|" * len(variants))
+        for s in scenes:
+            cells = []
+            for name, _ in variants:
+                v = table[(s, name)]
+                cells.append(f"{v:.4g}, {v / table[(s, 'iduw')]:.2f}, {v / table[(s, 'cv')]:.2f}, {v / table[(s, 'pt2n')]:.3f}")
+            print(f"| {s} | " + " | ".join(cells) + " |")
+        print("| baselines | " + "; ".join(f"{s}: IDUW {table[(s, 'iduw')]:.4g}, CV {table[(s, 'cv')]:.4g}, PT(2n) {table[(s, 'pt2n')]:.4g}" for s in scenes) + " |")
 
 
 if __name__ == "__main__":
