@@ -1,0 +1,115 @@
+//! The bundled scenes: every folder in `scenes/` loads and renders a few samples at its own
+//! resolution without warnings, stays small, documents its origin, and its committed reference
+//! (if any) has the scene's resolution.
+mod common;
+use common::{cvtrace, ok, stderr};
+use cvtrace_streams::exr_io::ExrChannels;
+use cvtrace_streams::StreamSet;
+use std::path::{Path, PathBuf};
+
+/// Repository limit per scene folder (issue 5: "no scene above ~20 MB").
+const MAX_SCENE_BYTES: u64 = 20 << 20;
+
+/// Every `scenes/<name>/` holding a `scene.gltf` or `scene.glb`, sorted.
+pub fn bundled_scenes() -> Vec<(String, PathBuf)> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let mut out: Vec<(String, PathBuf)> = std::fs::read_dir(&root)
+        .unwrap()
+        .filter_map(|e| {
+            let dir = e.unwrap().path();
+            let name = dir.file_name()?.to_string_lossy().into_owned();
+            ["scene.gltf", "scene.glb"].iter().map(|f| dir.join(f)).find(|f| f.is_file()).map(|f| (name, f))
+        })
+        .collect();
+    out.sort();
+    out
+}
+
+fn folder_bytes(dir: &Path) -> u64 {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                folder_bytes(&p)
+            } else {
+                std::fs::metadata(&p).unwrap().len()
+            }
+        })
+        .sum()
+}
+
+#[test]
+fn every_scene_loads_and_renders_a_few_samples() {
+    let scenes = bundled_scenes();
+    assert!(scenes.len() >= 2, "expected the bundled scenes, found {scenes:?}");
+    let tmp = tempfile::tempdir().unwrap();
+    for (name, file) in &scenes {
+        let dir = file.parent().unwrap();
+        assert!(dir.join("SOURCE.md").is_file(), "{name}: SOURCE.md (origin, licence, conversion) is missing");
+        let bytes = folder_bytes(dir);
+        assert!(bytes <= MAX_SCENE_BYTES, "{name}: {bytes} bytes, over the 20 MB limit");
+
+        let out = tmp.path().join(format!("{name}.streams.exr"));
+        let run = cvtrace(
+            tmp.path(),
+            &["--log", "warn", "render", file.to_str().unwrap(), "--spp", "2", "--batches", "2", "-o", out.to_str().unwrap()],
+        );
+        ok(&run);
+        // A warning means something in the scene is ignored (an extension, a light, a texture).
+        assert!(stderr(&run).trim().is_empty(), "{name} renders with warnings:\n{}", stderr(&run));
+        let set = StreamSet::read(&out).unwrap();
+        assert_eq!(set.meta.non_finite_samples, 0, "{name}: non-finite samples");
+        let mean = set.pt.mean.pixels.iter().map(|p| (p[0] + p[1] + p[2]) as f64 / 3.0).sum::<f64>() / set.pt.mean.len() as f64;
+        assert!(mean.is_finite() && mean > 1e-3, "{name}: mean pixel value {mean} (a black image?)");
+
+        let reference = dir.join("scene.ref.exr");
+        if reference.is_file() {
+            let r = ExrChannels::read(&reference).unwrap();
+            assert_eq!((r.width, r.height), (set.width, set.height), "{name}: the reference's size differs from the scene's");
+            assert!(r.attr("cvtrace.spp").is_some(), "{name}: the reference does not record its spp");
+        }
+    }
+}
+
+/// Seeds per scene in [`ours_beats_a_real_pt_render_of_equal_cost_on_every_scene`].
+const SEEDS: usize = 2;
+/// Upper bound on the mean over [`SEEDS`] of relMSE(ours) / relMSE(PT(2n)) at 16 + 16 spp
+/// against the committed references. Measured per scene over 6 seeds (docs/results.md, "The CI
+/// check"): mean / worst seed — cornell-box 0.198 / 0.212, door-ajar 0.075 / 0.109,
+/// glass-of-water 0.116 / 0.177, head 0.115 / 0.142, engine 0.336 / 0.390, teapots 0.352 / 0.686,
+/// glossy-room 0.091 / 0.156; the worst mean of two consecutive seeds was 0.537 (teapots). 0.75 leaves room for seed noise yet fails if `ours` stops clearly beating a
+/// PT render of equal cost. (At 8 + 8 spp one teapots seed lost to PT(2n): 1 sample per batch is
+/// too few for the covariance estimates when caustics make fireflies.)
+const MAX_RATIO: f64 = 0.75;
+
+#[test]
+fn ours_beats_a_real_pt_render_of_equal_cost_on_every_scene() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut checked = 0;
+    for (name, file) in bundled_scenes() {
+        let reference = file.parent().unwrap().join("scene.ref.exr");
+        if !reference.is_file() {
+            continue;
+        }
+        checked += 1;
+        let out = tmp.path().join(&name);
+        let seeds = SEEDS.to_string();
+        let run = cvtrace(
+            tmp.path(),
+            &[
+                "--log", "warn", "study", file.to_str().unwrap(), "--spp", "16", "--batches", "16", "--seeds", &seeds,
+                "--reference", reference.to_str().unwrap(), "-o", out.to_str().unwrap(),
+            ],
+        );
+        ok(&run);
+        let results = cvtrace_eval::StudyResults::read_json(&out.join("results.json")).unwrap();
+        let scene = &results.scenes[0];
+        let (ours, pt2n) = (scene.method("ours").unwrap(), scene.method("pt2n").unwrap());
+        let ratios: Vec<f64> = ours.relmse_per_seed.iter().zip(&pt2n.relmse_per_seed).map(|(a, b)| a / b).collect();
+        eprintln!("{name}: ours/PT(2n) per seed {ratios:?}");
+        let mean = ratios.iter().sum::<f64>() / ratios.len() as f64;
+        assert!(mean < MAX_RATIO, "{name}: relMSE ours/PT(2n) = {mean:.3} ≥ {MAX_RATIO} (seeds {ratios:?})");
+    }
+    assert!(checked >= 2, "only {checked} scenes have a committed reference (scene.ref.exr)");
+}
