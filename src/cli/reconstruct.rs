@@ -59,7 +59,7 @@ pub struct EstimatorArgs {
     /// ours/cv: one coefficient vector for all channels instead of one per channel.
     #[arg(long)]
     pub shared_coefficients: bool,
-    /// ours: τ of the independent-noise floor on the CRN covariance (0 = off).
+    /// ours: τ of the noise floor on the CRN covariance, as a fraction of the PT error estimate (0 = off; shape: --crn-floor-mode).
     #[arg(long)]
     pub crn_floor: Option<f64>,
     /// ours: shape of the floor: common (noise shared by the set) or independent (diagonal).

@@ -32,7 +32,7 @@ pub(crate) struct CvPass<'a> {
     pub shared: bool,
     /// Whether the selector puts the centre first in the set (ours) or leaves it out (cv).
     pub include_centre: bool,
-    /// The independent-noise floor on the CRN covariance (ours only: needs the centre first).
+    /// The noise floor on the CRN covariance (ours only: needs the centre first).
     pub floor: Option<Floor<'a>>,
     /// Cross-fitting: coefficients from one half of the batches, applied to the other half's
     /// CRN means, and the two results averaged (needs at least 4 batches).

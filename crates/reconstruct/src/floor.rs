@@ -1,4 +1,4 @@
-//! The independent-noise floor of `ours` on the CRN covariance (issue 5).
+//! The noise floor of `ours` on the CRN covariance (issue 5).
 //!
 //! With `B` batches of a stream whose radiance comes from rare bright paths (indirect light),
 //! most pixels' CRN batches are ≈ 0 in a given render, and those pixels' batch covariance says
