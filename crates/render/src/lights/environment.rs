@@ -259,18 +259,8 @@ mod tests {
     fn map_pdf_integrates_to_one_over_the_sphere() {
         for rot in [0.0, 37.0] {
             let env = Environment::from_image(&test_map(), 1.5).unwrap().rotated(rot).unwrap();
-            // Midpoint rule in (θ, φ), fine enough to resolve every texel.
-            let (nt, np) = (800, 1600);
-            let mut total = 0.0f64;
-            for i in 0..nt {
-                let theta = PI * (i as f32 + 0.5) / nt as f32;
-                for j in 0..np {
-                    let phi = 2.0 * PI * (j as f32 + 0.5) / np as f32;
-                    let d = Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin());
-                    total += env.eval_pdf(d).1 as f64 * theta.sin() as f64;
-                }
-            }
-            total *= (PI as f64 / nt as f64) * (2.0 * PI as f64 / np as f64);
+            // Fine enough to resolve every texel.
+            let total = sphere_integral(800, |d| env.eval_pdf(d).1 as f64);
             assert!((total - 1.0).abs() < 2e-3, "rotation {rot}: ∫pdf = {total}");
         }
     }
@@ -314,16 +304,19 @@ mod tests {
 
     /// ∫ f over the directions where the map is non-black (numerically).
     fn covered_integral(env: &Environment, f: fn(Vec3) -> f64) -> f64 {
-        let (nt, np) = (600, 1200);
+        sphere_integral(600, |d| if env.eval_pdf(d).1 > 0.0 { f(d) } else { 0.0 })
+    }
+
+    /// ∫ f dω over the sphere by the midpoint rule in (θ, φ) with `nt × 2nt` cells.
+    fn sphere_integral(nt: usize, f: impl Fn(Vec3) -> f64) -> f64 {
+        let np = 2 * nt;
         let mut total = 0.0f64;
         for i in 0..nt {
             let theta = PI * (i as f32 + 0.5) / nt as f32;
             for j in 0..np {
                 let phi = 2.0 * PI * (j as f32 + 0.5) / np as f32;
                 let d = Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin());
-                if env.eval_pdf(d).1 > 0.0 {
-                    total += f(d) * theta.sin() as f64;
-                }
+                total += f(d) * theta.sin() as f64;
             }
         }
         total * (PI as f64 / nt as f64) * (2.0 * PI as f64 / np as f64)
