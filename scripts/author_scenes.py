@@ -32,6 +32,8 @@ import struct
 import sys
 import zlib
 
+import cornell_to_gltf  # look_rotation; the script's folder is on sys.path
+
 # ---------------------------------------------------------------------------------------------
 # Small vector helpers
 # ---------------------------------------------------------------------------------------------
@@ -67,25 +69,8 @@ def normalize(a):
 
 
 def look_rotation(eye, target, up=(0.0, 1.0, 0.0)):
-    """Quaternion (x, y, z, w) turning glTF's camera/light frame (looks down -Z, up +Y) to look at target."""
-    f = normalize(sub(target, eye))
-    r = normalize(cross(f, up))
-    u = cross(r, f)
-    m = [[r[0], u[0], -f[0]], [r[1], u[1], -f[1]], [r[2], u[2], -f[2]]]
-    tr = m[0][0] + m[1][1] + m[2][2]
-    if tr > 0:
-        s = math.sqrt(tr + 1.0) * 2
-        q = ((m[2][1] - m[1][2]) / s, (m[0][2] - m[2][0]) / s, (m[1][0] - m[0][1]) / s, 0.25 * s)
-    elif m[0][0] > m[1][1] and m[0][0] > m[2][2]:
-        s = math.sqrt(1.0 + m[0][0] - m[1][1] - m[2][2]) * 2
-        q = (0.25 * s, (m[0][1] + m[1][0]) / s, (m[0][2] + m[2][0]) / s, (m[2][1] - m[1][2]) / s)
-    elif m[1][1] > m[2][2]:
-        s = math.sqrt(1.0 + m[1][1] - m[0][0] - m[2][2]) * 2
-        q = ((m[0][1] + m[1][0]) / s, 0.25 * s, (m[1][2] + m[2][1]) / s, (m[0][2] - m[2][0]) / s)
-    else:
-        s = math.sqrt(1.0 + m[2][2] - m[0][0] - m[1][1]) * 2
-        q = ((m[0][2] + m[2][0]) / s, (m[1][2] + m[2][1]) / s, 0.25 * s, (m[1][0] - m[0][1]) / s)
-    return [round(c, 9) + 0.0 for c in q]
+    """Quaternion (x, y, z, w) turning glTF's camera/light frame to look at target (9 digits)."""
+    return cornell_to_gltf.look_rotation(eye, target, up, digits=9)
 
 
 # ---------------------------------------------------------------------------------------------

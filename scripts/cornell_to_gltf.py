@@ -119,8 +119,9 @@ def centroid(pts):
     return tuple(sum(c) / len(pts) for c in zip(*pts))
 
 
-def look_rotation(eye, target, up):
-    """Quaternion (x, y, z, w) turning glTF's camera frame (looks down -Z, up +Y) to look at target."""
+def look_rotation(eye, target, up=(0.0, 1.0, 0.0), digits=12):
+    """Quaternion (x, y, z, w) turning glTF's camera/light frame (looks down -Z, up +Y) to look at
+    target. Also used by author_scenes.py."""
     f = normalize(sub(target, eye))
     r = normalize(cross(f, up))
     u = cross(r, f)
@@ -140,7 +141,7 @@ def look_rotation(eye, target, up):
         s = math.sqrt(1.0 + m[2][2] - m[0][0] - m[1][1]) * 2
         q = ((m[0][2] + m[2][0]) / s, (m[1][2] + m[2][1]) / s, 0.25 * s, (m[1][0] - m[0][1]) / s)
     # Round away float noise so the file is stable and readable (e.g. exactly (0, 1, 0, 0)).
-    return [round(c, 12) + 0.0 for c in q]
+    return [round(c, digits) + 0.0 for c in q]
 
 
 def orient_faces(vertices, faces):
