@@ -141,6 +141,63 @@ fn interrupted_reference_resumes_to_the_same_image() {
     }
 }
 
+/// Pixel values of `a` and `b` agree to f32 rounding (a few ulps), attributes exactly.
+fn assert_equal_to_rounding(a: &Path, b: &Path) {
+    let (x, y) = (ExrChannels::read(a).unwrap(), ExrChannels::read(b).unwrap());
+    assert_eq!(x.attributes, y.attributes);
+    for c in ["R", "G", "B"] {
+        for (i, (u, v)) in x.channels[c].iter().zip(&y.channels[c]).enumerate() {
+            assert!((u - v).abs() <= 4.0 * f32::EPSILON * u.abs().max(v.abs()), "{c} pixel {i}: {u} vs {v}");
+        }
+    }
+}
+
+#[test]
+fn finished_reference_extends_to_a_one_shot_render() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    let run = |spp: &'static str, seed: &'static str, out: &'static str, extra: &[&'static str]| {
+        cvtrace(d, &[&["--log", "warn", "render", sp, "--reference", "--spp", spp, "--seed", seed, "-o", out][..], SMALL, extra].concat())
+    };
+    ok(&run("12", "3", "once.ref.exr", &[]));
+    ok(&run("8", "3", "grown.ref.exr", &[]));
+    let before = std::fs::read(d.join("grown.ref.exr")).unwrap();
+
+    // Nothing to extend, a different render, or no new samples: clear errors, file untouched.
+    let e = run("12", "3", "absent.ref.exr", &["--extend"]);
+    assert!(!e.status.success() && stderr(&e).contains("absent.ref.exr") && stderr(&e).contains("none"), "{}", stderr(&e));
+    let e = run("12", "4", "grown.ref.exr", &["--extend"]);
+    assert!(!e.status.success() && stderr(&e).contains("grown.ref.exr") && stderr(&e).contains("seed 3"), "{}", stderr(&e));
+    let e = run("8", "3", "grown.ref.exr", &["--extend"]);
+    assert!(!e.status.success() && stderr(&e).contains("already holds 8 spp"), "{}", stderr(&e));
+    let e = cvtrace(d, &[&["render", sp, "--spp", "8", "--batches", "2", "-o", "grown.ref.exr", "--extend"][..], SMALL].concat());
+    assert!(!e.status.success() && stderr(&e).contains("--reference"), "{}", stderr(&e));
+    assert_eq!(std::fs::read(d.join("grown.ref.exr")).unwrap(), before);
+
+    // Interrupted half-way, the extension keeps its exact checkpoint and the old file.
+    ok(&run("12", "3", "grown.ref.exr", &["--extend", "--pass-spp", "2", "--stop-after-passes", "1"]));
+    assert_eq!(std::fs::read(d.join("grown.ref.exr")).unwrap(), before);
+    let ckpt = ExrChannels::read(&d.join("grown.ref.checkpoint.exr")).unwrap();
+    assert_eq!(ckpt.attr("cvtrace.samplesDone"), Some(&AttrValue::Int(10)), "the 8 finished samples are continued, not redone");
+    ok(&run("12", "3", "grown.ref.exr", &["--extend"]));
+    assert!(!d.join("grown.ref.checkpoint.exr").exists());
+    assert_equal_to_rounding(&d.join("once.ref.exr"), &d.join("grown.ref.exr"));
+    assert_eq!(files_in(d), ["grown.ref.exr", "once.ref.exr"], "no temporary file is left");
+
+    // A reference from before scene hashes were recorded still extends, with a warning.
+    let mut old = ExrChannels::read(&d.join("grown.ref.exr")).unwrap();
+    old.attributes.retain(|k, _| k != "cvtrace.sceneHash" && k != "cvtrace.camera");
+    old.write(&d.join("old.ref.exr"), false).unwrap();
+    let out = cvtrace(d, &[&["render", sp, "--reference", "--spp", "16", "--seed", "3", "-o", "old.ref.exr", "--extend"][..], SMALL].concat());
+    ok(&out);
+    assert!(stderr(&out).contains("scene hash"), "{}", stderr(&out));
+    let grown = ExrChannels::read(&d.join("old.ref.exr")).unwrap();
+    assert_eq!(grown.attr("cvtrace.spp"), Some(&AttrValue::Int(16)));
+    assert!(grown.attr("cvtrace.sceneHash").is_some(), "the extended file records its scene hash");
+}
+
 #[test]
 fn bad_input_fails_clearly_and_leaves_no_file() {
     let dir = tempfile::tempdir().unwrap();

@@ -12,7 +12,7 @@ use anyhow::{bail, Context, Result};
 use cvtrace::{set_flush_denormals, EmbreeScene};
 use cvtrace_render::{render_reference_pass, render_streams, Camera, ReferenceAccum, RenderDefaults, RenderSettings, Scene};
 use cvtrace_streams::atomic::check_writable;
-use cvtrace_streams::exr_io::{write_rgb, AttrValue, ExrChannels};
+use cvtrace_streams::exr_io::{take_rgb, write_rgb, AttrValue, ExrChannels};
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::{Path, PathBuf};
@@ -56,6 +56,11 @@ pub struct RenderArgs {
     /// Replace an existing output file.
     #[arg(long)]
     pub force: bool,
+    /// With --reference: continue the finished reference at --output (same scene, seed and
+    /// settings) up to --spp samples and replace it. The samples continue its sequence, so the
+    /// result equals a one-shot render of --spp to f32 rounding (the file keeps means, not sums).
+    #[arg(long, requires = "reference")]
+    pub extend: bool,
     /// Testing aid: with --reference, stop (keeping the checkpoint) after this many passes.
     #[arg(long, hide = true)]
     pub stop_after_passes: Option<u32>,
@@ -101,7 +106,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
     provisional.spp = args.spp.unwrap_or(batches);
     provisional.validate()?;
     let camera_override = args.view.camera.as_deref().map(parse_camera).transpose()?;
-    check_writable(&args.output, args.force)?;
+    if args.extend && !args.output.is_file() {
+        bail!("{}: --extend continues a finished reference, and there is none at this path", args.output.display());
+    }
+    check_writable(&args.output, args.force || args.extend)?;
     let checkpoint = checkpoint_path(&args.output);
     if args.reference {
         if checkpoint.is_dir() {
@@ -184,9 +192,15 @@ fn render_reference(
     pool: &rayon::ThreadPool,
 ) -> Result<()> {
     let identity = CheckpointIdentity::new(scene, s);
+    // An interrupted extension left a checkpoint, which is exact: it comes first.
     let mut accum = match load_checkpoint(checkpoint, &identity)? {
         Some(a) => {
             tracing::info!("resuming from {} at {} of {} spp", checkpoint.display(), a.samples_done, s.spp);
+            a
+        }
+        None if args.extend => {
+            let a = load_finished_reference(&args.output, &identity, s)?;
+            tracing::info!("extending {} from {} to {} spp", args.output.display(), a.samples_done, s.spp);
             a
         }
         None => ReferenceAccum::new(s),
@@ -243,16 +257,15 @@ fn render_reference(
     log_rate("render", pixels * (accum.samples_done - start_samples) as u64, t);
 
     let t = Instant::now();
-    let attributes = [
+    // The identity (scene hash and camera included) lets a later --extend check what it continues.
+    let mut attributes = identity.attributes();
+    attributes.retain(|(k, _)| *k != CKPT_KIND.0);
+    attributes.extend([
         ("cvtrace.spp", AttrValue::Int(accum.samples_done as i32)),
-        ("cvtrace.seed", AttrValue::Text(s.seed.to_string())),
-        ("cvtrace.maxDepth", AttrValue::Int(s.max_depth)),
-        ("cvtrace.rrDepth", AttrValue::Int(s.rr_depth as i32)),
         ("cvtrace.scene", AttrValue::Text(args.scene.to_string_lossy().into_owned())),
-        ("cvtrace.version", AttrValue::Text(env!("CARGO_PKG_VERSION").to_string())),
         ("cvtrace.nonFiniteSamples", AttrValue::Text(accum.non_finite_samples.to_string())),
-    ];
-    if let Err(e) = write_rgb(&args.output, &accum.mean(), &attributes, args.force) {
+    ]);
+    if let Err(e) = write_rgb(&args.output, &accum.mean(), &attributes, args.force || args.extend) {
         // Keep the finished work: the next run with the same settings only has to write.
         let _ = save_checkpoint(checkpoint, &accum, &identity);
         return Err(e.into());
@@ -287,6 +300,8 @@ struct CheckpointIdentity {
 }
 
 const CKPT_KIND: (&str, &str) = ("cvtrace.checkpoint", "reference-v1");
+/// Stands for a scene hash or camera that an older finished reference did not record.
+const UNRECORDED: &str = "unrecorded";
 
 impl CheckpointIdentity {
     fn new(scene: &Scene, s: &RenderSettings) -> Self {
@@ -314,17 +329,30 @@ impl CheckpointIdentity {
         ]
     }
 
-    fn from_file(ch: &ExrChannels, path: &Path) -> Result<Self> {
+    /// The identity stored in a checkpoint, or (`finished`) in a finished reference, whose
+    /// scene hash and camera may be missing: references written before cvtrace recorded them
+    /// get `unrecorded` there.
+    fn from_file(ch: &ExrChannels, path: &Path, finished: bool) -> Result<Self> {
+        let what = if finished { "reference" } else { "checkpoint" };
         let text = |k: &str| -> Result<String> {
-            ch.attr(k).map(|v| v.as_text()).with_context(|| format!("{}: checkpoint lacks the attribute {k}", path.display()))
+            ch.attr(k).map(|v| v.as_text()).with_context(|| format!("{}: {what} lacks the attribute {k}", path.display()))
         };
-        if text(CKPT_KIND.0)? != CKPT_KIND.1 {
+        let optional = |k: &str| -> Result<String> {
+            match ch.attr(k) {
+                None if finished => Ok(UNRECORDED.to_string()),
+                _ => text(k),
+            }
+        };
+        if !finished && text(CKPT_KIND.0)? != CKPT_KIND.1 {
             bail!("{}: not a cvtrace {} checkpoint", path.display(), CKPT_KIND.1);
+        }
+        if finished && ch.attr(CKPT_KIND.0).is_some() {
+            bail!("{}: this is a checkpoint, not a finished reference", path.display());
         }
         let version = text("cvtrace.version")?;
         if version != env!("CARGO_PKG_VERSION") {
             bail!(
-                "{}: checkpoint written by cvtrace {version}, this is {}; delete it to start over",
+                "{}: {what} written by cvtrace {version}, this is {}; its samples may differ from this version's",
                 path.display(),
                 env!("CARGO_PKG_VERSION")
             );
@@ -338,17 +366,18 @@ impl CheckpointIdentity {
             seed: text("cvtrace.seed")?.parse().with_context(|| format!("{}: bad cvtrace.seed", path.display()))?,
             max_depth: parse("cvtrace.maxDepth")? as i32,
             rr_depth: parse("cvtrace.rrDepth")? as u32,
-            scene_hash: text("cvtrace.sceneHash")?,
-            camera: text("cvtrace.camera")?,
+            scene_hash: optional("cvtrace.sceneHash")?,
+            camera: optional("cvtrace.camera")?,
         })
     }
 
-    /// Human-readable differences, for the mismatch error.
-    fn differences(&self, other: &Self) -> Vec<String> {
-        let mut d = Vec::new();
-        let mut cmp = |what: &str, a: String, b: String| {
-            if a != b {
-                d.push(format!("{what} {b} (checkpoint) vs {a} (now)"));
+    /// Human-readable differences from `saved` (a `what` file), for the mismatch error.
+    /// An unrecorded value in `saved` is not a difference (see [`Self::from_file`]).
+    fn differences(&self, saved: &Self, what: &str) -> Vec<String> {
+        let (other, mut d) = (saved, Vec::new());
+        let mut cmp = |what_differs: &str, a: String, b: String| {
+            if a != b && b != UNRECORDED {
+                d.push(format!("{what_differs} {b} ({what}) vs {a} (now)"));
             }
         };
         cmp("size", format!("{}x{}", self.width, self.height), format!("{}x{}", other.width, other.height));
@@ -398,8 +427,8 @@ fn load_checkpoint(path: &Path, identity: &CheckpointIdentity) -> Result<Option<
         return Ok(None);
     }
     let mut ch = ExrChannels::read(path)?;
-    let saved = CheckpointIdentity::from_file(&ch, path)?;
-    let diff = identity.differences(&saved);
+    let saved = CheckpointIdentity::from_file(&ch, path, false)?;
+    let diff = identity.differences(&saved, "checkpoint");
     if !diff.is_empty() {
         bail!(
             "{}: checkpoint of a different render ({}); render with its settings to resume, or delete it to start over",
@@ -439,6 +468,34 @@ fn load_checkpoint(path: &Path, identity: &CheckpointIdentity) -> Result<Option<
         rr_depth: identity.rr_depth,
         non_finite_samples,
     }))
+}
+
+/// The accumulator of the finished reference at `path`, to be extended: its identity must
+/// match this render's, and it must hold fewer samples than `s.spp`.
+fn load_finished_reference(path: &Path, identity: &CheckpointIdentity, s: &RenderSettings) -> Result<ReferenceAccum> {
+    let mut ch = ExrChannels::read(path)?;
+    let saved = CheckpointIdentity::from_file(&ch, path, true)?;
+    let diff = identity.differences(&saved, "reference");
+    if !diff.is_empty() {
+        bail!("{}: --extend: the reference is of a different render ({})", path.display(), diff.join(", "));
+    }
+    if saved.scene_hash == UNRECORDED || saved.camera == UNRECORDED {
+        tracing::warn!(
+            "{}: written before references recorded their scene hash and camera; trusting that the scene is unchanged",
+            path.display()
+        );
+    }
+    let done = match ch.attr("cvtrace.spp") {
+        Some(AttrValue::Int(n)) if *n > 0 => *n as u32,
+        _ => bail!("{}: reference lacks a valid cvtrace.spp", path.display()),
+    };
+    if done >= s.spp {
+        bail!("{}: --extend: the reference already holds {done} spp; ask for more with --spp (now {})", path.display(), s.spp);
+    }
+    let mean = take_rgb(&mut ch, path, "")?;
+    let mut accum = ReferenceAccum::from_mean(s, &mean, done)?;
+    accum.non_finite_samples = ch.attr("cvtrace.nonFiniteSamples").and_then(|v| v.as_text().parse().ok()).unwrap_or(0);
+    Ok(accum)
 }
 
 /// FNV-1a over the scene's debug form: any change in geometry, materials, textures, lights or
@@ -590,6 +647,7 @@ mod tests {
             reference,
             pass_spp: 64,
             force: false,
+            extend: false,
             stop_after_passes: None,
         };
         let d = RenderDefaults { spp: Some(96), reference_spp: Some(8192), max_depth: Some(7), rr_depth: Some(3), ..Default::default() };

@@ -337,6 +337,7 @@ fn render_args(args: &StudyArgs, spp: u32, batches: Option<u32>, seed: u64, outp
         reference,
         pass_spp: if reference { spp.clamp(1, 256) } else { 64 },
         force: true,
+        extend: false,
         stop_after_passes: None,
     }
 }
