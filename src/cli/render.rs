@@ -352,9 +352,10 @@ impl CheckpointIdentity {
         let version = text("cvtrace.version")?;
         if version != env!("CARGO_PKG_VERSION") {
             bail!(
-                "{}: {what} written by cvtrace {version}, this is {}; its samples may differ from this version's",
+                "{}: {what} written by cvtrace {version}, this is {}, whose samples may differ; {}",
                 path.display(),
-                env!("CARGO_PKG_VERSION")
+                env!("CARGO_PKG_VERSION"),
+                if finished { "render a new reference" } else { "delete it to start over" }
             );
         }
         let parse = |k: &str| -> Result<i64> {
@@ -374,18 +375,18 @@ impl CheckpointIdentity {
     /// Human-readable differences from `saved` (a `what` file), for the mismatch error.
     /// An unrecorded value in `saved` is not a difference (see [`Self::from_file`]).
     fn differences(&self, saved: &Self, what: &str) -> Vec<String> {
-        let (other, mut d) = (saved, Vec::new());
+        let mut d = Vec::new();
         let mut cmp = |what_differs: &str, a: String, b: String| {
             if a != b && b != UNRECORDED {
                 d.push(format!("{what_differs} {b} ({what}) vs {a} (now)"));
             }
         };
-        cmp("size", format!("{}x{}", self.width, self.height), format!("{}x{}", other.width, other.height));
-        cmp("seed", self.seed.to_string(), other.seed.to_string());
-        cmp("max depth", self.max_depth.to_string(), other.max_depth.to_string());
-        cmp("rr depth", self.rr_depth.to_string(), other.rr_depth.to_string());
-        cmp("scene hash", self.scene_hash.clone(), other.scene_hash.clone());
-        cmp("camera", self.camera.clone(), other.camera.clone());
+        cmp("size", format!("{}x{}", self.width, self.height), format!("{}x{}", saved.width, saved.height));
+        cmp("seed", self.seed.to_string(), saved.seed.to_string());
+        cmp("max depth", self.max_depth.to_string(), saved.max_depth.to_string());
+        cmp("rr depth", self.rr_depth.to_string(), saved.rr_depth.to_string());
+        cmp("scene hash", self.scene_hash.clone(), saved.scene_hash.clone());
+        cmp("camera", self.camera.clone(), saved.camera.clone());
         d
     }
 }
