@@ -1,9 +1,9 @@
 //! The bundled scenes: every folder in `scenes/` loads and renders a few samples at its own
 //! resolution without warnings, stays small, documents its origin, and its committed reference
-//! (if any) has the scene's resolution.
+//! (if any) has the scene's resolution and is what its recorded command renders (spp, seed).
 mod common;
 use common::{cvtrace, ok, stderr};
-use cvtrace_streams::exr_io::ExrChannels;
+use cvtrace_streams::exr_io::{AttrValue, ExrChannels};
 use cvtrace_streams::StreamSet;
 use std::path::{Path, PathBuf};
 
@@ -67,7 +67,16 @@ fn every_scene_loads_and_renders_a_few_samples() {
         if reference.is_file() {
             let r = ExrChannels::read(&reference).unwrap();
             assert_eq!((r.width, r.height), (set.width, set.height), "{name}: the reference's size differs from the scene's");
-            assert!(r.attr("cvtrace.spp").is_some(), "{name}: the reference does not record its spp");
+            // The reference is what the command in SOURCE.md renders: the sidecar's reference_spp, that seed.
+            let spp = match r.attr("cvtrace.spp") {
+                Some(AttrValue::Int(n)) => *n as u32,
+                other => panic!("{name}: the reference does not record its spp ({other:?})"),
+            };
+            let scene = cvtrace_render::Scene::load(file).unwrap();
+            assert_eq!(scene.render_defaults().reference_spp, Some(spp), "{name}: sidecar reference_spp vs the reference's spp");
+            let seed = r.attr("cvtrace.seed").map(|v| v.as_text()).unwrap_or_default();
+            let source = std::fs::read_to_string(dir.join("SOURCE.md")).unwrap();
+            assert!(source.contains(&format!("--seed {seed} ")), "{name}: SOURCE.md does not give the reference's seed {seed}");
         }
     }
 }
