@@ -29,6 +29,11 @@ VARIANTS = [
     ("floor common 1 crn", ["--crn-floor", "1", "--crn-floor-source", "crn"]),
     ("floor independent 1", ["--crn-floor", "1", "--crn-floor-mode", "independent"]),
     ("cross-fit", ["--cross-fit"]),
+    # The cross-bilateral filter behind the PT error estimates (--errors cbf).
+    ("cbf exclude centre", ["--cbf-exclude-centre"]),
+    ("cbf radius 2", ["--cbf-radius", "2"]), ("cbf radius 5", ["--cbf-radius", "5"]), ("cbf radius 7", ["--cbf-radius", "7"]),
+    ("cbf sigma colour 0.1", ["--cbf-sigma-colour", "0.1"]), ("cbf sigma colour 0.5", ["--cbf-sigma-colour", "0.5"]),
+    ("cbf sigma albedo 0.3", ["--cbf-sigma-albedo", "0.3"]), ("cbf sigma normal 0.5", ["--cbf-sigma-normal", "0.5"]),
 ]
 
 

@@ -52,6 +52,10 @@ fn reconstruct_all_then_compare_ranks_against_the_reference() {
     assert!(rel("average") < rel("pt"), "average {} vs pt {}", rel("average"), rel("pt"));
     assert!(std::fs::read_to_string(d.join("cmp.csv")).unwrap().lines().count() >= 4);
 
+    // The PT error filter's options reach the estimator: leaving the centre out changes `ours`.
+    ok(&cvtrace(d, &["--log", "warn", "reconstruct", "s.streams.exr", "--method", "ours", "--cbf-exclude-centre", "-o", "excl.exr"]));
+    assert_ne!(read_rgb(&d.join("excl.exr")).unwrap(), read_rgb(&d.join("out/ours.exr")).unwrap());
+
     // Outputs are not overwritten without --force.
     let again = cvtrace(d, &["reconstruct", "s.streams.exr", "--method", "ours", "-o", "out/ours.exr"]);
     assert!(!again.status.success() && stderr(&again).contains("--force"), "{}", stderr(&again));
@@ -66,8 +70,10 @@ fn reconstruct_rejects_bad_inputs_with_the_file_named() {
     let s = scene();
     let small = ["--log", "warn", "render", s.to_str().unwrap(), "--reference", "--spp", "4", "--width", "16", "--height", "16", "-o", "small.exr"];
     ok(&cvtrace(d, &small));
-    let cases: [(&[&str], &str); 5] = [
+    let cases: [(&[&str], &str); 7] = [
         (&["reconstruct", "missing.streams.exr", "-o", "x.exr"], "missing.streams.exr"),
+        (&["reconstruct", "s.streams.exr", "--method", "ours", "--cbf-radius", "99", "-o", "x.exr"], "cbf-radius"),
+        (&["reconstruct", "s.streams.exr", "--method", "ours", "--cbf-sigma-colour", "0", "-o", "x.exr"], "cbf-sigma-colour"),
         (&["reconstruct", "s.streams.exr", "--reference", "small.exr", "-o", "x.exr"], "small.exr"),
         (&["reconstruct", "s.streams.exr", "--method", "ours", "--errors", "oracle", "-o", "x.exr"], "reference"),
         (&["reconstruct", "s.streams.exr", "--method", "bilateral", "-o", "x.exr"], "bilateral"),

@@ -71,6 +71,22 @@ pub struct EstimatorArgs {
     /// ours: estimate β on one half of the CRN batches and apply it to the other half (and vice versa).
     #[arg(long)]
     pub cross_fit: bool,
+    /// ours, --errors cbf: radius in pixels of the cross-bilateral filter of the PT variances.
+    #[arg(long)]
+    pub cbf_radius: Option<usize>,
+    /// ours, --errors cbf: tolerance of the filter's relative CRN colour difference.
+    #[arg(long)]
+    pub cbf_sigma_colour: Option<f32>,
+    /// ours, --errors cbf: tolerance of the filter's albedo difference.
+    #[arg(long)]
+    pub cbf_sigma_albedo: Option<f32>,
+    /// ours, --errors cbf: tolerance of the filter's shading-normal difference.
+    #[arg(long)]
+    pub cbf_sigma_normal: Option<f32>,
+    /// ours, --errors cbf: leave a pixel's own variance out of its estimate (kept by default, so
+    /// that a firefly pixel is not trusted; docs/estimators.md).
+    #[arg(long)]
+    pub cbf_exclude_centre: bool,
     /// cv: ridge, relative to the mean diagonal of V_g.
     #[arg(long)]
     pub cv_ridge: Option<f64>,
@@ -122,6 +138,22 @@ impl EstimatorArgs {
         }
         if self.cross_fit {
             o.ours.cross_fit = true;
+        }
+        let cbf = &mut o.ours.cbf;
+        if let Some(r) = self.cbf_radius {
+            cbf.radius = r;
+        }
+        if let Some(v) = self.cbf_sigma_colour {
+            cbf.sigma_colour = v;
+        }
+        if let Some(v) = self.cbf_sigma_albedo {
+            cbf.sigma_albedo = v;
+        }
+        if let Some(v) = self.cbf_sigma_normal {
+            cbf.sigma_normal = v;
+        }
+        if self.cbf_exclude_centre {
+            cbf.exclude_centre = true;
         }
         if let Some(r) = self.cv_ridge {
             o.cv.ridge = r;

@@ -102,7 +102,7 @@ fn main() {
     for sc in [0.1f32, 0.25, 0.5, 1.0] {
         add("cbf", format!("σ_colour {sc}"), 16, ours(move |o| o.cbf.sigma_colour = sc));
     }
-    add("cbf", "centre included".into(), 16, ours(|o| o.cbf.exclude_centre = false));
+    add("cbf", "centre left out".into(), 16, ours(|o| o.cbf.exclude_centre = true));
     for w in [7usize, 11, 15, 21] {
         add(
             "iduw",
