@@ -333,7 +333,7 @@ class MeshBuilder:
 
 
 # Samples per pixel of each committed reference (scene.ref.exr), recorded as the scene's default.
-REFERENCE_SPP = {"sponza": 4096, "engine": 6144, "head": 12288, "teapots": 10240}
+REFERENCE_SPP = {"sponza": 6144, "engine": 6144, "head": 16384, "teapots": 20480}
 
 
 def write_sidecar(out_dir, scene, environment=None, comment=None):
