@@ -85,11 +85,12 @@ fn every_scene_loads_and_renders_a_few_samples() {
 const SEEDS: usize = 2;
 /// Upper bound on the mean over [`SEEDS`] of relMSE(ours) / relMSE(PT(2n)) at 16 + 16 spp
 /// against the committed references. Measured per scene over 6 seeds (docs/results.md, "The CI
-/// check"): mean / worst seed — cornell-box 0.198 / 0.212, door-ajar 0.075 / 0.109,
-/// glass-of-water 0.116 / 0.177, head 0.115 / 0.142, engine 0.336 / 0.390, teapots 0.352 / 0.686,
-/// glossy-room 0.091 / 0.156; the worst mean of two consecutive seeds was 0.537 (teapots). 0.75 leaves room for seed noise yet fails if `ours` stops clearly beating a
-/// PT render of equal cost. (At 8 + 8 spp one teapots seed lost to PT(2n): 1 sample per batch is
-/// too few for the covariance estimates when caustics make fireflies.)
+/// check"): mean / worst seed — cornell-box 0.193 / 0.209, door-ajar 0.047 / 0.055, engine
+/// 0.285 / 0.297, glass-of-water 0.043 / 0.071, glossy-room 0.043 / 0.067, head 0.091 / 0.112,
+/// sponza 0.326 / 0.345, teapots 0.111 / 0.160; the worst mean of two consecutive seeds was 0.340
+/// (sponza). 0.75 leaves room for seed noise yet fails if `ours` stops clearly beating a PT
+/// render of equal cost. (Before the PT error filter kept each pixel's own variance, one teapots
+/// seed lost to PT(2n) at 8 + 8 spp: 1 sample per batch is too few when caustics make fireflies.)
 const MAX_RATIO: f64 = 0.75;
 
 #[test]
