@@ -143,3 +143,45 @@ fn one_scene_serves_many_threads() {
     // The scene can also move to another thread and be dropped there.
     std::thread::spawn(move || drop(s)).join().unwrap();
 }
+
+/// Rays from inside a closed box aimed exactly at its shared edges (face diagonals and box
+/// edges): the case where a non-watertight triangle test lets rays slip between two triangles.
+/// Returns how many of `n` such rays miss the box.
+fn leaks_through_shared_edges(robust: bool, n: usize) -> usize {
+    let (lo, hi) = (Vec3::new(-0.7, -0.9, -0.3), Vec3::new(1.3, 1.1, 1.7));
+    let corner = |i: usize| Vec3::new([lo.x, hi.x][i & 1], [lo.y, hi.y][(i >> 1) & 1], [lo.z, hi.z][(i >> 2) & 1]);
+    let positions: Vec<Vec3> = (0..8).map(corner).collect();
+    let faces = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]];
+    let triangles: Vec<[u32; 3]> = faces.iter().flat_map(|&[a, b, c, d]| [[a, b, c], [a, c, d]]).collect();
+    let device = Device::new().unwrap();
+    let scene = device.build_scene(&positions, &triangles, &BuildOptions { robust, ..BuildOptions::default() }).unwrap();
+    let mut state = 0x9E37_79B9_7F4A_7C15u64;
+    let mut next = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let mut misses = 0;
+    for _ in 0..n {
+        let origin = lo + (hi - lo) * Vec3::new(0.2 + 0.6 * next(), 0.2 + 0.6 * next(), 0.2 + 0.6 * next());
+        let [a, b, c, _] = faces[(next() * 6.0) as usize % 6];
+        let t = next();
+        // Half the targets on the diagonal a–c shared by the face's two triangles, half on its
+        // edge a–b shared with the neighbouring face.
+        let target = if next() < 0.5 { corner(a as usize).lerp(corner(c as usize), t) } else { corner(a as usize).lerp(corner(b as usize), t) };
+        if scene.intersect(&ray(origin, target - origin)).is_none() {
+            misses += 1;
+        }
+    }
+    misses
+}
+
+#[test]
+fn robust_traversal_is_watertight_at_shared_edges() {
+    let n = 200_000;
+    let fast = leaks_through_shared_edges(false, n);
+    let robust = leaks_through_shared_edges(true, n);
+    eprintln!("rays aimed at shared edges of a closed box that miss it: robust {robust}, fast {fast} of {n}");
+    assert_eq!(robust, 0, "robust traversal let {robust} of {n} rays through shared edges (fast: {fast})");
+}

@@ -254,3 +254,43 @@ fn existing_output_is_kept_unless_forced() {
     assert!(StreamSet::read(&d.join("mine.streams.exr")).is_ok());
     assert_eq!(files_in(d), ["mine.streams.exr"], "no temporary file is left");
 }
+
+#[test]
+fn traversal_is_recorded_and_guards_extension() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    let stream = |out: &str, extra: &[&str]| {
+        cvtrace(d, &[&["--log", "warn", "render", sp, "--spp", "4", "--batches", "2", "--seed", "5", "-o", out][..], SMALL, extra].concat())
+    };
+    ok(&stream("robust.streams.exr", &[]));
+    ok(&stream("fast.streams.exr", &["--traversal", "fast"]));
+    let traversal = |f: &str| StreamSet::read(&d.join(f)).unwrap().meta.settings.get("traversal").cloned();
+    assert_eq!(traversal("robust.streams.exr").as_deref(), Some("robust"), "robust is the default");
+    assert_eq!(traversal("fast.streams.exr").as_deref(), Some("fast"));
+    // Both trace the same scene: the images agree to Monte Carlo noise (same seed).
+    let (a, b) = (StreamSet::read(&d.join("robust.streams.exr")).unwrap(), StreamSet::read(&d.join("fast.streams.exr")).unwrap());
+    let mean = |im: &cvtrace_streams::Image| im.pixels.iter().map(|p| (p[0] + p[1] + p[2]) as f64).sum::<f64>() / im.len() as f64;
+    let (ma, mb) = (mean(&a.pt.mean), mean(&b.pt.mean));
+    assert!((ma - mb).abs() < 0.02 * ma, "image means {ma} (robust) vs {mb} (fast)");
+
+    let e = stream("x.streams.exr", &["--traversal", "sloppy"]);
+    assert!(!e.status.success() && stderr(&e).contains("sloppy") && stderr(&e).contains("robust"), "{}", stderr(&e));
+
+    // A reference keeps its traversal, and --extend refuses to continue it with the other one.
+    let reference = |spp: &str, extra: &[&str]| {
+        cvtrace(d, &[&["--log", "warn", "render", sp, "--reference", "--spp", spp, "--seed", "5", "-o", "r.ref.exr"][..], SMALL, extra].concat())
+    };
+    ok(&reference("4", &[]));
+    assert_eq!(ExrChannels::read(&d.join("r.ref.exr")).unwrap().attr("cvtrace.traversal"), Some(&AttrValue::Text("robust".into())));
+    let e = reference("8", &["--extend", "--traversal", "fast"]);
+    assert!(!e.status.success() && stderr(&e).contains("traversal robust"), "{}", stderr(&e));
+    // A reference from before the traversal was recorded was traced robustly.
+    let mut old = ExrChannels::read(&d.join("r.ref.exr")).unwrap();
+    old.attributes.remove("cvtrace.traversal");
+    old.write(&d.join("r.ref.exr"), true).unwrap();
+    ok(&reference("8", &["--extend"]));
+    let e = reference("12", &["--extend", "--traversal", "fast"]);
+    assert!(!e.status.success() && stderr(&e).contains("traversal"), "{}", stderr(&e));
+}

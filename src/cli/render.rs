@@ -9,7 +9,7 @@
 //! only), then the built-in defaults.
 //! Outputs are written atomically: an error or interruption never leaves a partial file.
 use anyhow::{bail, Context, Result};
-use cvtrace::{set_flush_denormals, EmbreeScene};
+use cvtrace::{set_flush_denormals, BuildOptions, Device, EmbreeScene};
 use cvtrace_render::{render_reference_pass, render_streams, Camera, ReferenceAccum, RenderDefaults, RenderSettings, Scene};
 use cvtrace_streams::atomic::check_writable;
 use cvtrace_streams::exr_io::{take_rgb, write_rgb, AttrValue, ExrChannels};
@@ -87,7 +87,34 @@ pub struct ViewArgs {
     /// Override the scene camera: "ex,ey,ez:tx,ty,tz:vfov_degrees" (eye, target, vertical FOV; up stays).
     #[arg(long, value_name = "EYE:TARGET:FOV")]
     pub camera: Option<String>,
+    /// Embree traversal: `robust` is watertight where triangles share an edge; `fast` (Embree's
+    /// and Mitsuba 3's default) is quicker but lets rays that graze a shared edge through
+    /// (docs/performance.md has both figures).
+    #[arg(long, value_enum, default_value_t = Traversal::Robust)]
+    pub traversal: Traversal,
 }
+
+/// How Embree intersects triangles (see [`ViewArgs::traversal`]).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Traversal {
+    Robust,
+    Fast,
+}
+
+impl Traversal {
+    /// The name recorded in output files (`cvtrace.traversal`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Traversal::Robust => "robust",
+            Traversal::Fast => "fast",
+        }
+    }
+}
+
+/// The stream-file setting and the reference's header attribute naming the traversal. Files
+/// without it come from versions that only traced robustly.
+const SETTING_TRAVERSAL: &str = "traversal";
+const ATTR_TRAVERSAL: &str = "cvtrace.traversal";
 
 pub fn run(args: RenderArgs) -> Result<()> {
     // Cheap checks first: flags, then whether the output can be written at all.
@@ -141,7 +168,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
     let settings = resolve_settings(&args, batches, scene.render_defaults(), size);
     settings.validate().with_context(|| format!("{}: settings from the command line and the scene", args.scene.display()))?;
 
-    let tracer = EmbreeScene::build(scene.positions(), scene.triangles()).context("building the Embree BVH")?;
+    let build = BuildOptions { robust: args.view.traversal == Traversal::Robust, ..BuildOptions::default() };
+    let tracer = Device::new()
+        .and_then(|device| device.build_scene(scene.positions(), scene.triangles(), &build))
+        .context("building the Embree BVH")?;
     // FTZ/DAZ in every render thread (Embree's advice), whatever the thread count: a local
     // pool of the configured size (the global one follows --threads) with a start handler.
     let pool = rayon::ThreadPoolBuilder::new()
@@ -177,6 +207,7 @@ fn render_stream_file(args: &RenderArgs, scene: &Scene, tracer: &EmbreeScene, s:
     let mut set = result?;
     log_rate("render", total, t);
     set.meta.scene = args.scene.to_string_lossy().into_owned();
+    set.meta.settings.insert(SETTING_TRAVERSAL.into(), args.view.traversal.name().into());
     let t = Instant::now();
     set.write(&args.output, args.force)?;
     tracing::info!("wrote {} in {:.1} ms", args.output.display(), ms(t));
@@ -191,7 +222,7 @@ fn render_reference(
     checkpoint: &Path,
     pool: &rayon::ThreadPool,
 ) -> Result<()> {
-    let identity = CheckpointIdentity::new(scene, s);
+    let identity = CheckpointIdentity::new(scene, s, args.view.traversal);
     // An interrupted extension left a checkpoint, which is exact: it comes first.
     let mut accum = match load_checkpoint(checkpoint, &identity)? {
         Some(a) => {
@@ -297,6 +328,8 @@ struct CheckpointIdentity {
     /// Hash of the loaded scene (geometry, materials, textures, lights, final camera).
     scene_hash: String,
     camera: String,
+    /// [`Traversal::name`]: a leak through an edge changes a sample.
+    traversal: String,
 }
 
 const CKPT_KIND: (&str, &str) = ("cvtrace.checkpoint", "reference-v1");
@@ -304,7 +337,7 @@ const CKPT_KIND: (&str, &str) = ("cvtrace.checkpoint", "reference-v1");
 const UNRECORDED: &str = "unrecorded";
 
 impl CheckpointIdentity {
-    fn new(scene: &Scene, s: &RenderSettings) -> Self {
+    fn new(scene: &Scene, s: &RenderSettings, traversal: Traversal) -> Self {
         let c = scene.camera();
         CheckpointIdentity {
             width: s.width,
@@ -314,6 +347,7 @@ impl CheckpointIdentity {
             rr_depth: s.rr_depth,
             scene_hash: format!("{:016x}", scene_hash(scene)),
             camera: format!("eye {} target {} up {} vfov {}", c.eye, c.target, c.up, c.vfov_deg),
+            traversal: traversal.name().into(),
         }
     }
 
@@ -325,6 +359,7 @@ impl CheckpointIdentity {
             ("cvtrace.rrDepth", AttrValue::Int(self.rr_depth as i32)),
             ("cvtrace.sceneHash", AttrValue::Text(self.scene_hash.clone())),
             ("cvtrace.camera", AttrValue::Text(self.camera.clone())),
+            (ATTR_TRAVERSAL, AttrValue::Text(self.traversal.clone())),
             ("cvtrace.version", AttrValue::Text(env!("CARGO_PKG_VERSION").into())),
         ]
     }
@@ -369,6 +404,7 @@ impl CheckpointIdentity {
             rr_depth: parse("cvtrace.rrDepth")? as u32,
             scene_hash: optional("cvtrace.sceneHash")?,
             camera: optional("cvtrace.camera")?,
+            traversal: ch.attr(ATTR_TRAVERSAL).map_or_else(|| Traversal::Robust.name().to_string(), |v| v.as_text()),
         })
     }
 
@@ -387,6 +423,7 @@ impl CheckpointIdentity {
         cmp("rr depth", self.rr_depth.to_string(), saved.rr_depth.to_string());
         cmp("scene hash", self.scene_hash.clone(), saved.scene_hash.clone());
         cmp("camera", self.camera.clone(), saved.camera.clone());
+        cmp("traversal", self.traversal.clone(), saved.traversal.clone());
         d
     }
 }
@@ -611,7 +648,7 @@ mod tests {
     }
 
     fn view(width: Option<u32>, height: Option<u32>) -> ViewArgs {
-        ViewArgs { width, height, max_depth: None, rr_depth: None, camera: None }
+        ViewArgs { width, height, max_depth: None, rr_depth: None, camera: None, traversal: Traversal::Robust }
     }
 
     #[test]

@@ -226,6 +226,7 @@ impl SoftShadowScene {
                 scene: "synthetic:soft-shadow".into(),
                 version: env!("CARGO_PKG_VERSION").into(),
                 non_finite_samples: 0,
+                ..Default::default()
             },
         })
     }

@@ -229,6 +229,7 @@ pub fn render_streams<T: Intersector>(
             scene: String::new(),
             version: env!("CARGO_PKG_VERSION").to_string(),
             non_finite_samples: non_finite,
+            settings: Default::default(),
         },
     })
 }

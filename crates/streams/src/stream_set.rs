@@ -1,6 +1,7 @@
 //! The in-memory stream set and its file form (see `docs/stream-format.md`).
 use crate::exr_io::{put_rgb, take_rgb, AttrValue, ExrChannels};
 use crate::{Image, StreamError};
+use std::collections::BTreeMap;
 use std::path::Path;
 
 /// One sample stream: the mean of all `n` samples and `B` batch means over fixed,
@@ -38,6 +39,10 @@ pub struct StreamMeta {
     pub version: String,
     /// Samples that were NaN or infinite, replaced by zero, over both streams.
     pub non_finite_samples: u64,
+    /// Renderer settings that shaped the samples beyond the fields above (cvtrace records
+    /// `traversal`), stored as `cvtrace.<key>` text attributes; other `cvtrace.*` text
+    /// attributes of a file read back land here too.
+    pub settings: BTreeMap<String, String>,
 }
 
 /// Two paired renders of the same image plus features: the input of every estimator.
@@ -58,6 +63,8 @@ const ATTR_MAX_DEPTH: &str = "cvtrace.maxDepth";
 const ATTR_SCENE: &str = "cvtrace.scene";
 const ATTR_VERSION: &str = "cvtrace.version";
 const ATTR_NON_FINITE: &str = "cvtrace.nonFiniteSamples";
+const KNOWN_ATTRS: [&str; 7] = [ATTR_SPP, ATTR_BATCHES, ATTR_SEED, ATTR_MAX_DEPTH, ATTR_SCENE, ATTR_VERSION, ATTR_NON_FINITE];
+const ATTR_PREFIX: &str = "cvtrace.";
 
 /// Channel prefix of batch `b` of `stream` ("pt" or "crn"), e.g. `pt.b03.`.
 pub fn batch_prefix(stream: &str, b: usize) -> String {
@@ -137,6 +144,9 @@ impl StreamSet {
         a.insert(ATTR_SCENE.into(), AttrValue::Text(m.scene.clone()));
         a.insert(ATTR_VERSION.into(), AttrValue::Text(m.version.clone()));
         a.insert(ATTR_NON_FINITE.into(), AttrValue::Text(m.non_finite_samples.to_string()));
+        for (k, v) in &m.settings {
+            a.insert(format!("{ATTR_PREFIX}{k}"), AttrValue::Text(v.clone()));
+        }
         ch.write(path, overwrite)
     }
 
@@ -185,6 +195,12 @@ impl StreamSet {
             scene: text(ATTR_SCENE),
             version: text(ATTR_VERSION),
             non_finite_samples: text(ATTR_NON_FINITE).parse().unwrap_or(0),
+            settings: ch
+                .attributes
+                .iter()
+                .filter(|(k, v)| !KNOWN_ATTRS.contains(&k.as_str()) && matches!(v, AttrValue::Text(_)))
+                .filter_map(|(k, v)| Some((k.strip_prefix(ATTR_PREFIX)?.to_string(), v.as_text())))
+                .collect(),
         };
         let crn = streams.pop().unwrap();
         let pt = streams.pop().unwrap();
@@ -214,7 +230,15 @@ mod tests {
                 normal: Image::from_fn(w, h, |_, _| [0.0, 0.0, 1.0]),
                 depth: vec![2.0; w * h],
             }),
-            meta: StreamMeta { spp: 8, seed: 1 << 40, max_depth: 8, scene: "s.gltf".into(), version: "0.1.0".into(), non_finite_samples: 3 },
+            meta: StreamMeta {
+                spp: 8,
+                seed: 1 << 40,
+                max_depth: 8,
+                scene: "s.gltf".into(),
+                version: "0.1.0".into(),
+                non_finite_samples: 3,
+                settings: [("traversal".to_string(), "robust".to_string())].into(),
+            },
         }
     }
 
