@@ -78,6 +78,19 @@ fn path_tracer(c: &mut Criterion) {
         )
     });
 
+    // The same with `--traversal fast` (Embree's non-robust triangle test).
+    let fast = Device::new()
+        .unwrap()
+        .build_scene(scene.positions(), scene.triangles(), &BuildOptions { robust: false, ..BuildOptions::default() })
+        .unwrap();
+    g.bench_function("cornell_256_depth8_pt_4spp_fast_traversal", |b| {
+        b.iter_batched_ref(
+            || ReferenceAccum::new(&s),
+            |acc| pool.install(|| render_reference_pass(&scene, &fast, &s, acc, 0..SPP, &|_| {})).unwrap(),
+            BatchSize::LargeInput,
+        )
+    });
+
     // Paired PT + CRN streams with first-hit features: what `cvtrace render` does.
     g.throughput(Throughput::Elements(pixels * SPP as u64 * 2));
     g.bench_function("cornell_256_depth8_streams_2x4spp", |b| {
