@@ -9,7 +9,7 @@ BATCHES ?= 8
 SEEDS  ?= 4
 REF_SPP ?= 4096
 
-.PHONY: setup build demo study test bench clean-demo
+.PHONY: setup build demo study test bench compare-mitsuba clean-demo
 
 setup:
 	@bash scripts/setup.sh
@@ -35,6 +35,11 @@ test: setup
 
 bench: setup
 	$(CARGO) bench --workspace
+
+# Throughput and image means of cvtrace and Mitsuba 3 on the same two Cornell boxes, in one
+# run (docs/performance.md). Installs Mitsuba into .cache/mitsuba-venv on first use.
+compare-mitsuba:
+	bash scripts/compare_mitsuba.sh $(ARGS)
 
 clean-demo:
 	rm -rf $(OUT)

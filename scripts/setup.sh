@@ -2,7 +2,8 @@
 # Installs cvtrace's system dependencies (Debian/Ubuntu) and checks for cargo.
 #
 # Idempotent and quiet: each package is checked with dpkg-query, and apt runs
-# (update + install) only when something is missing. Pass -v for details.
+# (update + install) only when something is missing. Pass -v for details; further arguments
+# are extra packages to ensure (scripts/compare_mitsuba.sh adds its own).
 #   libembree-dev       Embree headers + library (ray casting; build.rs needs it)
 #   clang libclang-dev  bindgen's parser for the Embree headers
 #   pkg-config          Embree discovery where a .pc file exists
@@ -13,10 +14,10 @@
 set -euo pipefail
 
 verbose=0
-[[ "${1:-}" == "-v" ]] && verbose=1
+[[ "${1:-}" == "-v" ]] && { verbose=1; shift; }
 say() { if (( verbose )); then echo "setup: $*"; fi; }
 
-packages=(libembree-dev embree-tools openimageio-tools clang libclang-dev pkg-config assimp-utils chromium)
+packages=(libembree-dev embree-tools openimageio-tools clang libclang-dev pkg-config assimp-utils chromium "$@")
 
 missing=()
 for p in "${packages[@]}"; do
