@@ -125,6 +125,15 @@ fn study_resumes_and_report_builds_the_viewer() {
     let again = StudyResults::read_json(&d.join("study/cbox/results.json")).unwrap();
     let rel = |r: &StudyResults| r.scenes[0].methods.iter().map(|m| m.relmse_mean).collect::<Vec<_>>();
     assert_eq!(rel(&again), rel(&results), "a resumed study gives the same numbers");
+    // Other settings into the same folder: an error naming the file and the difference, not a
+    // silent reuse of renders made otherwise.
+    let deeper: Vec<&str> = study.iter().zip(std::iter::once(&"").chain(&study)).map(|(a, prev)| if *prev == "--max-depth" { "3" } else { a }).collect();
+    for (args, recorded) in [([&study[..], &["--traversal", "fast"]].concat(), "traversal robust"), (deeper, "max depth 6")] {
+        let out = cvtrace(d, &args);
+        assert!(!out.status.success(), "{recorded}: the old renders were reused");
+        assert!(stderr(&out).contains("seed-000") && stderr(&out).contains(recorded), "{}", stderr(&out));
+    }
+    assert_eq!(stamp("study/cbox/spp00008/seed-001.streams.exr"), before);
 
     ok(&cvtrace(d, &["--log", "warn", "report", "study", "-o", "report", "--markdown", "summary.md"]));
     let md = std::fs::read_to_string(d.join("summary.md")).unwrap();

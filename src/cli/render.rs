@@ -116,6 +116,29 @@ impl Traversal {
 const SETTING_TRAVERSAL: &str = "traversal";
 const ATTR_TRAVERSAL: &str = "cvtrace.traversal";
 
+/// How the finished render at `path` differs from what `args` asks for, as far as its header
+/// records and the flags pin down (unset sizes and depths come from the scene, so they are not
+/// compared): spp, seed, traversal, and the size and path limits given as flags.
+pub fn recorded_differences(path: &Path, args: &RenderArgs) -> Result<Vec<String>> {
+    let (width, height, attrs) = ExrChannels::read_header(path)?;
+    let text = |k: &str| attrs.get(k).map(|v| v.as_text());
+    let mut d = Vec::new();
+    let mut cmp = |what: &str, recorded: Option<String>, asked: Option<String>| {
+        if let (Some(r), Some(a)) = (recorded, asked) {
+            if r != a {
+                d.push(format!("{what} {r} in the file, {a} asked"));
+            }
+        }
+    };
+    cmp("spp", text("cvtrace.spp"), args.spp.map(|n| n.to_string()));
+    cmp("seed", text("cvtrace.seed"), Some(args.seed.to_string()));
+    cmp("traversal", Some(text(ATTR_TRAVERSAL).unwrap_or_else(|| Traversal::Robust.name().into())), Some(args.view.traversal.name().into()));
+    cmp("max depth", text("cvtrace.maxDepth"), args.view.max_depth.map(|n| n.to_string()));
+    cmp("width", Some(width.to_string()), args.view.width.map(|n| n.to_string()));
+    cmp("height", Some(height.to_string()), args.view.height.map(|n| n.to_string()));
+    Ok(d)
+}
+
 pub fn run(args: RenderArgs) -> Result<()> {
     // Cheap checks first: flags, then whether the output can be written at all.
     let batches = match (args.reference, args.batches) {

@@ -273,8 +273,8 @@ fn run_spp<'r>(args: &StudyArgs, list: &[Entry], reference: &'r Reference, n: u3
         let seed = args.seed + i;
         let streams_path = dir.join(format!("seed-{i:03}.streams.exr"));
         let pt2n_path = dir.join(format!("seed-{i:03}.pt2n.exr"));
-        let t_streams = ensure_rendered(&streams_path, || render_args(args, n, Some(args.batches), seed, &streams_path, false))?;
-        let t_pt2n = ensure_rendered(&pt2n_path, || render_args(args, 2 * n, None, seed + PT2N_SEED_OFFSET, &pt2n_path, true))?;
+        let t_streams = ensure_rendered(render_args(args, n, Some(args.batches), seed, &streams_path, false))?;
+        let t_pt2n = ensure_rendered(render_args(args, 2 * n, None, seed + PT2N_SEED_OFFSET, &pt2n_path, true))?;
         let set = read_input(&streams_path)?;
         if !set.pt.mean.same_size(&reference.image) {
             bail!(
@@ -308,18 +308,28 @@ fn run_spp<'r>(args: &StudyArgs, list: &[Entry], reference: &'r Reference, n: u3
     Ok(SppRun { accs, times, first_images, pt_variance })
 }
 
-/// Renders `path` unless a finished file is already there; returns the render's seconds
-/// (recorded in a sidecar so that resumed studies still report real times).
-fn ensure_rendered(path: &Path, make_args: impl FnOnce() -> RenderArgs) -> Result<f64> {
+/// Renders `args.output` unless a finished file is already there; returns the render's seconds
+/// (recorded in a sidecar so that resumed studies still report real times). A finished file
+/// rendered with other settings is an error, not silently reused.
+fn ensure_rendered(args: RenderArgs) -> Result<f64> {
+    let path = args.output.clone();
     let timing = path.with_extension("seconds");
     if path.exists() {
         if let Some(t) = std::fs::read_to_string(&timing).ok().and_then(|s| s.trim().parse::<f64>().ok()) {
+            let differences = render_cli::recorded_differences(&path, &args)?;
+            if !differences.is_empty() {
+                bail!(
+                    "{}: this finished render differs from what the study asks for ({}); use another -o or delete the folder's renders",
+                    path.display(),
+                    differences.join(", ")
+                );
+            }
             tracing::info!("reusing {}", path.display());
             return Ok(t);
         }
     }
     let t = Instant::now();
-    render_cli::run(make_args())?;
+    render_cli::run(args)?;
     let secs = t.elapsed().as_secs_f64();
     cvtrace_streams::atomic::write_atomically(&timing, true, |tmp| std::fs::write(tmp, format!("{secs}\n")))?;
     Ok(secs)

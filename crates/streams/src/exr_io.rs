@@ -90,18 +90,39 @@ impl ExrChannels {
             let plane: Vec<f32> = ch.sample_data.values_as_f32().collect();
             out.channels.insert(name, plane);
         }
-        let attrs = image.attributes.other.iter().chain(layer.attributes.other.iter());
-        for (k, v) in attrs {
+        out.attributes = custom_attributes(image.attributes.other.iter().chain(layer.attributes.other.iter()));
+        Ok(out)
+    }
+
+    /// Size and custom attributes of `path` from its header alone, without reading pixels
+    /// (to check what a finished file was rendered with before reusing it).
+    pub fn read_header(path: &Path) -> Result<(usize, usize, BTreeMap<String, AttrValue>), StreamError> {
+        let meta = exr::meta::MetaData::read_from_file(path, false)
+            .map_err(|e| StreamError::Exr { path: path.to_path_buf(), message: e.to_string() })?;
+        let [header] = meta.headers.as_slice() else {
+            return Err(StreamError::invalid(path, format!("expected a single-part EXR, found {} parts", meta.headers.len())));
+        };
+        let attributes = custom_attributes(header.shared_attributes.other.iter().chain(header.own_attributes.other.iter()));
+        Ok((header.layer_size.width(), header.layer_size.height(), attributes))
+    }
+}
+
+/// The integer, float and text attributes among `attrs` (other kinds are not used by cvtrace).
+fn custom_attributes<'a>(attrs: impl Iterator<Item = (&'a Text, &'a AttributeValue)>) -> BTreeMap<String, AttrValue> {
+    attrs
+        .filter_map(|(k, v)| {
             let value = match v {
                 AttributeValue::I32(i) => AttrValue::Int(*i),
                 AttributeValue::F32(f) => AttrValue::Float(*f),
                 AttributeValue::Text(t) => AttrValue::Text(t.to_string()),
-                _ => continue,
+                _ => return None,
             };
-            out.attributes.insert(k.to_string(), value);
-        }
-        Ok(out)
-    }
+            Some((k.to_string(), value))
+        })
+        .collect()
+}
+
+impl ExrChannels {
 
     /// Writes a single-part, ZIP-compressed, f32 scanline EXR atomically.
     pub fn write(&self, path: &Path, overwrite: bool) -> Result<(), StreamError> {
