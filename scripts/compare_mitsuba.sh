@@ -10,7 +10,7 @@ cd "$(dirname "$0")/.."
 MITSUBA_VERSION=${MITSUBA_VERSION:-3.9.1}
 bash scripts/setup.sh python3-venv libllvm19
 venv=.cache/mitsuba-venv
-if [[ ! -x $venv/bin/python ]] || ! $venv/bin/python -c "import mitsuba, sys; sys.exit(mitsuba.__version__ != '$MITSUBA_VERSION')" 2>/dev/null; then
+if [[ ! -x $venv/bin/python ]] || ! $venv/bin/python -c "import mitsuba, numpy, sys; sys.exit(mitsuba.__version__ != '$MITSUBA_VERSION')" 2>/dev/null; then
     python3 -m venv "$venv"
     "$venv/bin/pip" install -q "mitsuba==$MITSUBA_VERSION" numpy
 fi
