@@ -255,6 +255,21 @@ mod tests {
     }
 
     #[test]
+    fn header_alone_gives_size_and_the_same_attributes() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("a.exr");
+        let img = crate::Image::from_fn(5, 3, |x, _| [x as f32, 0.0, 1.0]);
+        write_rgb(&p, &img, &[("cvtrace.spp", AttrValue::Int(7)), ("cvtrace.traversal", AttrValue::Text("fast".into()))], false)
+            .unwrap();
+        let (w, h, attrs) = ExrChannels::read_header(&p).unwrap();
+        assert_eq!((w, h), (5, 3));
+        assert_eq!(attrs, ExrChannels::read(&p).unwrap().attributes);
+        assert_eq!(attrs.get("cvtrace.traversal"), Some(&AttrValue::Text("fast".into())));
+        let e = ExrChannels::read_header(&dir.path().join("missing.exr")).unwrap_err().to_string();
+        assert!(e.contains("missing.exr"), "{e}");
+    }
+
+    #[test]
     fn equal_images_give_byte_identical_files() {
         let dir = tempfile::tempdir().unwrap();
         let img = crate::Image::from_fn(9, 4, |x, y| [x as f32, y as f32, 0.25]);
