@@ -116,6 +116,11 @@ impl Traversal {
 const SETTING_TRAVERSAL: &str = "traversal";
 const ATTR_TRAVERSAL: &str = "cvtrace.traversal";
 
+/// The traversal a file's `cvtrace.traversal` attribute records (robust when absent).
+fn recorded_traversal(attr: Option<&AttrValue>) -> String {
+    attr.map_or_else(|| Traversal::Robust.name().to_string(), |v| v.as_text())
+}
+
 /// How the finished render at `path` differs from what `args` asks for, as far as its header
 /// records and the flags pin down (unset sizes and depths come from the scene, so they are not
 /// compared): spp, seed, traversal, and the size and path limits given as flags.
@@ -132,7 +137,7 @@ pub fn recorded_differences(path: &Path, args: &RenderArgs) -> Result<Vec<String
     };
     cmp("spp", text("cvtrace.spp"), args.spp.map(|n| n.to_string()));
     cmp("seed", text("cvtrace.seed"), Some(args.seed.to_string()));
-    cmp("traversal", Some(text(ATTR_TRAVERSAL).unwrap_or_else(|| Traversal::Robust.name().into())), Some(args.view.traversal.name().into()));
+    cmp("traversal", Some(recorded_traversal(attrs.get(ATTR_TRAVERSAL))), Some(args.view.traversal.name().into()));
     cmp("max depth", text("cvtrace.maxDepth"), args.view.max_depth.map(|n| n.to_string()));
     cmp("width", Some(width.to_string()), args.view.width.map(|n| n.to_string()));
     cmp("height", Some(height.to_string()), args.view.height.map(|n| n.to_string()));
@@ -427,7 +432,7 @@ impl CheckpointIdentity {
             rr_depth: parse("cvtrace.rrDepth")? as u32,
             scene_hash: optional("cvtrace.sceneHash")?,
             camera: optional("cvtrace.camera")?,
-            traversal: ch.attr(ATTR_TRAVERSAL).map_or_else(|| Traversal::Robust.name().to_string(), |v| v.as_text()),
+            traversal: recorded_traversal(ch.attr(ATTR_TRAVERSAL)),
         })
     }
 
