@@ -91,6 +91,16 @@ fn path_tracer(c: &mut Criterion) {
         )
     });
 
+    // The same with plain triangles instead of triangle pairs as Embree quads.
+    let triangles = device_triangles(&scene);
+    g.bench_function("cornell_256_depth8_pt_4spp_triangles", |b| {
+        b.iter_batched_ref(
+            || ReferenceAccum::new(&s),
+            |acc| pool.install(|| render_reference_pass(&scene, &triangles, &s, acc, 0..SPP, &|_| {})).unwrap(),
+            BatchSize::LargeInput,
+        )
+    });
+
     // Paired PT + CRN streams with first-hit features: what `cvtrace render` does.
     g.throughput(Throughput::Elements(pixels * SPP as u64 * 2));
     g.bench_function("cornell_256_depth8_streams_2x4spp", |b| {
@@ -132,15 +142,27 @@ fn embree_rays(c: &mut Criterion) {
     g.bench_function("intersect_primary_coherent", |b| b.iter(|| coherent.iter().filter(|r| tracer.intersect(r).is_some()).count()));
     g.bench_function("intersect_random_incoherent", |b| b.iter(|| incoherent.iter().filter(|r| tracer.intersect(r).is_some()).count()));
     g.bench_function("occluded_random_incoherent", |b| b.iter(|| incoherent.iter().filter(|r| tracer.occluded(r)).count()));
-    // What the build options cost on incoherent rays (default: high quality, robust).
+    let triangles = device_triangles(&scene);
+    g.bench_function("occluded_random_incoherent_triangles", |b| b.iter(|| incoherent.iter().filter(|r| triangles.occluded(r)).count()));
+    // What the build options cost on incoherent rays (default: high quality, robust, quads).
     let device = Device::new().unwrap();
-    for (name, quality, robust) in [("medium_fast", BuildQuality::Medium, false), ("high_fast", BuildQuality::High, false)] {
-        let t = device.build_scene(scene.positions(), scene.triangles(), &BuildOptions { quality, robust, compact: false }).unwrap();
+    for (name, quality, robust, quads) in [
+        ("triangles", BuildQuality::High, true, false),
+        ("high_fast", BuildQuality::High, false, true),
+        ("triangles_high_fast", BuildQuality::High, false, false),
+        ("medium_fast", BuildQuality::Medium, false, true),
+    ] {
+        let t = device.build_scene(scene.positions(), scene.triangles(), &BuildOptions { quality, robust, compact: false, quads }).unwrap();
         g.bench_function(format!("intersect_random_incoherent_{name}"), |b| {
             b.iter(|| incoherent.iter().filter(|r| t.intersect(r).is_some()).count())
         });
     }
     g.finish();
+}
+
+/// The Cornell box as plain Embree triangles (robust), to compare with the default quads.
+fn device_triangles(scene: &Scene) -> EmbreeScene {
+    Device::new().unwrap().build_scene(scene.positions(), scene.triangles(), &BuildOptions { quads: false, ..BuildOptions::default() }).unwrap()
 }
 
 criterion_group!(benches, path_tracer, embree_rays);

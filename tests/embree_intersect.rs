@@ -1,7 +1,7 @@
 //! Embree wrapper basics: exact hits on a single triangle, misses, ray-interval limits,
 //! occlusion, and sharing one committed scene between threads.
 use cvtrace::{BuildOptions, BuildQuality, Device, EmbreeScene};
-use cvtrace_render::{Intersector, Ray};
+use cvtrace_render::{Hit, Intersector, Ray};
 use glam::Vec3;
 
 /// The triangle (0,0,0), (1,0,0), (0,1,0) in the z = 0 plane: the barycentrics of
@@ -93,9 +93,11 @@ fn every_build_option_gives_the_same_answers() {
     for quality in [BuildQuality::Low, BuildQuality::Medium, BuildQuality::High] {
         for robust in [false, true] {
             for compact in [false, true] {
-                let s =
-                    device.build_scene(&[Vec3::ZERO, Vec3::X, Vec3::Y], &[[0, 1, 2]], &BuildOptions { quality, robust, compact }).unwrap();
-                assert_eq!(s.intersect(&r), Some(expected), "{quality:?} robust={robust} compact={compact}");
+                for quads in [false, true] {
+                    let options = BuildOptions { quality, robust, compact, quads };
+                    let s = device.build_scene(&[Vec3::ZERO, Vec3::X, Vec3::Y], &[[0, 1, 2]], &options).unwrap();
+                    assert_eq!(s.intersect(&r), Some(expected), "{options:?}");
+                }
             }
         }
     }
@@ -147,14 +149,14 @@ fn one_scene_serves_many_threads() {
 /// Rays from inside a closed box aimed exactly at its shared edges (face diagonals and box
 /// edges): the case where a non-watertight triangle test lets rays slip between two triangles.
 /// Returns how many of `n` such rays miss the box.
-fn leaks_through_shared_edges(robust: bool, n: usize) -> usize {
+fn leaks_through_shared_edges(robust: bool, quads: bool, n: usize) -> usize {
     let (lo, hi) = (Vec3::new(-0.7, -0.9, -0.3), Vec3::new(1.3, 1.1, 1.7));
     let corner = |i: usize| Vec3::new([lo.x, hi.x][i & 1], [lo.y, hi.y][(i >> 1) & 1], [lo.z, hi.z][(i >> 2) & 1]);
     let positions: Vec<Vec3> = (0..8).map(corner).collect();
     let faces = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]];
     let triangles: Vec<[u32; 3]> = faces.iter().flat_map(|&[a, b, c, d]| [[a, b, c], [a, c, d]]).collect();
     let device = Device::new().unwrap();
-    let scene = device.build_scene(&positions, &triangles, &BuildOptions { robust, ..BuildOptions::default() }).unwrap();
+    let scene = device.build_scene(&positions, &triangles, &BuildOptions { robust, quads, ..BuildOptions::default() }).unwrap();
     let mut state = 0x9E37_79B9_7F4A_7C15u64;
     let mut next = move || {
         state ^= state << 13;
@@ -180,8 +182,134 @@ fn leaks_through_shared_edges(robust: bool, n: usize) -> usize {
 #[test]
 fn robust_traversal_is_watertight_at_shared_edges() {
     let n = 200_000;
-    let fast = leaks_through_shared_edges(false, n);
-    let robust = leaks_through_shared_edges(true, n);
-    eprintln!("rays aimed at shared edges of a closed box that miss it: robust {robust}, fast {fast} of {n}");
-    assert_eq!(robust, 0, "robust traversal let {robust} of {n} rays through shared edges (fast: {fast})");
+    for quads in [true, false] {
+        let fast = leaks_through_shared_edges(false, quads, n);
+        let robust = leaks_through_shared_edges(true, quads, n);
+        eprintln!("rays aimed at shared edges of a closed box that miss it (quads {quads}): robust {robust}, fast {fast} of {n}");
+        assert_eq!(robust, 0, "robust traversal (quads {quads}) let {robust} of {n} rays through shared edges (fast: {fast})");
+    }
 }
+
+/// A bumpy height field written as split quads (consecutive triangle pairs, both diagonals),
+/// followed by loose triangles in no particular order: what meshes from exporters look like.
+fn bumpy_mesh() -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let n = 24u32;
+    let height = |i: u32, j: u32| ((i as f32 * 0.7).sin() * (j as f32 * 0.45).cos()) * 0.8;
+    let mut positions: Vec<Vec3> =
+        (0..=n).flat_map(|j| (0..=n).map(move |i| Vec3::new(i as f32, height(i, j), j as f32))).collect();
+    let at = |i: u32, j: u32| j * (n + 1) + i;
+    let mut triangles = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+            if (i + j) % 2 == 0 {
+                triangles.extend([[a, b, c], [a, c, d]]);
+            } else {
+                triangles.extend([[b, c, d], [d, a, b]]);
+            }
+        }
+    }
+    // Loose triangles floating above the field.
+    let mut state = 5u64;
+    for k in 0..200u32 {
+        let base = positions.len() as u32;
+        let centre = Vec3::new((k % 20) as f32 * 1.2 + 0.3, 2.0 + (k / 20) as f32 * 0.3, (k * 7 % 23) as f32);
+        for _ in 0..3 {
+            positions.push(centre + Vec3::new(splitmix(&mut state), splitmix(&mut state), splitmix(&mut state)) * 0.9);
+        }
+        triangles.push([base, base + 1, base + 2]);
+    }
+    (positions, triangles)
+}
+
+fn splitmix(state: &mut u64) -> f32 {
+    *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    let mut z = *state;
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32
+}
+
+/// Casts `rays` at `triangles` given to Embree as triangles and as quads, for both traversals,
+/// and asserts the same answers: hit or miss, distance, point (from the triangle's
+/// barycentrics), triangle (but for rare ties across an edge), and occlusion before and after
+/// the hit. Returns the number of hits.
+fn assert_quads_match_triangles(what: &str, positions: &[Vec3], triangles: &[[u32; 3]], rays: &[Ray]) -> usize {
+    let device = Device::new().unwrap();
+    let point = |h: &Hit| {
+        let t = triangles[h.prim as usize].map(|i| positions[i as usize]);
+        t[0] * (1.0 - h.u - h.v) + t[1] * h.u + t[2] * h.v
+    };
+    let mut hits = 0;
+    for robust in [true, false] {
+        let tris = device.build_scene(positions, triangles, &BuildOptions { robust, quads: false, ..BuildOptions::default() }).unwrap();
+        let quads = device.build_scene(positions, triangles, &BuildOptions { robust, quads: true, ..BuildOptions::default() }).unwrap();
+        let (mut n_hits, mut other_prim) = (0, 0);
+        for r in rays {
+            let (a, b) = (tris.intersect(r), quads.intersect(r));
+            assert_eq!(a.is_some(), b.is_some(), "{what}, robust {robust}: {r:?} hits {a:?} as triangles but {b:?} as quads");
+            let (Some(a), Some(b)) = (a, b) else { continue };
+            n_hits += 1;
+            let scale = a.t.max(1.0) * r.dir.length().max(1.0) * (1.0 + point(&a).length());
+            assert!((a.t - b.t).abs() <= 1e-5 * scale, "{what}, robust {robust}: distance {} vs {}", a.t, b.t);
+            assert!(point(&a).distance(point(&b)) < 1e-5 * scale, "{what}, robust {robust}: point {} vs {}", point(&a), point(&b));
+            assert!(b.u >= -1e-6 && b.v >= -1e-6 && b.u + b.v <= 1.0 + 1e-5, "{what}: barycentrics ({}, {}) off the triangle", b.u, b.v);
+            // On a shared edge, or where two triangles overlap in one plane (the Cornell box's
+            // floor holds the blocks' footprints), either is right; the point above is checked.
+            if a.prim != b.prim {
+                other_prim += 1;
+            }
+            for tmax in [a.t * 0.5, a.t * 1.01] {
+                let segment = Ray { tmax, ..*r };
+                assert_eq!(tris.occluded(&segment), quads.occluded(&segment), "{what}, robust {robust}: occlusion of {segment:?}");
+            }
+        }
+        eprintln!("{what}, robust {robust}: {n_hits} of {} rays hit; {other_prim} named another triangle at the same point", rays.len());
+        assert!(other_prim * 200 <= n_hits, "{what}: {other_prim} of {n_hits} hits name a different triangle");
+        hits = n_hits;
+    }
+    hits
+}
+
+/// Handing Embree triangle pairs as quads must not change what a ray hits, from either side
+/// of the surfaces.
+#[test]
+fn quads_give_the_same_hits_as_triangles() {
+    let (positions, triangles) = bumpy_mesh();
+    let mut state = 99u64;
+    let mut next = || splitmix(&mut state);
+    // From above and from below the field (front and back faces).
+    let rays: Vec<Ray> = (0..100_000)
+        .map(|k| {
+            let side = if k % 2 == 0 { 1.0 } else { -1.0 };
+            let origin = Vec3::new(next() * 24.0, 6.0 * side, next() * 24.0);
+            let target = Vec3::new(next() * 24.0, -1.5 * side, next() * 24.0);
+            ray(origin, target - origin)
+        })
+        .collect();
+    let hits = assert_quads_match_triangles("bumpy field", &positions, &triangles, &rays);
+    assert!(hits > rays.len() / 2, "the rays should mostly hit the field");
+}
+
+/// The same on the shipped Cornell box with rays like a path tracer's: from points inside the
+/// room in every direction, so they hit walls and boxes from all sides.
+#[test]
+fn quads_give_the_same_hits_as_triangles_in_the_cornell_box() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box/scene.gltf");
+    let scene = cvtrace_render::Scene::load(&path).expect("the shipped Cornell box loads");
+    let (lo, hi) = scene.bounds();
+    let mut state = 7u64;
+    let mut next = || splitmix(&mut state);
+    let rays: Vec<Ray> = (0..100_000)
+        .map(|_| {
+            let origin = lo + (hi - lo) * Vec3::new(0.02 + 0.96 * next(), 0.02 + 0.96 * next(), 0.02 + 0.96 * next());
+            let z = 2.0 * next() - 1.0;
+            let phi = std::f32::consts::TAU * next();
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            ray(origin, Vec3::new(r * phi.cos(), r * phi.sin(), z))
+        })
+        .collect();
+    let hits = assert_quads_match_triangles("Cornell box", scene.positions(), scene.triangles(), &rays);
+    assert!(hits > rays.len() / 2, "rays from inside the room should mostly hit it");
+}
+
