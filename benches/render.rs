@@ -21,9 +21,9 @@ fn cornell() -> (Scene, EmbreeScene) {
     (scene, tracer)
 }
 
-/// The render pool as the CLI sets it up: all cores, FTZ/DAZ in every worker.
-fn pool() -> rayon::ThreadPool {
-    rayon::ThreadPoolBuilder::new().start_handler(|_| set_flush_denormals()).build().expect("thread pool")
+/// The render pool as the CLI sets it up: `threads` workers (0: all cores), FTZ/DAZ in each.
+fn render_pool(threads: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new().num_threads(threads).start_handler(|_| set_flush_denormals()).build().expect("thread pool")
 }
 
 fn settings() -> RenderSettings {
@@ -50,7 +50,7 @@ impl Intersector for Counting<'_> {
 
 fn path_tracer(c: &mut Criterion) {
     let (scene, tracer) = cornell();
-    let pool = pool();
+    let pool = render_pool(0);
     let s = settings();
     {
         let counting = Counting { inner: &tracer, intersect: AtomicU64::new(0), occluded: AtomicU64::new(0) };
@@ -74,6 +74,17 @@ fn path_tracer(c: &mut Criterion) {
         b.iter_batched_ref(
             || ReferenceAccum::new(&s),
             |acc| pool.install(|| render_reference_pass(&scene, &tracer, &s, acc, 0..SPP, &|_| {})).unwrap(),
+            BatchSize::LargeInput,
+        )
+    });
+
+    // The same on one thread: its rate is samples per CPU-second, the unit of issue 2's target
+    // (the calling thread only waits).
+    let one_thread = render_pool(1);
+    g.bench_function("cornell_256_depth8_pt_4spp_1thread", |b| {
+        b.iter_batched_ref(
+            || ReferenceAccum::new(&s),
+            |acc| one_thread.install(|| render_reference_pass(&scene, &tracer, &s, acc, 0..SPP, &|_| {})).unwrap(),
             BatchSize::LargeInput,
         )
     });

@@ -4,3 +4,4 @@ pub mod reconstruct;
 pub mod render;
 pub mod report;
 pub mod study;
+pub mod throughput;

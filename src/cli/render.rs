@@ -18,6 +18,8 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use super::throughput::PhaseClock;
+
 /// Image width used when neither the flags nor the scene give a size.
 const DEFAULT_WIDTH: u32 = 256;
 /// Samples per pixel when neither --spp nor the sidecar gives them.
@@ -229,11 +231,11 @@ fn render_stream_file(args: &RenderArgs, scene: &Scene, tracer: &EmbreeScene, s:
         pool.current_num_threads()
     );
     let bar = progress_bar(total, 0);
-    let t = Instant::now();
+    let clock = PhaseClock::start();
     let result = pool.install(|| render_streams(scene, tracer, s, &|k| bar.inc(k)));
     bar.finish_and_clear();
     let mut set = result?;
-    log_rate("render", total, t);
+    clock.log_rate("render", total);
     set.meta.scene = args.scene.to_string_lossy().into_owned();
     set.meta.settings.insert(SETTING_TRAVERSAL.into(), args.view.traversal.name().into());
     let t = Instant::now();
@@ -285,7 +287,7 @@ fn render_reference(
         pool.current_num_threads()
     );
     let bar = progress_bar(pixels * s.spp as u64, pixels * accum.samples_done as u64);
-    let t = Instant::now();
+    let clock = PhaseClock::start();
     let start_samples = accum.samples_done;
     let mut passes = 0;
     while accum.samples_done < s.spp {
@@ -313,7 +315,7 @@ fn render_reference(
         }
     }
     bar.finish_and_clear();
-    log_rate("render", pixels * (accum.samples_done - start_samples) as u64, t);
+    clock.log_rate("render", pixels * (accum.samples_done - start_samples) as u64);
 
     let t = Instant::now();
     // The identity (scene hash and camera included) lets a later --extend check what it continues.
@@ -650,12 +652,6 @@ fn progress_bar(total: u64, done: u64) -> ProgressBar {
     bar.set_position(done);
     bar.reset_eta();
     bar
-}
-
-fn log_rate(phase: &str, samples: u64, start: Instant) {
-    let secs = start.elapsed().as_secs_f64();
-    let rate = if secs > 0.0 { samples as f64 / secs } else { 0.0 };
-    tracing::info!("{phase}: {samples} samples in {secs:.2} s ({:.2} M samples/s)", rate / 1e6);
 }
 
 fn ms(t: Instant) -> f64 {

@@ -1,0 +1,61 @@
+//! Samples per second of wall time and per CPU-second, for the render log.
+//!
+//! Why both: wall-clock rates depend on how many cores the machine lends the process, while
+//! samples per CPU-second (process CPU time, all threads) compare across machines, thread counts
+//! and renderers; issue 2's throughput target and docs/performance.md use it.
+use std::time::{Duration, Instant};
+
+/// CPU time used by this process so far, over all its threads (`CLOCK_PROCESS_CPUTIME_ID`).
+pub fn process_cpu_time() -> Option<Duration> {
+    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    // SAFETY: `ts` is a valid, writable timespec and the clock id is a libc constant.
+    let status = unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut ts) };
+    (status == 0 && ts.tv_sec >= 0).then(|| Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32))
+}
+
+/// The wall and CPU clocks at the start of a phase.
+pub struct PhaseClock {
+    wall: Instant,
+    cpu: Option<Duration>,
+}
+
+impl PhaseClock {
+    pub fn start() -> PhaseClock {
+        PhaseClock { wall: Instant::now(), cpu: process_cpu_time() }
+    }
+
+    /// Logs `samples` over the phase so far: seconds, M samples/s and M samples per CPU-second.
+    pub fn log_rate(&self, phase: &str, samples: u64) {
+        let secs = self.wall.elapsed().as_secs_f64();
+        let per_second = |s: f64| if s > 0.0 { samples as f64 / s / 1e6 } else { 0.0 };
+        match process_cpu_time().zip(self.cpu).map(|(now, then)| now.saturating_sub(then).as_secs_f64()) {
+            Some(cpu) => tracing::info!(
+                "{phase}: {samples} samples in {secs:.2} s ({:.2} M samples/s; {cpu:.2} CPU-s, {:.2} M samples per CPU-second)",
+                per_second(secs),
+                per_second(cpu)
+            ),
+            None => tracing::info!("{phase}: {samples} samples in {secs:.2} s ({:.2} M samples/s)", per_second(secs)),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cpu_time_advances_with_work_and_not_with_sleep() {
+        let before = process_cpu_time().expect("Linux has a process CPU clock");
+        let mut x = 0u64;
+        let start = Instant::now();
+        while start.elapsed() < Duration::from_millis(50) {
+            x = std::hint::black_box(x.wrapping_mul(6364136223846793005).wrapping_add(1));
+        }
+        let busy = process_cpu_time().unwrap() - before;
+        assert!(busy >= Duration::from_millis(30), "50 ms of spinning counted as {busy:?} of CPU");
+        let before = process_cpu_time().unwrap();
+        std::thread::sleep(Duration::from_millis(100));
+        let idle = process_cpu_time().unwrap() - before;
+        assert!(idle < Duration::from_millis(50), "a 100 ms sleep counted as {idle:?} of CPU");
+    }
+}
