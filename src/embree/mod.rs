@@ -231,11 +231,9 @@ impl Device {
         indices: MeshIndices,
         quality: ffi::RTCBuildQuality,
     ) -> Result<(), EmbreeError> {
-        let (geometry_type, index_format, per_primitive, flat_indices, primitives) = match indices {
-            MeshIndices::Triangles(t) => {
-                (ffi::RTCGeometryType::RTC_GEOMETRY_TYPE_TRIANGLE, ffi::RTCFormat::RTC_FORMAT_UINT3, 3, t.as_flattened(), t.len())
-            }
-            MeshIndices::Quads(q) => (ffi::RTCGeometryType::RTC_GEOMETRY_TYPE_QUAD, ffi::RTCFormat::RTC_FORMAT_UINT4, 4, q.as_flattened(), q.len()),
+        let (geometry_type, index_format, per_primitive, flat_indices) = match indices {
+            MeshIndices::Triangles(t) => (ffi::RTCGeometryType::RTC_GEOMETRY_TYPE_TRIANGLE, ffi::RTCFormat::RTC_FORMAT_UINT3, 3, t.as_flattened()),
+            MeshIndices::Quads(q) => (ffi::RTCGeometryType::RTC_GEOMETRY_TYPE_QUAD, ffi::RTCFormat::RTC_FORMAT_UINT4, 4, q.as_flattened()),
         };
         // SAFETY: valid device.
         let geom = unsafe { ffi::rtcNewGeometry(self.inner.raw, geometry_type) };
@@ -274,7 +272,7 @@ impl Device {
         for (d, p) in dst.chunks_exact_mut(3).zip(positions) {
             d.copy_from_slice(&[p.x, p.y, p.z]);
         }
-        // SAFETY: as above, for `primitives` items of `per_primitive` u32 each.
+        // SAFETY: as above, for the primitives' `per_primitive` u32 each.
         let indices = unsafe {
             ffi::rtcSetNewGeometryBuffer(
                 geom.0,
@@ -282,14 +280,14 @@ impl Device {
                 0,
                 index_format,
                 per_primitive * std::mem::size_of::<u32>(),
-                primitives,
+                flat_indices.len() / per_primitive,
             )
         } as *mut u32;
         if indices.is_null() {
             self.check("rtcSetNewGeometryBuffer(index)")?;
             return Err(EmbreeError::Api { call: "rtcSetNewGeometryBuffer(index)", message: "returned no buffer".into() });
         }
-        // SAFETY: the buffer holds per_primitive * primitives u32, exclusively ours until commit.
+        // SAFETY: the buffer holds flat_indices.len() u32, exclusively ours until commit.
         let dst = unsafe { std::slice::from_raw_parts_mut(indices, flat_indices.len()) };
         dst.copy_from_slice(flat_indices);
         // SAFETY: valid geometry and scene handles.

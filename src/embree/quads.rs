@@ -57,8 +57,8 @@ pub fn pair_triangles(triangles: &[[u32; 3]]) -> QuadMesh {
     mesh
 }
 
-/// The quad of triangles `first` (index `i`) and `i + 1`, if they share exactly one edge and
-/// neither repeats a vertex.
+/// The quad of triangles `t1` (index `i`) and `t2` (index `i + 1`), if they share exactly one
+/// edge and neither repeats a vertex.
 fn pair(i: u32, t1: &[u32; 3], t2: &[u32; 3]) -> Option<([u32; 4], [Half; 2])> {
     let distinct = |t: &[u32; 3]| t[0] != t[1] && t[1] != t[2] && t[0] != t[2];
     if !distinct(t1) || !distinct(t2) {
