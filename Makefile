@@ -9,7 +9,7 @@ BATCHES ?= 8
 SEEDS  ?= 4
 REF_SPP ?= 4096
 
-.PHONY: setup build demo study test bench compare-mitsuba clean-demo
+.PHONY: setup build demo study test test-debian13 bench compare-mitsuba clean-demo
 
 setup:
 	@bash scripts/setup.sh
@@ -32,6 +32,11 @@ study: build
 
 test: setup
 	$(CARGO) test --workspace --locked
+
+# The same tests inside a Debian 13 root (debootstrap; needs root and deb.debian.org), where
+# Debian's Embree is 4.x: checks the Embree 4 side of build.rs and the shim. Not part of CI.
+test-debian13:
+	bash scripts/test_debian13.sh
 
 bench: setup
 	$(CARGO) bench --workspace
