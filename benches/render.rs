@@ -151,6 +151,22 @@ fn embree_rays(c: &mut Criterion) {
     g.sample_size(20).measurement_time(Duration::from_secs(3)).warm_up_time(Duration::from_millis(500));
     g.throughput(Throughput::Elements(coherent.len() as u64));
     g.bench_function("intersect_primary_coherent", |b| b.iter(|| coherent.iter().filter(|r| tracer.intersect(r).is_some()).count()));
+    // The renderer's camera-ray batches: 16 jittered samples per pixel, 64 rays per call.
+    let mut st = 7u64;
+    let jittered: Vec<Ray> = (0..SIDE * SIDE).map(|i| {
+        let p = i / 16;
+        frame.ray(p % SIDE, p / SIDE, Vec2::new(splitmix(&mut st), splitmix(&mut st)))
+    }).collect();
+    let mut hits = vec![None; 64];
+    g.bench_function("intersect_camera_16spp_one_by_one", |b| b.iter(|| jittered.iter().filter(|r| tracer.intersect(r).is_some()).count()));
+    g.bench_function("intersect_camera_16spp_batches_of_64", |b| {
+        b.iter(|| {
+            jittered.chunks(64).map(|c| {
+                tracer.intersect_coherent(c, &mut hits[..c.len()]);
+                hits.iter().filter(|h| h.is_some()).count()
+            }).sum::<usize>()
+        })
+    });
     g.bench_function("intersect_random_incoherent", |b| b.iter(|| incoherent.iter().filter(|r| tracer.intersect(r).is_some()).count()));
     g.bench_function("occluded_random_incoherent", |b| b.iter(|| incoherent.iter().filter(|r| tracer.occluded(r)).count()));
     let triangles = device_triangles(&scene);

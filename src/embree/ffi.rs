@@ -10,6 +10,8 @@ pub const RTC_INVALID_GEOMETRY_ID: u32 = u32::MAX;
 extern "C" {
     /// Nearest hit, hiding Embree 3's context argument / Embree 4's argument order (shim.c).
     pub fn cvt_intersect1(scene: RTCScene, rayhit: *mut RTCRayHit);
+    /// Nearest hits of `n` coherent rays, `stride` bytes apart (shim.c).
+    pub fn cvt_intersect_coherent(scene: RTCScene, rayhits: *mut RTCRayHit, n: u32, stride: usize);
     /// Any hit; sets `ray.tfar = -inf` when occluded (shim.c).
     pub fn cvt_occluded1(scene: RTCScene, ray: *mut RTCRay);
     /// `RTC_VERSION_MAJOR` of the headers the shim was compiled against.

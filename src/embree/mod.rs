@@ -333,6 +333,18 @@ struct AlignedRayHit(ffi::RTCRayHit);
 #[repr(C, align(16))]
 struct AlignedRay(ffi::RTCRay);
 
+/// A ray-hit record for `ray` with no hit yet.
+#[inline]
+fn to_rtc_rayhit(ray: &Ray) -> AlignedRayHit {
+    let mut rh = AlignedRayHit(ffi::RTCRayHit {
+        ray: to_rtc_ray(ray),
+        hit: ffi::RTCHit { geomID: ffi::RTC_INVALID_GEOMETRY_ID, ..Default::default() },
+    });
+    rh.0.hit.instID.fill(ffi::RTC_INVALID_GEOMETRY_ID);
+    rh
+}
+
+#[inline]
 fn to_rtc_ray(ray: &Ray) -> ffi::RTCRay {
     ffi::RTCRay {
         org_x: ray.origin.x,
@@ -384,23 +396,10 @@ impl EmbreeScene {
     }
 }
 
-impl Drop for EmbreeScene {
-    fn drop(&mut self) {
-        // SAFETY: `raw` came from rtcNewScene and is released exactly once.
-        unsafe { ffi::rtcReleaseScene(self.raw) };
-    }
-}
-
-impl Intersector for EmbreeScene {
+impl EmbreeScene {
+    /// The hit Embree wrote into `rh`, in terms of the scene's triangles.
     #[inline]
-    fn intersect(&self, ray: &Ray) -> Option<Hit> {
-        let mut rh = AlignedRayHit(ffi::RTCRayHit {
-            ray: to_rtc_ray(ray),
-            hit: ffi::RTCHit { geomID: ffi::RTC_INVALID_GEOMETRY_ID, ..Default::default() },
-        });
-        rh.0.hit.instID.fill(ffi::RTC_INVALID_GEOMETRY_ID);
-        // SAFETY: committed scene; `rh` is a properly initialised, 16-byte aligned RTCRayHit.
-        unsafe { ffi::cvt_intersect1(self.raw, &mut rh.0) };
+    fn hit_of(&self, rh: &AlignedRayHit) -> Option<Hit> {
         let hit = &rh.0.hit;
         if hit.geomID == ffi::RTC_INVALID_GEOMETRY_ID {
             return None;
@@ -411,6 +410,41 @@ impl Intersector for EmbreeScene {
         };
         // Embree sets tfar to the hit distance.
         Some(Hit { t: rh.0.ray.tfar, prim, u, v })
+    }
+}
+
+impl Drop for EmbreeScene {
+    fn drop(&mut self) {
+        // SAFETY: `raw` came from rtcNewScene and is released exactly once.
+        unsafe { ffi::rtcReleaseScene(self.raw) };
+    }
+}
+
+impl Intersector for EmbreeScene {
+    #[inline]
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let mut rh = to_rtc_rayhit(ray);
+        // SAFETY: committed scene; `rh` is a properly initialised, 16-byte aligned RTCRayHit.
+        unsafe { ffi::cvt_intersect1(self.raw, &mut rh.0) };
+        self.hit_of(&rh)
+    }
+
+    fn intersect_coherent(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        assert_eq!(rays.len(), hits.len(), "one hit slot per ray");
+        // On the stack, in chunks: no allocation per call.
+        const CHUNK: usize = 64;
+        let mut buf: [AlignedRayHit; CHUNK] = std::array::from_fn(|_| AlignedRayHit(Default::default()));
+        for (rays, hits) in rays.chunks(CHUNK).zip(hits.chunks_mut(CHUNK)) {
+            for (slot, ray) in buf.iter_mut().zip(rays) {
+                *slot = to_rtc_rayhit(ray);
+            }
+            // SAFETY: committed scene; the first `rays.len()` entries of `buf` are initialised,
+            // 16-byte aligned RTCRayHits, `size_of::<AlignedRayHit>()` bytes apart.
+            unsafe { ffi::cvt_intersect_coherent(self.raw, &mut buf[0].0, rays.len() as u32, std::mem::size_of::<AlignedRayHit>()) };
+            for (hit, rh) in hits.iter_mut().zip(&buf) {
+                *hit = self.hit_of(rh);
+            }
+        }
     }
 
     #[inline]

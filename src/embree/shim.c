@@ -28,6 +28,26 @@ void cvt_intersect1(RTCScene scene, struct RTCRayHit* rayhit)
 #endif
 }
 
+/* Nearest hits of n rays that start close together and point alike (the camera rays of one
+ * pixel), rayhits[i] at byte offset i * stride. Embree 3 traces them in its coherent stream
+ * mode, about 2.5x cheaper per ray than one by one; Embree 4 has no stream API, so there each
+ * ray goes alone with the coherent hint. */
+void cvt_intersect_coherent(RTCScene scene, struct RTCRayHit* rayhits, unsigned int n, size_t stride)
+{
+#if CVT_EMBREE_MAJOR == 4
+  struct RTCIntersectArguments args;
+  rtcInitIntersectArguments(&args);
+  args.flags = RTC_RAY_QUERY_FLAG_COHERENT;
+  for (unsigned int i = 0; i < n; i++)
+    rtcIntersect1(scene, (struct RTCRayHit*)((char*)rayhits + i * stride), &args);
+#else
+  struct RTCIntersectContext context;
+  rtcInitIntersectContext(&context);
+  context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  rtcIntersect1M(scene, &context, rayhits, n, stride);
+#endif
+}
+
 /* Any hit in [tnear, tfar]: Embree sets ray->tfar to -inf when one is found. */
 void cvt_occluded1(RTCScene scene, struct RTCRay* ray)
 {

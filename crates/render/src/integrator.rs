@@ -20,7 +20,7 @@
 //! Random numbers come from [`crate::sampler`] with a fixed block of dimensions per vertex, so
 //! CRN paths of neighbouring pixels make the same decisions at the same depths.
 use crate::bsdf::Bsdf;
-use crate::intersect::{Intersector, Ray};
+use crate::intersect::{Hit, Intersector, Ray};
 use crate::lights::ShadowEnd;
 use crate::sampler::{dims, SampleSampler};
 use crate::scene::Scene;
@@ -76,7 +76,22 @@ pub fn radiance<T: Intersector>(
     scene: &Scene,
     tracer: &T,
     limits: PathLimits,
+    ray: Ray,
+    sampler: &SampleSampler,
+    first: Option<&mut FirstHit>,
+) -> Vec3 {
+    let hit = tracer.intersect(&ray);
+    radiance_from_hit(scene, tracer, limits, ray, hit, sampler, first)
+}
+
+/// [`radiance`] for a camera ray whose nearest hit `camera_hit` was already traced (the render
+/// driver traces camera rays in coherent batches).
+pub fn radiance_from_hit<T: Intersector>(
+    scene: &Scene,
+    tracer: &T,
+    limits: PathLimits,
     mut ray: Ray,
+    camera_hit: Option<Hit>,
     sampler: &SampleSampler,
     mut first: Option<&mut FirstHit>,
 ) -> Vec3 {
@@ -92,8 +107,10 @@ pub fn radiance<T: Intersector>(
     let mut prev_delta = true;
     // Segments so far, including `ray`.
     let mut depth = 1u32;
+    // The nearest hit of `ray`.
+    let mut next_hit = camera_hit;
     loop {
-        let Some(hit) = tracer.intersect(&ray) else {
+        let Some(hit) = next_hit else {
             // Escaped: the environment, MIS-weighted against its light sampling.
             if let Some(env) = lights.environment() {
                 let (le, pdf_light) = if prev_delta { (env.eval(ray.dir), 0.0) } else { lights.environment_radiance(ray.dir) };
@@ -176,6 +193,7 @@ pub fn radiance<T: Intersector>(
             beta /= q;
         }
         ray = Ray { origin: spawn_origin(sp.p, sp.ng, bs.wi, eps), dir: bs.wi, tmin: 0.0, tmax: f32::INFINITY };
+        next_hit = tracer.intersect(&ray);
         depth += 1;
     }
     l
