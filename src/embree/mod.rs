@@ -394,9 +394,7 @@ impl EmbreeScene {
     pub fn device(&self) -> &Device {
         &self.device
     }
-}
 
-impl EmbreeScene {
     /// The hit Embree wrote into `rh`, in terms of the scene's triangles.
     #[inline]
     fn hit_of(&self, rh: &AlignedRayHit) -> Option<Hit> {
