@@ -353,15 +353,15 @@ fn coherent_batches_give_the_same_hits_as_single_rays() {
                 assert!(hits > rays.len() * 3 / 4, "most rays should hit the room ({hits} of {})", rays.len());
                 let (mut ties, mut inexact) = (0, 0);
                 for (i, (a, b)) in single.iter().zip(&coherent).enumerate() {
-                    let what = format!("robust {robust}, quads {quads}, batches of {batch}: ray {i} {:?}", rays[i]);
+                    let what = || format!("robust {robust}, quads {quads}, batches of {batch}: ray {i} {:?}", rays[i]);
                     let (Some(a), Some(b)) = (a, b) else {
-                        assert_eq!(a, b, "{what}");
+                        assert_eq!(a, b, "{}", what());
                         continue;
                     };
                     // Embree's stream code may round the distance differently in the last bit.
-                    assert!((a.t - b.t).abs() <= 1e-6 * a.t, "{what}: {a:?} vs {b:?}");
+                    assert!((a.t - b.t).abs() <= 1e-6 * a.t, "{}: {a:?} vs {b:?}", what());
                     if a.prim == b.prim {
-                        assert!((a.u - b.u).abs() <= 1e-5 && (a.v - b.v).abs() <= 1e-5, "{what}: {a:?} vs {b:?}");
+                        assert!((a.u - b.u).abs() <= 1e-5 && (a.v - b.v).abs() <= 1e-5, "{}: {a:?} vs {b:?}", what());
                     } else {
                         // Where two triangles overlap in one plane (the blocks' footprints lie
                         // on the floor) either is right, at the same point.
@@ -369,7 +369,7 @@ fn coherent_batches_give_the_same_hits_as_single_rays() {
                             let t = scene.triangles()[h.prim as usize].map(|k| scene.positions()[k as usize]);
                             t[0] * (1.0 - h.u - h.v) + t[1] * h.u + t[2] * h.v
                         };
-                        assert!(p(a).distance(p(b)) < 1e-3, "{what}: {a:?} vs {b:?}");
+                        assert!(p(a).distance(p(b)) < 1e-3, "{}: {a:?} vs {b:?}", what());
                         ties += 1;
                     }
                     inexact += (a != b) as usize;
