@@ -70,14 +70,18 @@ fn reconstruct_rejects_bad_inputs_with_the_file_named() {
     let s = scene();
     let small = ["--log", "warn", "render", s.to_str().unwrap(), "--reference", "--spp", "4", "--width", "16", "--height", "16", "-o", "small.exr"];
     ok(&cvtrace(d, &small));
-    let cases: [(&[&str], &str); 7] = [
+    let cases: [(&[&str], &str); 10] = [
         (&["reconstruct", "missing.streams.exr", "-o", "x.exr"], "missing.streams.exr"),
         (&["reconstruct", "s.streams.exr", "--method", "ours", "--cbf-radius", "99", "-o", "x.exr"], "cbf-radius"),
         (&["reconstruct", "s.streams.exr", "--method", "ours", "--cbf-sigma-colour", "0", "-o", "x.exr"], "cbf-sigma-colour"),
         (&["reconstruct", "s.streams.exr", "--reference", "small.exr", "-o", "x.exr"], "small.exr"),
         (&["reconstruct", "s.streams.exr", "--method", "ours", "--errors", "oracle", "-o", "x.exr"], "reference"),
         (&["reconstruct", "s.streams.exr", "--method", "bilateral", "-o", "x.exr"], "bilateral"),
-        (&["reconstruct", "ref.exr", "-o", "x.exr"], "ref.exr"),
+        (&["reconstruct", "ref.exr", "-o", "x.exr"], "ref.exr: is an RGB image"),
+        (&["reconstruct", "s.streams.exr", "--reference", "s.streams.exr", "-o", "x.exr"], "s.streams.exr: is a PT/CRN stream file"),
+        (&["reconstruct", "s.streams.exr", "--method", "ours", "-o", "x.png"], "x.png: this output is written as OpenEXR"),
+        // A failed `--method all` does not leave its new directory behind.
+        (&["reconstruct", "missing.streams.exr", "--method", "all", "-o", "new-dir"], "missing.streams.exr"),
     ];
     for (args, needle) in cases {
         let out = cvtrace(d, args);
@@ -85,7 +89,7 @@ fn reconstruct_rejects_bad_inputs_with_the_file_named() {
         let e = stderr(&out);
         assert!(e.contains(needle), "{args:?}: error does not name {needle}:\n{e}");
         assert!(!e.contains("panicked"), "{e}");
-        assert!(!d.join("x.exr").exists());
+        assert!(!d.join("x.exr").exists() && !d.join("x.png").exists() && !d.join("new-dir").exists());
     }
 }
 

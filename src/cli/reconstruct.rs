@@ -197,7 +197,9 @@ fn targets(args: &ReconstructArgs) -> Result<Vec<Target>> {
             if args.output.extension().is_some_and(|e| e == "exr") {
                 bail!("{}: --method all writes one file per method; give a directory", args.output.display());
             }
-            std::fs::create_dir_all(&args.output).with_context(|| format!("{}: cannot create directory", args.output.display()))?;
+            if args.output.exists() && !args.output.is_dir() {
+                bail!("{}: is a file; --method all writes one file per method into a directory", args.output.display());
+            }
             Ok(Method::ALL
                 .iter()
                 .map(|&m| Target {
@@ -217,10 +219,22 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
         .into_iter()
         .map(|t| build(t.method, &options).map(|e| (t, e)))
         .collect::<Result<_, _>>()?;
+    // `--method all` creates its directory, but only once the inputs have been read: a failed
+    // command leaves nothing behind.
+    let new_directory = matches!(args.method, MethodChoice::All) && !args.output.is_dir();
+    if new_directory {
+        atomic::check_writable(&args.output, false)?;
+    }
     for (t, _) in &estimators {
-        atomic::check_writable(&t.exr, args.force)?;
+        atomic::check_extension(&t.exr, "exr")?;
         if let Some(p) = &t.png {
-            atomic::check_writable(p, args.force)?;
+            atomic::check_extension(p, "png")?;
+        }
+        if !new_directory {
+            atomic::check_writable(&t.exr, args.force)?;
+            if let Some(p) = &t.png {
+                atomic::check_writable(p, args.force)?;
+            }
         }
     }
     let started = std::time::Instant::now();
@@ -246,6 +260,9 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
             );
         }
         input = input.with_reference(r);
+    }
+    if new_directory {
+        std::fs::create_dir_all(&args.output).with_context(|| format!("{}: cannot create directory", args.output.display()))?;
     }
     let mut rows = Vec::new();
     for (target, estimator) in &estimators {

@@ -11,7 +11,7 @@
 use anyhow::{bail, Context, Result};
 use cvtrace::{set_flush_denormals, BuildOptions, Device, EmbreeScene};
 use cvtrace_render::{render_reference_pass, render_streams, Camera, ReferenceAccum, RenderDefaults, RenderSettings, Scene};
-use cvtrace_streams::atomic::check_writable;
+use cvtrace_streams::atomic::{check_extension, check_writable};
 use cvtrace_streams::exr_io::{take_rgb, write_rgb, AttrValue, ExrChannels};
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -166,6 +166,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if args.extend && !args.output.is_file() {
         bail!("{}: --extend continues a finished reference, and there is none at this path", args.output.display());
     }
+    check_extension(&args.output, "exr")?;
     check_writable(&args.output, args.force || args.extend)?;
     let checkpoint = checkpoint_path(&args.output);
     if args.reference {

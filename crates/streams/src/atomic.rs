@@ -24,6 +24,20 @@ pub fn check_writable(path: &Path, overwrite: bool) -> Result<(), StreamError> {
     Ok(())
 }
 
+/// Fails unless `path` ends in `.{ext}` (any case). The writers pick the format, not the name:
+/// an OpenEXR file called `out.png` would mislead every viewer and tool that trusts the name.
+pub fn check_extension(path: &Path, ext: &str) -> Result<(), StreamError> {
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case(ext)) {
+        return Ok(());
+    }
+    let format = match ext {
+        "exr" => "OpenEXR",
+        "png" => "PNG",
+        _ => ext,
+    };
+    Err(StreamError::invalid(path, format!("this output is written as {format}; give it a .{ext} file name")))
+}
+
 fn parent_dir(path: &Path) -> PathBuf {
     match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
@@ -93,6 +107,17 @@ mod tests {
         assert_eq!(std::fs::read(&p).unwrap(), b"mine");
         write_atomically(&p, true, |tmp| std::fs::write(tmp, b"new").map_err(|e| e.to_string())).unwrap();
         assert_eq!(std::fs::read(&p).unwrap(), b"new");
+    }
+
+    #[test]
+    fn extension_must_match_the_format() {
+        assert!(check_extension(Path::new("out/a.exr"), "exr").is_ok());
+        assert!(check_extension(Path::new("A.EXR"), "exr").is_ok());
+        for bad in ["a.png", "a", "a.exr.tmp", "exr"] {
+            let e = check_extension(Path::new(bad), "exr").unwrap_err().to_string();
+            assert!(e.starts_with(bad) && e.contains("OpenEXR") && e.contains(".exr file name"), "{e}");
+        }
+        assert!(check_extension(Path::new("a.exr"), "png").unwrap_err().to_string().contains("PNG"));
     }
 
     #[test]

@@ -126,6 +126,7 @@ impl ExrChannels {
 
     /// Writes a single-part, ZIP-compressed, f32 scanline EXR atomically.
     pub fn write(&self, path: &Path, overwrite: bool) -> Result<(), StreamError> {
+        crate::atomic::check_extension(path, "exr")?;
         let size = (self.width, self.height);
         let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = self
             .channels
@@ -200,6 +201,12 @@ fn sort_header_attributes(path: &Path) -> std::io::Result<()> {
 /// Reads an RGB image from channels `{prefix}R/G/B` (prefix "" for a plain beauty image).
 pub fn read_rgb(path: &Path) -> Result<crate::Image, StreamError> {
     let mut ch = ExrChannels::read(path)?;
+    if !ch.channels.contains_key("R") && ch.channels.contains_key("pt.R") {
+        return Err(StreamError::invalid(
+            path,
+            "is a PT/CRN stream file, not an RGB image: reconstruct it first, or use a reference rendered with --reference",
+        ));
+    }
     take_rgb(&mut ch, path, "")
 }
 

@@ -30,6 +30,7 @@ pub fn write_png(path: &Path, img: &Image, exposure: f32, overwrite: bool) -> Re
 
 /// Writes 8-bit RGB bytes as a PNG atomically.
 pub fn write_rgb8_png(path: &Path, width: usize, height: usize, rgb: &[u8], overwrite: bool) -> Result<(), StreamError> {
+    crate::atomic::check_extension(path, "png")?;
     write_atomically(path, overwrite, |tmp| -> Result<(), Box<dyn std::error::Error>> {
         let file = std::io::BufWriter::new(std::fs::File::create(tmp)?);
         let mut enc = png::Encoder::new(file, width as u32, height as u32);

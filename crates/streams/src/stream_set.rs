@@ -161,6 +161,12 @@ impl StreamSet {
             }
             None => count_batches(&ch),
         };
+        if batches == 0 && ch.channels.contains_key("R") && !ch.channels.contains_key("pt.R") {
+            return Err(StreamError::invalid(
+                path,
+                "is an RGB image (a reference or a reconstruction), not a PT/CRN stream file: render one without --reference",
+            ));
+        }
         if batches == 0 {
             return Err(StreamError::MissingChannel { path: path.to_path_buf(), channel: "pt.b00.R".into() });
         }
