@@ -29,6 +29,10 @@ impl Camera {
         if !(self.eye.is_finite() && self.target.is_finite() && self.up.is_finite()) {
             return Err("camera position, target or up vector is not finite".into());
         }
+        let far = crate::scene::MAX_COORDINATE;
+        if self.eye.abs().max_element() > far || self.target.abs().max_element() > far {
+            return Err(format!("camera position or target is farther than {far:e} from the origin"));
+        }
         if fwd.length_squared() <= 0.0 {
             return Err("camera eye and target coincide".into());
         }

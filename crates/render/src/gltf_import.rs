@@ -10,8 +10,11 @@
 //! has one, with the resolution from `asset.extras.defaultResolution` if given, else 512 on the
 //! long side of the camera's aspect ratio. Then the sidecar `<stem>.cvtrace.toml`, if present,
 //! adds the environment light and the render defaults ([`crate::sidecar`]). Unsupported
-//! *required* extensions are an error; other unsupported extensions are ignored with a
-//! warning. Every error names the file (and the light, for bad lights).
+//! *required* extensions are an error; other unsupported extensions, alpha modes, normal and
+//! occlusion textures are ignored with a warning. What the specification forbids is an error
+//! rather than a guess: accessor types other than those above, factors outside their ranges,
+//! an invalid camera, a node with two parents. Every error names the file (and the light,
+//! camera or material).
 use crate::camera::Camera;
 use crate::lights::Punctual;
 use crate::material::Material;
@@ -36,6 +39,7 @@ const MAX_NODE_DEPTH: usize = 1024;
 
 /// Loads `path` (.gltf or .glb).
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    require_regular_file(path, path)?;
     let bytes = std::fs::read(path).map_err(|e| SceneError::Io { path: path.to_path_buf(), error: e })?;
     let malformed = |e: gltf::Error| SceneError::Malformed { path: path.to_path_buf(), message: e.to_string() };
     let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(&bytes).map_err(malformed)?;
@@ -50,7 +54,8 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
             tracing::warn!("{}: ignoring glTF extension {ext}", path.display());
         }
     }
-    let resolution = default_resolution(&json);
+    check_json(&json, path)?;
+    let resolution = default_resolution(&json, path);
     // Checked above; gltf's own validator does not know every extension cvtrace reads.
     json.extensions_required.clear();
     let document = gltf::Document::from_json(json).map_err(malformed)?;
@@ -93,14 +98,54 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     Scene::from_parts_named(parts, path)
 }
 
+/// What the `gltf` crate does not check before it indexes or unwraps (it would panic):
+/// the major version, accessor references of mesh attributes, a MIME type for images stored in
+/// buffer views, and accessors of at least one element (the specification's minimum).
+fn check_json(json: &gltf::json::Root, path: &Path) -> Result<(), SceneError> {
+    let err = |m: String| Err(SceneError::Malformed { path: path.to_path_buf(), message: m });
+    if json.asset.version.split('.').next() != Some("2") {
+        return err(format!("asset.version is {:?}; cvtrace reads glTF 2.x", json.asset.version));
+    }
+    let accessors = json.accessors.len();
+    for (m, mesh) in json.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            for (semantic, index) in &prim.attributes {
+                if index.value() >= accessors {
+                    let name = match semantic {
+                        gltf::json::validation::Checked::Valid(s) => s.to_string(),
+                        gltf::json::validation::Checked::Invalid => "an attribute".into(),
+                    };
+                    return err(format!("mesh {m} primitive {p}: {name} refers to accessor {} but there are {accessors}", index.value()));
+                }
+            }
+        }
+    }
+    for (i, image) in json.images.iter().enumerate() {
+        if image.buffer_view.is_some() && image.mime_type.is_none() {
+            return err(format!("image {i} is stored in a buffer view and needs a mimeType"));
+        }
+    }
+    for (i, a) in json.accessors.iter().enumerate() {
+        if a.count.0 == 0 {
+            return err(format!("accessor {i} has count 0; glTF requires at least 1"));
+        }
+    }
+    Ok(())
+}
+
 /// `asset.extras.defaultResolution: [width, height]`, cvtrace's own hint for the render size
-/// (glTF cameras only carry an aspect ratio).
-fn default_resolution(json: &gltf::json::Root) -> Option<(u32, u32)> {
+/// (glTF cameras only carry an aspect ratio). An unusable hint is ignored with a warning.
+fn default_resolution(json: &gltf::json::Root, path: &Path) -> Option<(u32, u32)> {
     let raw = json.asset.extras.as_ref()?;
     let v: gltf::json::Value = gltf::json::deserialize::from_str(raw.get()).ok()?;
-    let r = v.get("defaultResolution")?.as_array()?;
-    let side = |i: usize| r.get(i)?.as_u64().filter(|&x| (1..=16384).contains(&x)).map(|x| x as u32);
-    Some((side(0)?, side(1)?))
+    let hint = v.get("defaultResolution")?;
+    let side = |i: usize| hint.as_array()?.get(i)?.as_u64().filter(|&x| (1..=16384).contains(&x)).map(|x| x as u32);
+    let size = side(0).zip(side(1));
+    if size.is_none() || hint.as_array().is_some_and(|r| r.len() != 2) {
+        tracing::warn!("{}: ignoring asset.extras.defaultResolution {hint}: expected [width, height], each 1 to 16384", path.display());
+        return None;
+    }
+    size
 }
 
 /// Percent-decodes a relative URI (glTF URIs are RFC 3986 encoded).
@@ -149,12 +194,29 @@ fn check_external_files(doc: &gltf::Document, base: &Path, path: &Path) -> Resul
     }
     for uri in uris {
         if let Some(file) = external_path(base, uri) {
-            if let Err(e) = std::fs::metadata(&file) {
-                return Err(SceneError::MissingFile { path: path.to_path_buf(), file, message: e.to_string() });
-            }
+            require_regular_file(&file, path)?;
         }
     }
     Ok(())
+}
+
+/// `file` (the scene `path` itself or a file it references) must be a readable regular file:
+/// reading a device such as /dev/zero would never end.
+fn require_regular_file(file: &Path, path: &Path) -> Result<(), SceneError> {
+    let missing = |message: String| SceneError::MissingFile { path: path.to_path_buf(), file: file.to_path_buf(), message };
+    match std::fs::metadata(file) {
+        Err(e) if file == path => Err(SceneError::Io { path: path.to_path_buf(), error: e }),
+        Err(e) => Err(missing(e.to_string())),
+        Ok(md) if !md.is_file() => {
+            let message = if md.is_dir() { "is a directory" } else { "is not a regular file" };
+            if file == path {
+                Err(SceneError::invalid(path, message))
+            } else {
+                Err(missing(message.into()))
+            }
+        }
+        Ok(_) => Ok(()),
+    }
 }
 
 /// Checks that every buffer view lies inside its buffer and every accessor inside its view:
@@ -216,6 +278,11 @@ struct Builder<'a> {
     material_ids: HashMap<Option<usize>, u32>,
     camera: Option<Camera>,
     warned_texcoord: bool,
+    /// Nodes already instanced: glTF gives every node at most one parent, and a file that
+    /// breaks this could otherwise make the traversal exponential.
+    visited: Vec<bool>,
+    /// Material features cvtrace does not render, each reported once.
+    warned: std::collections::BTreeSet<&'static str>,
 }
 
 impl<'a> Builder<'a> {
@@ -230,6 +297,8 @@ impl<'a> Builder<'a> {
             material_ids: HashMap::new(),
             camera: None,
             warned_texcoord: false,
+            visited: vec![false; doc.nodes().len()],
+            warned: Default::default(),
         }
     }
 
@@ -276,13 +345,19 @@ impl<'a> Builder<'a> {
         if depth > MAX_NODE_DEPTH {
             return Err(self.err("the node hierarchy is cyclic or deeper than 1024 levels"));
         }
+        if std::mem::replace(&mut self.visited[node.index()], true) {
+            return Err(self.err(format!(
+                "node {} is reached twice from the scene (glTF allows one parent per node; instance a mesh from several nodes instead)",
+                node.index()
+            )));
+        }
         let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
         if !world.is_finite() {
             return Err(self.err(format!("node {} has a non-finite transform", node.index())));
         }
         if self.camera.is_none() {
             if let Some(cam) = node.camera() {
-                self.camera = self.convert_camera(&cam, world);
+                self.camera = self.convert_camera(&cam, world)?;
             }
         }
         if let Some(mesh) = node.mesh() {
@@ -325,29 +400,27 @@ impl<'a> Builder<'a> {
         Ok(())
     }
 
-    fn convert_camera(&self, cam: &gltf::Camera, world: Mat4) -> Option<Camera> {
+    /// The camera of a node; an orthographic one is skipped with a warning, an invalid
+    /// perspective one is an error (rendering some other view instead would be a silent wrong image).
+    fn convert_camera(&self, cam: &gltf::Camera, world: Mat4) -> Result<Option<Camera>, SceneError> {
         match cam.projection() {
             gltf::camera::Projection::Perspective(p) => {
                 let eye = world.transform_point3(Vec3::ZERO);
                 let forward = world.transform_vector3(Vec3::NEG_Z).normalize_or_zero();
                 let up = world.transform_vector3(Vec3::Y).normalize_or_zero();
                 let (width, height) = match p.aspect_ratio() {
+                    None => (512, 512),
                     Some(a) if a.is_finite() && a >= 1.0 => ((512.0 * a).round().min(16384.0) as u32, 512),
                     Some(a) if a.is_finite() && a > 0.0 => (512, (512.0 / a).round().min(16384.0) as u32),
-                    _ => (512, 512),
+                    Some(a) => return Err(self.err(format!("camera {}: aspectRatio {a} must be positive", cam.index()))),
                 };
                 let c = Camera { eye, target: eye + forward, up, vfov_deg: p.yfov().to_degrees(), width, height };
-                match c.validate() {
-                    Ok(()) => Some(c),
-                    Err(m) => {
-                        tracing::warn!("{}: camera {} is unusable ({m}); using the default view", self.path.display(), cam.index());
-                        None
-                    }
-                }
+                c.validate().map_err(|m| self.err(format!("camera {}: {m} (yfov {} rad, node transform)", cam.index(), p.yfov())))?;
+                Ok(Some(c))
             }
             gltf::camera::Projection::Orthographic(_) => {
                 tracing::warn!("{}: orthographic camera {} is not supported; skipped", self.path.display(), cam.index());
-                None
+                Ok(None)
             }
         }
     }
@@ -366,14 +439,19 @@ impl<'a> Builder<'a> {
                 );
                 continue;
             }
+            self.check_accessor_types(&prim, mesh.index())?;
             let reader = prim.reader(|b| self.buffers.get(b.index()).map(|d| &d.0[..]));
             let Some(pos) = reader.read_positions() else {
                 return Err(self.err(format!("mesh {} has a primitive without POSITION", mesh.index())));
             };
             let positions: Vec<Vec3> = pos.map(|p| world.transform_point3(Vec3::from(p))).collect();
             let n = positions.len();
+            let raw_normals: Option<Vec<Vec3>> = reader.read_normals().map(|it| it.map(Vec3::from).collect());
+            if let Some(i) = raw_normals.as_ref().and_then(|v| v.iter().position(|n| !n.is_finite())) {
+                return Err(self.err(format!("mesh {}: NORMAL of vertex {i} is not finite", mesh.index())));
+            }
             let normals: Option<Vec<Vec3>> =
-                reader.read_normals().map(|it| it.map(|v| (normal_matrix * Vec3::from(v)).normalize_or_zero()).collect());
+                raw_normals.map(|v| v.into_iter().map(|n| (normal_matrix * n).normalize_or_zero()).collect());
             let uvs: Option<Vec<Vec2>> = reader.read_tex_coords(0).map(|t| t.into_f32().map(Vec2::from).collect());
             let indices: Vec<u32> = match reader.read_indices() {
                 Some(i) => i.into_u32().collect(),
@@ -384,6 +462,16 @@ impl<'a> Builder<'a> {
             }
             if normals.as_ref().is_some_and(|v| v.len() != n) || uvs.as_ref().is_some_and(|v| v.len() != n) {
                 return Err(self.err(format!("mesh {}: attribute counts differ from POSITION", mesh.index())));
+            }
+            if mode == Mode::Triangles && indices.len() % 3 != 0 {
+                return Err(self.err(format!(
+                    "mesh {}: a triangle list of {} indices (not a multiple of 3)",
+                    mesh.index(),
+                    indices.len()
+                )));
+            }
+            if uvs.is_none() && prim.material().pbr_metallic_roughness().base_color_texture().is_some() {
+                self.warn_once("a textured material on a mesh without TEXCOORD_0: its texture's first texel colours the whole mesh");
             }
             let tris = triangulate(mode, &indices);
             let material = self.material_id(prim.material())?;
@@ -401,6 +489,40 @@ impl<'a> Builder<'a> {
             }
         }
         Ok(())
+    }
+
+    /// The component types and shapes cvtrace reads; the `gltf` crate would otherwise reinterpret
+    /// the bytes (or panic on indices of a float type).
+    fn check_accessor_types(&self, prim: &gltf::Primitive, mesh: usize) -> Result<(), SceneError> {
+        use gltf::accessor::{DataType, Dimensions};
+        use gltf::mesh::Semantic;
+        let float = |a: &gltf::Accessor| a.data_type() == DataType::F32;
+        let unorm = |a: &gltf::Accessor| a.normalized() && matches!(a.data_type(), DataType::U8 | DataType::U16);
+        let check = |what: &str, a: Option<gltf::Accessor>, dims: Dimensions, ok: &dyn Fn(&gltf::Accessor) -> bool, expected: &str| {
+            match a {
+                Some(a) if a.dimensions() != dims || !ok(&a) => Err(self.err(format!(
+                    "mesh {mesh}: {what} accessor {} is {:?} {:?}{}; expected {expected}",
+                    a.index(),
+                    a.dimensions(),
+                    a.data_type(),
+                    if a.normalized() { " normalized" } else { "" }
+                ))),
+                _ => Ok(()),
+            }
+        };
+        let vec3 = "VEC3 of FLOAT (KHR_mesh_quantization is not supported)";
+        check("POSITION", prim.get(&Semantic::Positions), Dimensions::Vec3, &float, vec3)?;
+        check("NORMAL", prim.get(&Semantic::Normals), Dimensions::Vec3, &float, vec3)?;
+        let uv_ok = |a: &gltf::Accessor| float(a) || unorm(a);
+        check("TEXCOORD_0", prim.get(&Semantic::TexCoords(0)), Dimensions::Vec2, &uv_ok, "VEC2 of FLOAT or normalized UNSIGNED_BYTE/SHORT")?;
+        let index_ok = |a: &gltf::Accessor| matches!(a.data_type(), DataType::U8 | DataType::U16 | DataType::U32) && !a.normalized();
+        check("indices", prim.indices(), Dimensions::Scalar, &index_ok, "SCALAR of UNSIGNED_BYTE, UNSIGNED_SHORT or UNSIGNED_INT")
+    }
+
+    fn warn_once(&mut self, what: &'static str) {
+        if self.warned.insert(what) {
+            tracing::warn!("{}: {what}", self.path.display());
+        }
     }
 
     fn material_id(&mut self, m: gltf::Material) -> Result<u32, SceneError> {
@@ -437,6 +559,33 @@ impl<'a> Builder<'a> {
             mat.ior = ior;
         }
         let strength = m.emissive_strength().unwrap_or(1.0);
+        if !(strength >= 0.0 && strength.is_finite()) {
+            return Err(self.err(format!("material `{}` has emissiveStrength {strength}; expected ≥ 0", mat.name)));
+        }
+        // The specification's ranges: out of them, a factor is not a darker or brighter
+        // material but an energy-creating or meaningless one.
+        let unit = |v: f32| (0.0..=1.0).contains(&v);
+        let factors = [
+            ("baseColorFactor", bc[..3].iter().all(|&v| unit(v))),
+            ("metallicFactor", unit(mat.metallic)),
+            ("roughnessFactor", unit(mat.roughness)),
+            ("specularFactor", unit(mat.specular)),
+            ("specularColorFactor", mat.specular_color.min_element() >= 0.0),
+            ("transmissionFactor", unit(mat.transmission)),
+            ("emissiveFactor", m.emissive_factor().iter().all(|&v| unit(v))),
+        ];
+        if let Some((name, _)) = factors.iter().find(|(_, ok)| !ok) {
+            return Err(self.err(format!("material `{}`: {name} is outside the range glTF allows", mat.name)));
+        }
+        if m.alpha_mode() != gltf::material::AlphaMode::Opaque {
+            self.warn_once("alphaMode MASK or BLEND is not rendered: surfaces are opaque");
+        }
+        if m.normal_texture().is_some() {
+            self.warn_once("normalTexture is not rendered");
+        }
+        if m.occlusion_texture().is_some() {
+            self.warn_once("occlusionTexture is not rendered");
+        }
         mat.emission = Vec3::from(m.emissive_factor()) * strength;
         if mat.emission.max_element() > 0.0 {
             mat.emissive_texture = self.texture(m.emissive_texture(), true)?;
@@ -632,6 +781,46 @@ mod tests {
             let e = Scene::load(&path).unwrap_err().to_string();
             assert!(e.contains("bad.gltf") && e.contains(needle), "{e}");
         }
+    }
+
+    #[test]
+    fn invalid_files_are_errors_naming_the_file_and_the_problem() {
+        // Each case mutates the valid lights scene at JSON pointers. Before these checks the
+        // first two panicked inside the gltf crate, the cycle hung, and the rest rendered a
+        // silently wrong image.
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("bad.gltf");
+        let spot = r#"{"innerConeAngle": 0.2, "outerConeAngle": 0.5}"#;
+        let valid: gltf::json::Value = gltf::json::deserialize::from_str(&lights_gltf(spot, "8", "")).unwrap();
+        let v = |s: &str| -> gltf::json::Value { gltf::json::deserialize::from_str(s).unwrap() };
+        let cases: &[(&[(&str, &str)], &str)] = &[
+            (&[("/meshes/0/primitives/0/attributes/POSITION", "99")], "POSITION refers to accessor 99 but there are 2"),
+            (&[("/images", r#"[{"bufferView": 0}]"#)], "image 0 is stored in a buffer view and needs a mimeType"),
+            (&[("/accessors/1/componentType", "5120")], "indices accessor 1 is Scalar I8"),
+            (&[("/accessors/0/type", r#""VEC2""#)], "POSITION accessor 0 is Vec2 F32"),
+            (&[("/accessors/1/count", "0")], "accessor 1 has count 0"),
+            (&[("/accessors/1/count", "5")], "5 indices (not a multiple of 3)"),
+            (&[("/asset/version", r#""1.0""#)], "asset.version"),
+            (&[("/nodes/0/children", "[1]")], "node 1 is reached twice"),
+            (&[("/nodes/0/translation", "[1e20, 0, 0]")], "farther than 1e15"),
+            (&[("/cameras", r#"[{"type": "perspective", "perspective": {"yfov": 0, "znear": 0.1}}]"#), ("/nodes/3/camera", "0")], "camera 0"),
+            (&[("/materials", r#"[{"pbrMetallicRoughness": {"baseColorFactor": [2, 1, 1, 1]}}]"#), ("/meshes/0/primitives/0/material", "0")], "baseColorFactor is outside"),
+            (&[("/materials", r#"[{"emissiveFactor": [-1, 0, 0]}]"#), ("/meshes/0/primitives/0/material", "0")], "emissiveFactor is outside"),
+        ];
+        for (edits, needle) in cases {
+            let mut json = valid.clone();
+            for (pointer, value) in *edits {
+                let (parent, key) = pointer.rsplit_once('/').unwrap();
+                let target = json.pointer_mut(parent).unwrap_or_else(|| panic!("{parent}"));
+                target.as_object_mut().unwrap().insert(key.to_string(), v(value));
+            }
+            std::fs::write(&path, json.to_string()).unwrap();
+            let e = Scene::load(&path).expect_err(needle).to_string();
+            assert!(e.contains("bad.gltf") && e.contains(needle), "{edits:?}: {e}");
+        }
+        // The device guard: a scene path that is not a regular file fails at once.
+        let e = Scene::load(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("is a directory"), "{e}");
     }
 
     #[test]

@@ -89,6 +89,12 @@ pub struct Scene {
 
 const MEMORY: &str = "<memory>";
 
+/// Largest coordinate magnitude a scene, camera or light may have. Embree refuses (and its
+/// debug checks abort on) ray origins and directions beyond about 1.8e18; spawned rays add up
+/// to twice the scene's extent, so the bound leaves a wide margin while allowing any real scene
+/// (the Earth's orbit is 1.5e11 m).
+pub const MAX_COORDINATE: f32 = 1e15;
+
 impl Scene {
     /// Loads a glTF 2.0 scene (`.gltf` with external or embedded buffers, or `.glb`).
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
@@ -124,6 +130,12 @@ impl Scene {
         }
         if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
             return bad(format!("vertex {i} has a non-finite position"));
+        }
+        if let Some(i) = positions.iter().position(|p| p.abs().max_element() > MAX_COORDINATE) {
+            return bad(format!("vertex {i} at {} is farther than {MAX_COORDINATE:e} from the origin", positions[i]));
+        }
+        if let Some(i) = normals.iter().position(|n| !n.is_finite()) {
+            return bad(format!("vertex {i} has a non-finite normal"));
         }
         if !normals.is_empty() && normals.len() != positions.len() {
             return bad(format!("{} normals for {} vertices", normals.len(), positions.len()));

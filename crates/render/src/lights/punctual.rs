@@ -61,6 +61,10 @@ impl Punctual {
         if pos.is_some_and(|p| !p.is_finite()) {
             return Err("position is not finite".into());
         }
+        let far = crate::scene::MAX_COORDINATE;
+        if pos.is_some_and(|p| p.abs().max_element() > far) {
+            return Err(format!("position is farther than {far:e} from the origin"));
+        }
         Ok(())
     }
 
