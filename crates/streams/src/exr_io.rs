@@ -201,17 +201,17 @@ fn sort_header_attributes(path: &Path) -> std::io::Result<()> {
 /// Reads an RGB image from channels `{prefix}R/G/B` (prefix "" for a plain beauty image).
 pub fn read_rgb(path: &Path) -> Result<crate::Image, StreamError> {
     let mut ch = ExrChannels::read(path)?;
-    if !ch.channels.contains_key("R") && ch.channels.contains_key("pt.R") {
-        return Err(StreamError::invalid(
-            path,
-            "is a PT/CRN stream file, not an RGB image: reconstruct it first, or use a reference rendered with --reference",
-        ));
-    }
     take_rgb(&mut ch, path, "")
 }
 
 /// Removes `{prefix}R/G/B` from `ch` and returns them as an image, rejecting non-finite values.
 pub fn take_rgb(ch: &mut ExrChannels, path: &Path, prefix: &str) -> Result<crate::Image, StreamError> {
+    if prefix.is_empty() && !ch.channels.contains_key("R") && ch.channels.contains_key("pt.R") {
+        return Err(StreamError::invalid(
+            path,
+            "is a PT/CRN stream file, not an RGB image: reconstruct it first, or use a reference rendered with --reference",
+        ));
+    }
     let names = ["R", "G", "B"].map(|c| format!("{prefix}{c}"));
     let planes = [ch.take(path, &names[0])?, ch.take(path, &names[1])?, ch.take(path, &names[2])?];
     let img = crate::Image::from_channels(ch.width, ch.height, [&planes[0], &planes[1], &planes[2]]);

@@ -92,13 +92,20 @@ mod tests {
     fn reads_a_written_layout_and_reports_missing_files() {
         let dir = tempfile::tempdir().unwrap();
         for (main, subs) in iduw_paths(dir.path(), "toy", 16) {
+            // Sub-buffer i holds x + i (i = 1..4); the main image is their mean, x + 2.5.
             for (i, p) in std::iter::once(&main).chain(subs.iter()).enumerate() {
-                write_rgb(p, &Image::from_fn(4, 2, |x, _| [x as f32 + i as f32, 0.0, 1.0]), &[], false).unwrap();
+                let v = if i == 0 { 2.5 } else { i as f32 };
+                write_rgb(p, &Image::from_fn(4, 2, |x, _| [x as f32 + v, 0.0, 1.0]), &[], false).unwrap();
             }
         }
         let set = read_iduw(dir.path(), "toy", 16).unwrap();
         assert_eq!(set.batch_count(), 4);
         assert_eq!(set.crn.batches[2].get(1, 0)[0], 4.0);
+        // A main image that is not the mean of its sub-buffers is refused.
+        let main = dir.path().join("toy_16spp_randImg.exr");
+        write_rgb(&main, &Image::from_fn(4, 2, |x, _| [x as f32, 0.0, 1.0]), &[], true).unwrap();
+        let e = read_iduw(dir.path(), "toy", 16).unwrap_err().to_string();
+        assert!(e.contains("toy_16spp_randImg.exr") && e.contains("mean of its batches"), "{e}");
         std::fs::remove_file(dir.path().join("toy_16spp_corrImg3.exr")).unwrap();
         let e = read_iduw(dir.path(), "toy", 16).unwrap_err().to_string();
         assert!(e.contains("toy_16spp_corrImg3.exr"), "{e}");

@@ -66,6 +66,35 @@ const ATTR_NON_FINITE: &str = "cvtrace.nonFiniteSamples";
 const KNOWN_ATTRS: [&str; 7] = [ATTR_SPP, ATTR_BATCHES, ATTR_SEED, ATTR_MAX_DEPTH, ATTR_SCENE, ATTR_VERSION, ATTR_NON_FINITE];
 const ATTR_PREFIX: &str = "cvtrace.";
 
+/// The stream mean must be the mean of its batch means (to rounding, with room for writers that
+/// sum in f32): otherwise every estimator that uses both would silently mix two different images.
+fn check_batch_means(origin: &Path, name: &str, s: &Stream) -> Result<(), StreamError> {
+    let inv_b = 1.0 / s.batches.len() as f64;
+    for (i, mean) in s.mean.pixels.iter().enumerate() {
+        for c in 0..3 {
+            let (mut sum, mut scale) = (0.0f64, mean[c].abs() as f64);
+            for batch in &s.batches {
+                let v = batch.pixels[i][c] as f64;
+                sum += v;
+                scale = scale.max(v.abs());
+            }
+            let of_batches = sum * inv_b;
+            if (of_batches - mean[c] as f64).abs() > 1e-3 * scale + 1e-6 {
+                let (x, y) = (i % s.mean.width, i / s.mean.width);
+                return Err(StreamError::invalid(
+                    origin,
+                    format!(
+                        "{name}.{} at pixel ({x}, {y}) is {} but the mean of its batches is {of_batches}: the batches are not the stream's samples",
+                        ["R", "G", "B"][c],
+                        mean[c]
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Channel prefix of batch `b` of `stream` ("pt" or "crn"), e.g. `pt.b03.`.
 pub fn batch_prefix(stream: &str, b: usize) -> String {
     format!("{stream}.b{b:02}.")
@@ -110,9 +139,24 @@ impl StreamSet {
                 }
             }
         }
+        for (name, s) in named {
+            check_batch_means(origin, name, s)?;
+        }
+        if self.meta.spp > 0 && self.meta.spp as usize % b != 0 {
+            return Err(StreamError::invalid(origin, format!("{} spp per stream do not split into {b} equal batches", self.meta.spp)));
+        }
         if let Some(f) = &self.features {
             if f.albedo.width != w || f.albedo.height != h || f.normal.width != w || f.normal.height != h || f.depth.len() != w * h {
                 return Err(StreamError::invalid(origin, "feature channels do not match the image size"));
+            }
+            let non_finite = |name: &str, im: &Image, channels: [&str; 3]| {
+                im.find_non_finite().map(|(x, y, c)| StreamError::NonFinite { path: origin.to_path_buf(), channel: format!("{name}.{}", channels[c]), x, y })
+            };
+            if let Some(e) = non_finite("albedo", &f.albedo, ["R", "G", "B"]).or_else(|| non_finite("normal", &f.normal, ["X", "Y", "Z"])) {
+                return Err(e);
+            }
+            if let Some(i) = f.depth.iter().position(|d| !d.is_finite()) {
+                return Err(StreamError::NonFinite { path: origin.to_path_buf(), channel: "depth.Z".into(), x: i % w, y: i / w });
             }
         }
         Ok(())
@@ -179,7 +223,16 @@ impl StreamSet {
             }
             streams.push(Stream { mean, batches: bs });
         }
-        let features = if ch.channels.contains_key("albedo.R") {
+        const FEATURES: [&str; 7] = ["albedo.R", "albedo.G", "albedo.B", "normal.X", "normal.Y", "normal.Z", "depth.Z"];
+        let present: Vec<&str> = FEATURES.iter().copied().filter(|c| ch.channels.contains_key(*c)).collect();
+        if !present.is_empty() && present.len() < FEATURES.len() {
+            let missing: Vec<&str> = FEATURES.iter().copied().filter(|c| !present.contains(c)).collect();
+            return Err(StreamError::invalid(
+                path,
+                format!("has some feature channels but not {}: the features come as a group, all or none", missing.join(", ")),
+            ));
+        }
+        let features = if !present.is_empty() {
             let albedo = take_rgb(&mut ch, path, "albedo.")?;
             let nx = ch.take(path, "normal.X")?;
             let ny = ch.take(path, "normal.Y")?;
@@ -190,14 +243,28 @@ impl StreamSet {
             None
         };
         let text = |k: &str| ch.attr(k).map(|v| v.as_text()).unwrap_or_default();
-        let int = |k: &str| match ch.attr(k) {
-            Some(AttrValue::Int(i)) => Some(*i),
-            _ => None,
+        // Absent attributes (other renderers) read as unknown; present ones must make sense.
+        let bad = |k: &str, v: &AttrValue, expected: &str| StreamError::invalid(path, format!("attribute {k} = {} is not {expected}", v.as_text()));
+        let spp = match ch.attr(ATTR_SPP) {
+            None => 0,
+            Some(AttrValue::Int(i)) if *i > 0 => *i as u32,
+            Some(v) => return Err(bad(ATTR_SPP, v, "a positive integer")),
+        };
+        let seed = match ch.attr(ATTR_SEED) {
+            None => 0,
+            Some(AttrValue::Int(i)) if *i >= 0 => *i as u64,
+            Some(v @ AttrValue::Text(t)) => t.parse().map_err(|_| bad(ATTR_SEED, v, "an unsigned 64-bit integer"))?,
+            Some(v) => return Err(bad(ATTR_SEED, v, "an unsigned 64-bit integer")),
+        };
+        let max_depth = match ch.attr(ATTR_MAX_DEPTH) {
+            None => -1,
+            Some(AttrValue::Int(i)) if *i == -1 || *i >= 1 => *i,
+            Some(v) => return Err(bad(ATTR_MAX_DEPTH, v, "-1 or a positive integer")),
         };
         let meta = StreamMeta {
-            spp: int(ATTR_SPP).unwrap_or(0).max(0) as u32,
-            seed: text(ATTR_SEED).parse().unwrap_or(0),
-            max_depth: int(ATTR_MAX_DEPTH).unwrap_or(-1),
+            spp,
+            seed,
+            max_depth,
             scene: text(ATTR_SCENE),
             version: text(ATTR_VERSION),
             non_finite_samples: text(ATTR_NON_FINITE).parse().unwrap_or(0),
@@ -281,5 +348,53 @@ mod tests {
         ch.write(&q, false).unwrap();
         let e = StreamSet::read(&q).unwrap_err().to_string();
         assert!(e.contains("nan.exr") && e.contains("pt.b01.R") && e.contains("(1, 1)"), "{e}");
+    }
+
+    /// Writes `synthetic(4, 3, 4)`, applies `edit` to its channels and attributes, and returns
+    /// the error of reading the edited file back.
+    fn read_error_after(edit: impl FnOnce(&mut ExrChannels)) -> String {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("s.exr");
+        synthetic(4, 3, 4).write(&p, false).unwrap();
+        let mut ch = ExrChannels::read(&p).unwrap();
+        edit(&mut ch);
+        let q = dir.path().join("edited.exr");
+        ch.write(&q, false).unwrap();
+        StreamSet::read(&q).expect_err("the edited file must be refused").to_string()
+    }
+
+    #[test]
+    fn inconsistent_or_incomplete_files_are_refused() {
+        // A stream mean that is not the mean of its batches.
+        let e = read_error_after(|ch| ch.channels.get_mut("crn.G").unwrap()[5] += 0.01);
+        assert!(e.contains("edited.exr") && e.contains("crn.G at pixel (1, 1)") && e.contains("mean of its batches"), "{e}");
+        // Rounding-level differences are fine: the round trip above already checks that; here
+        // one batch moves by less than the tolerance.
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("s.exr");
+        let mut s = synthetic(4, 3, 4);
+        s.pt.batches[0].pixels[5][0] += 1e-5; // pixel (1, 1), whose value is 1
+        s.write(&p, false).unwrap();
+        // Half a feature group.
+        let e = read_error_after(|ch| {
+            ch.channels.remove("depth.Z");
+        });
+        assert!(e.contains("but not depth.Z") && e.contains("all or none"), "{e}");
+        // Non-finite features.
+        let e = read_error_after(|ch| ch.channels.get_mut("depth.Z").unwrap()[2] = f32::INFINITY);
+        assert!(e.contains("depth.Z") && e.contains("(2, 0)"), "{e}");
+        // Header attributes that are present but meaningless.
+        let e = read_error_after(|ch| {
+            ch.attributes.insert(ATTR_SPP.into(), AttrValue::Int(-8));
+        });
+        assert!(e.contains("cvtrace.spp = -8 is not a positive integer"), "{e}");
+        let e = read_error_after(|ch| {
+            ch.attributes.insert(ATTR_SPP.into(), AttrValue::Int(10));
+        });
+        assert!(e.contains("10 spp per stream do not split into 4 equal batches"), "{e}");
+        let e = read_error_after(|ch| {
+            ch.attributes.insert(ATTR_SEED.into(), AttrValue::Text("seven".into()));
+        });
+        assert!(e.contains("cvtrace.seed = seven"), "{e}");
     }
 }
