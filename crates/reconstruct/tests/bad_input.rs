@@ -133,8 +133,13 @@ fn absurd_options_are_refused_before_any_work() {
     assert!(e.contains("--iduw-window 4"), "{e}");
     let e = bad(&|o| o.iduw.gammas.clear(), "iduw");
     assert!(e.contains("γ"), "{e}");
+    // cv's `k` counts neighbours; errors give --k as the command line counts it, centre included.
     let e = bad(&|o| o.cv.k = 121, "cv");
-    assert!(e.contains("--k 121"), "{e}");
+    assert!(e.contains("--k 122"), "{e}");
+    let e = bad(&|o| o.cv.k = 0, "cv");
+    assert!(e.contains("--k 1") && e.contains("at least one neighbour"), "{e}");
+    let e = bad(&|o| o.cv.ridge = f64::NAN, "cv");
+    assert!(e.contains("--cv-ridge NaN"), "{e}");
     let e = "lasso".parse::<Penalty>().unwrap_err().to_string();
     assert!(e.contains("lasso") && e.contains("avg"), "{e}");
     let e = "nearest".parse::<Selection>().unwrap_err().to_string();

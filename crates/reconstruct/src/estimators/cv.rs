@@ -34,11 +34,11 @@ impl Default for CvOptions {
 
 impl CvOptions {
     pub fn validate(&self) -> Result<(), ReconError> {
-        check_selection(self.k, self.search_window, self.ridge)?;
-        if self.k >= self.search_window * self.search_window {
-            return Err(ReconError::option("k", self.k, "cv leaves the centre out, so k must be below search-window²"));
+        // `k` here counts neighbours; on the command line (and in `ours`) it counts the centre too.
+        if self.k == 0 {
+            return Err(ReconError::option("k", 1, "cv needs at least one neighbour besides the centre: at least 2"));
         }
-        Ok(())
+        check_selection(self.k + 1, self.search_window, self.ridge, "cv-ridge")
     }
 }
 

@@ -70,8 +70,9 @@ impl Default for OursOptions {
     }
 }
 
-/// Checks the options shared by `ours` and `cv`.
-pub(crate) fn check_selection(k: usize, search_window: usize, ridge: f64) -> Result<(), ReconError> {
+/// Checks the options shared by `ours` and `cv`: `k` pixels per set, centre included, and the
+/// ridge under its command-line name.
+pub(crate) fn check_selection(k: usize, search_window: usize, ridge: f64, ridge_option: &'static str) -> Result<(), ReconError> {
     if k == 0 || k > MAX_K {
         return Err(ReconError::option("k", k, format!("must be between 1 and {MAX_K}")));
     }
@@ -86,14 +87,14 @@ pub(crate) fn check_selection(k: usize, search_window: usize, ridge: f64) -> Res
         ));
     }
     if !(ridge >= 0.0 && ridge.is_finite()) {
-        return Err(ReconError::option("ridge", ridge, "must be a finite number ≥ 0"));
+        return Err(ReconError::option(ridge_option, ridge, "must be a finite number ≥ 0"));
     }
     Ok(())
 }
 
 impl OursOptions {
     pub fn validate(&self) -> Result<(), ReconError> {
-        check_selection(self.k, self.search_window, self.ridge)?;
+        check_selection(self.k, self.search_window, self.ridge, "ridge")?;
         if !(self.crn_floor >= 0.0 && self.crn_floor.is_finite()) {
             return Err(ReconError::option("crn-floor", self.crn_floor, "must be a finite number ≥ 0 (0 turns the floor off)"));
         }
