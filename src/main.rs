@@ -30,14 +30,17 @@ enum Command {
     Report(cli::report::ReportArgs),
 }
 
+const MAX_THREADS: usize = 1024;
+
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(&cli.log));
     tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).with_target(false).init();
     if let Some(n) = cli.threads {
-        if n == 0 {
-            eprintln!("error: --threads must be at least 1");
+        // Far more threads than cores only costs memory (and at 10⁵ the pool never starts).
+        if n == 0 || n > MAX_THREADS {
+            eprintln!("error: --threads {n}: must be between 1 and {MAX_THREADS}");
             return std::process::ExitCode::from(2);
         }
         rayon::ThreadPoolBuilder::new().num_threads(n).build_global().expect("thread pool is built once");

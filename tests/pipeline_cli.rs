@@ -70,7 +70,7 @@ fn reconstruct_rejects_bad_inputs_with_the_file_named() {
     let s = scene();
     let small = ["--log", "warn", "render", s.to_str().unwrap(), "--reference", "--spp", "4", "--width", "16", "--height", "16", "-o", "small.exr"];
     ok(&cvtrace(d, &small));
-    let cases: [(&[&str], &str); 10] = [
+    let cases: [(&[&str], &str); 13] = [
         (&["reconstruct", "missing.streams.exr", "-o", "x.exr"], "missing.streams.exr"),
         (&["reconstruct", "s.streams.exr", "--method", "ours", "--cbf-radius", "99", "-o", "x.exr"], "cbf-radius"),
         (&["reconstruct", "s.streams.exr", "--method", "ours", "--cbf-sigma-colour", "0", "-o", "x.exr"], "cbf-sigma-colour"),
@@ -80,6 +80,9 @@ fn reconstruct_rejects_bad_inputs_with_the_file_named() {
         (&["reconstruct", "ref.exr", "-o", "x.exr"], "ref.exr: is an RGB image"),
         (&["reconstruct", "s.streams.exr", "--reference", "s.streams.exr", "-o", "x.exr"], "s.streams.exr: is a PT/CRN stream file"),
         (&["reconstruct", "s.streams.exr", "--method", "ours", "-o", "x.png"], "x.png: this output is written as OpenEXR"),
+        (&["reconstruct", "s.streams.exr", "--method", "pt", "--force", "-o", "s.streams.exr"], "s.streams.exr: is also an input"),
+        (&["reconstruct", "s.streams.exr", "--method", "pt", "--exposure=nan", "-o", "x.exr"], "--exposure NaN"),
+        (&["reconstruct", "s.streams.exr", "--method", "cv", "--k", "1", "-o", "x.exr"], "at least one neighbour"),
         // A failed `--method all` does not leave its new directory behind.
         (&["reconstruct", "missing.streams.exr", "--method", "all", "-o", "new-dir"], "missing.streams.exr"),
     ];
@@ -90,6 +93,38 @@ fn reconstruct_rejects_bad_inputs_with_the_file_named() {
         assert!(e.contains(needle), "{args:?}: error does not name {needle}:\n{e}");
         assert!(!e.contains("panicked"), "{e}");
         assert!(!d.join("x.exr").exists() && !d.join("x.png").exists() && !d.join("new-dir").exists());
+    }
+}
+
+#[test]
+fn absurd_arguments_fail_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    render_inputs(d);
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    let before = files_in(d);
+    let study = |extra: &[&'static str]| -> Vec<String> {
+        let mut a: Vec<String> = ["study", sp, "--reference", "ref.exr", "--spp", "8", "-o", "st"].map(String::from).to_vec();
+        a.extend(extra.iter().map(|x| x.to_string()));
+        a
+    };
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (study(&["--batches", "0", "--seeds", "1"]), "--batches must be at least 1"),
+        (study(&["--seeds", "4000000000"]), "--seeds 4000000000"),
+        // iduw needs a multiple of 4 batches: known before the first render.
+        (study(&["--batches", "2", "--seeds", "1"]), "`iduw` needs a positive multiple of 4 batches"),
+        (["--threads", "100000", "reconstruct", "s.streams.exr", "-o", "x.exr"].map(String::from).to_vec(), "--threads 100000"),
+        (["compare", "--reference", "ref.exr", "s.streams.exr"].map(String::from).to_vec(), "s.streams.exr: is a PT/CRN stream file"),
+        (["compare", "--reference", "ref.exr", "ref.exr", "--csv", "ref.exr", "--force"].map(String::from).to_vec(), "ref.exr: is also an input"),
+    ];
+    for (args, needle) in cases {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let out = cvtrace(d, &args);
+        let e = stderr(&out);
+        assert!(!out.status.success() && e.contains(needle), "{args:?}: error should mention {needle:?}:\n{e}");
+        assert!(!e.contains("panicked"), "{e}");
+        assert_eq!(files_in(d), before, "{args:?} left files behind");
     }
 }
 

@@ -25,7 +25,14 @@ pub struct CompareArgs {
 }
 
 pub fn run(args: CompareArgs) -> Result<()> {
+    if let (Some(c), Some(j)) = (&args.csv, &args.json) {
+        if c == j {
+            bail!("{}: given as both --csv and --json", c.display());
+        }
+    }
+    let inputs: Vec<&std::path::Path> = std::iter::once(args.reference.as_path()).chain(args.images.iter().map(PathBuf::as_path)).collect();
     for p in args.csv.iter().chain(args.json.iter()) {
+        crate::cli::refuse_overwriting_inputs(p, &inputs)?;
         cvtrace_streams::atomic::check_writable(p, args.force)?;
     }
     // A PNG preview next to an EXR is an easy slip with `out/*`: skip it with a note.

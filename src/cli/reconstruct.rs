@@ -108,7 +108,7 @@ impl EstimatorArgs {
         }
         if let Some(k) = self.k {
             o.ours.k = k;
-            o.cv.k = k.saturating_sub(1).max(1);
+            o.cv.k = k.saturating_sub(1);
         }
         if let Some(w) = self.search_window {
             o.ours.search_window = w;
@@ -213,6 +213,7 @@ fn targets(args: &ReconstructArgs) -> Result<Vec<Target>> {
 }
 
 pub fn run(args: ReconstructArgs) -> Result<()> {
+    check_exposure(args.exposure)?;
     let options = args.options.to_options();
     // Build every estimator first: absurd options fail before any file is read.
     let estimators: Vec<(Target, Box<dyn Estimator>)> = targets(&args)?
@@ -225,7 +226,11 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
     if new_directory {
         atomic::check_writable(&args.output, false)?;
     }
+    let inputs: Vec<&Path> = std::iter::once(args.input.as_path()).chain(args.reference.as_deref()).collect();
     for (t, _) in &estimators {
+        for out in std::iter::once(&t.exr).chain(&t.png) {
+            crate::cli::refuse_overwriting_inputs(out, &inputs)?;
+        }
         atomic::check_extension(&t.exr, "exr")?;
         if let Some(p) = &t.png {
             atomic::check_extension(p, "png")?;
@@ -261,13 +266,31 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
         }
         input = input.with_reference(r);
     }
+    // Every method's requirements first, then every image, then the files: a method that
+    // cannot run, or an image that is not finite, leaves no outputs of the others behind.
+    for (_, estimator) in &estimators {
+        input.check(estimator.name(), &estimator.needs())?;
+    }
+    let mut outputs = Vec::with_capacity(estimators.len());
+    for (_, estimator) in &estimators {
+        let out = estimator.reconstruct(&input)?;
+        tracing::info!("{}: {:.3} s", estimator.name(), out.diagnostics.seconds);
+        if let Some((x, y, c)) = out.image.find_non_finite() {
+            bail!(
+                "{streams_name}: `{}` produced a non-finite value at pixel ({x}, {y}), channel {}; the input holds values \
+                 too large for f32 arithmetic (largest {:e})",
+                estimator.name(),
+                ["R", "G", "B"][c],
+                set.pt.mean.pixels.iter().chain(&set.crn.mean.pixels).flatten().fold(0.0f32, |m, v| m.max(v.abs()))
+            );
+        }
+        outputs.push(out);
+    }
     if new_directory {
         std::fs::create_dir_all(&args.output).with_context(|| format!("{}: cannot create directory", args.output.display()))?;
     }
     let mut rows = Vec::new();
-    for (target, estimator) in &estimators {
-        let out = estimator.reconstruct(&input)?;
-        tracing::info!("{}: {:.3} s", estimator.name(), out.diagnostics.seconds);
+    for ((target, estimator), out) in estimators.iter().zip(outputs) {
         write_output(&target.exr, &args, estimator.as_ref(), &out)?;
         if let Some(png) = &target.png {
             write_png(png, &out.image, args.exposure, args.force)?;
@@ -276,6 +299,14 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
         rows.push((estimator.name(), rel, out.diagnostics));
     }
     print_summary(&rows);
+    Ok(())
+}
+
+/// PNG exposure in stops: anything beyond ±64 turns every preview white or black.
+pub fn check_exposure(stops: f32) -> Result<()> {
+    if !(stops.is_finite() && stops.abs() <= 64.0) {
+        bail!("--exposure {stops}: must be a number of stops between -64 and 64");
+    }
     Ok(())
 }
 

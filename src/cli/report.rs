@@ -90,7 +90,12 @@ pub fn run(args: ReportArgs) -> Result<()> {
         }
     }
     let results = StudyResults::new(scenes);
+    // The viewer and the summary go next to the studies, never over them.
+    let study_files: Vec<PathBuf> = dirs.iter().map(|d| d.join("results.json")).collect();
+    let inputs: Vec<&Path> = dirs.iter().chain(&study_files).map(PathBuf::as_path).collect();
+    crate::cli::refuse_overwriting_inputs(&args.output, &inputs)?;
     if let Some(md) = &args.markdown {
+        crate::cli::refuse_overwriting_inputs(md, &inputs)?;
         cvtrace_streams::atomic::check_writable(md, args.force)?;
     }
     let index = write_report(&results, &root, &args.output, &ReportOptions { title: args.title.clone(), overwrite: args.force })?;

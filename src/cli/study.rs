@@ -17,10 +17,12 @@ use cvtrace_render::Sidecar;
 use cvtrace_reconstruct::{build, ErrorEstimate, Estimator, Input, Method, Options, Penalty, Selection};
 use cvtrace_streams::exr_io::{read_rgb, take_rgb, AttrValue, ExrChannels};
 use cvtrace_streams::preview::write_png;
-use cvtrace_streams::{Image, StreamSet};
+use cvtrace_streams::{Features, Image, Stream, StreamMeta, StreamSet};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+/// More seeds than this is a typo, not a study: each seed writes two renders.
+const MAX_SEEDS: u32 = 10_000;
 /// Seed offset of the PT(2n) renders, so they never share random numbers with a stream.
 const PT2N_SEED_OFFSET: u64 = 1 << 32;
 /// Seed of a reference rendered by the study (distinct from every stream seed).
@@ -82,6 +84,26 @@ enum Source {
     Pt2n,
 }
 
+/// Every estimator's requirements, checked on a 1×1 stand-in of the streams the study will
+/// render (features, a reference, `batches` batches, each spp value): a study that could not
+/// finish fails before its first render, not after the last.
+fn check_needs_before_rendering(list: &[Entry], spps: &[u32], batches: u32) -> Result<()> {
+    let pixel = Image::new(1, 1);
+    let stream = || Stream::from_batches(vec![pixel.clone(); batches as usize]);
+    for &spp in spps {
+        let features = Features { albedo: pixel.clone(), normal: pixel.clone(), depth: vec![0.0] };
+        let meta = StreamMeta { spp, ..Default::default() };
+        let set = StreamSet { width: 1, height: 1, pt: stream(), crn: stream(), features: Some(features), meta };
+        let input = Input::new(&set).named("the streams this study renders", "the reference").with_reference(&pixel);
+        for e in list {
+            if let Source::Estimator(est) = &e.source {
+                input.check(est.name(), &est.needs()).with_context(|| format!("--spp {spp} --batches {batches}"))?;
+            }
+        }
+    }
+    Ok(())
+}
+
 fn entries(options: &Options, ablations: bool) -> Result<Vec<Entry>> {
     let mut list = Vec::new();
     let labels = [
@@ -127,8 +149,11 @@ pub fn run(args: StudyArgs) -> Result<()> {
     if spps.is_empty() || spps[0] == 0 {
         bail!("--spp needs positive values");
     }
-    if args.seeds == 0 {
-        bail!("--seeds must be at least 1");
+    if args.seeds == 0 || args.seeds > MAX_SEEDS {
+        bail!("--seeds {}: must be between 1 and {MAX_SEEDS}", args.seeds);
+    }
+    if args.batches == 0 {
+        bail!("--batches must be at least 1");
     }
     if let Some(bad) = spps.iter().find(|&&n| n % args.batches != 0) {
         bail!("--batches {} does not divide --spp {bad}; every spp value must be a multiple of the batch count", args.batches);
@@ -138,6 +163,7 @@ pub fn run(args: StudyArgs) -> Result<()> {
     }
     let options = args.options.to_options();
     let list = entries(&options, args.ablations)?;
+    check_needs_before_rendering(&list, &spps, args.batches)?;
     std::fs::create_dir_all(&args.output).with_context(|| format!("{}: cannot create the study folder", args.output.display()))?;
 
     // The reference: reuse the file, or render it (resumable through render's checkpoint).
