@@ -118,8 +118,15 @@ fn interrupted_reference_resumes_to_the_same_image() {
         cvtrace(dir.path(), &[&["render", sp, "--reference", "--spp", "12", "--seed", "4", "-o", "part.ref.exr"][..], SMALL].concat());
     assert!(!out.status.success());
     let e = stderr(&out);
-    assert!(e.contains("part.ref.checkpoint.exr") && e.contains("seed"), "{e}");
+    assert!(e.contains("part.ref.checkpoint.exr") && e.contains("seed") && e.contains("delete it to start the reference over"), "{e}");
     assert!(ckpt.exists(), "a mismatched checkpoint is kept");
+
+    // A checkpoint that is not one: the same way out, and nothing is written.
+    std::fs::write(dir.path().join("junk.ref.checkpoint.exr"), "not an EXR").unwrap();
+    let out = cvtrace(dir.path(), &[&["render", sp, "--reference", "--spp", "12", "-o", "junk.ref.exr"][..], SMALL].concat());
+    let e = stderr(&out);
+    assert!(!out.status.success() && e.contains("junk.ref.checkpoint.exr") && e.contains("delete it to start the reference over"), "{e}");
+    assert!(!dir.path().join("junk.ref.exr").exists());
 
     // Resume with a different pass size: the samples are still added in the same order.
     ok(&cvtrace(dir.path(), &base("5", "part.ref.exr")));

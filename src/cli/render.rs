@@ -495,12 +495,17 @@ fn load_checkpoint(path: &Path, identity: &CheckpointIdentity) -> Result<Option<
     if !path.exists() {
         return Ok(None);
     }
+    // Whatever is wrong with it, the way out is the same.
+    read_checkpoint(path, identity).map(Some).map_err(|e| anyhow::anyhow!("{e:#}; delete it to start the reference over"))
+}
+
+fn read_checkpoint(path: &Path, identity: &CheckpointIdentity) -> Result<ReferenceAccum> {
     let mut ch = ExrChannels::read(path)?;
     let saved = CheckpointIdentity::from_file(&ch, path, false)?;
     let diff = identity.differences(&saved, "checkpoint");
     if !diff.is_empty() {
         bail!(
-            "{}: checkpoint of a different render ({}); render with its settings to resume, or delete it to start over",
+            "{}: checkpoint of a different render ({}); render with its settings to resume it",
             path.display(),
             diff.join(", ")
         );
@@ -527,7 +532,7 @@ fn load_checkpoint(path: &Path, identity: &CheckpointIdentity) -> Result<Option<
     if sum.iter().flatten().any(|v| !v.is_finite()) {
         bail!("{}: checkpoint sums are not finite", path.display());
     }
-    Ok(Some(ReferenceAccum {
+    Ok(ReferenceAccum {
         width: identity.width,
         height: identity.height,
         sum,
@@ -536,7 +541,7 @@ fn load_checkpoint(path: &Path, identity: &CheckpointIdentity) -> Result<Option<
         max_depth: identity.max_depth,
         rr_depth: identity.rr_depth,
         non_finite_samples,
-    }))
+    })
 }
 
 /// The accumulator of the finished reference at `path`, to be extended: its identity must
