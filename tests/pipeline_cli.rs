@@ -114,6 +114,7 @@ fn absurd_arguments_fail_before_any_work() {
         (study(&["--seeds", "4000000000"]), "--seeds 4000000000"),
         // iduw needs a multiple of 4 batches: known before the first render.
         (study(&["--batches", "2", "--seeds", "1"]), "`iduw` needs a positive multiple of 4 batches"),
+        (["study", "ref.exr", "--reference", "ref.exr", "--spp", "8", "--batches", "4", "--seeds", "1", "-o", "st"].map(String::from).to_vec(), "ref.exr: not a valid glTF"),
         (["--threads", "100000", "reconstruct", "s.streams.exr", "-o", "x.exr"].map(String::from).to_vec(), "--threads 100000"),
         (["compare", "--reference", "ref.exr", "s.streams.exr"].map(String::from).to_vec(), "s.streams.exr: is a PT/CRN stream file"),
         (["compare", "--reference", "ref.exr", "ref.exr", "--csv", "ref.exr", "--force"].map(String::from).to_vec(), "ref.exr: is also an input"),

@@ -161,6 +161,8 @@ pub fn run(args: StudyArgs) -> Result<()> {
     if !args.scene.is_file() {
         bail!("{}: scene file not found", args.scene.display());
     }
+    // A scene that does not load fails here, before the study folder is made.
+    cvtrace_render::Scene::load(&args.scene)?;
     let options = args.options.to_options();
     let list = entries(&options, args.ablations)?;
     check_needs_before_rendering(&list, &spps, args.batches)?;
