@@ -108,13 +108,18 @@ impl ExrChannels {
 }
 
 /// The integer, float and text attributes among `attrs` (other kinds are not used by cvtrace).
+/// An attribute's text: UTF-8 (as cvtrace writes it), or Latin-1 for bytes that are not UTF-8.
+fn text_of(t: &Text) -> String {
+    String::from_utf8(t.bytes().to_vec()).unwrap_or_else(|_| t.to_string())
+}
+
 fn custom_attributes<'a>(attrs: impl Iterator<Item = (&'a Text, &'a AttributeValue)>) -> BTreeMap<String, AttrValue> {
     attrs
         .filter_map(|(k, v)| {
             let value = match v {
                 AttributeValue::I32(i) => AttrValue::Int(*i),
                 AttributeValue::F32(f) => AttrValue::Float(*f),
-                AttributeValue::Text(t) => AttrValue::Text(t.to_string()),
+                AttributeValue::Text(t) => AttrValue::Text(text_of(t)),
                 _ => return None,
             };
             Some((k.to_string(), value))
@@ -139,7 +144,10 @@ impl ExrChannels {
             let value = match v {
                 AttrValue::Int(i) => AttributeValue::I32(*i),
                 AttrValue::Float(f) => AttributeValue::F32(*f),
-                AttrValue::Text(s) => AttributeValue::Text(Text::new_or_panic(s.as_str())),
+                // UTF-8 bytes: the exr crate only builds Latin-1 text (it panics on anything
+                // else, such as a scene path in Chinese), while OpenEXR strings are plain bytes
+                // that OpenImageIO reads as UTF-8.
+                AttrValue::Text(s) => AttributeValue::Text(Text::from_slice_unchecked(s.as_bytes())),
             };
             attributes.other.insert(Text::new_or_panic(k.as_str()), value);
         }
@@ -259,6 +267,10 @@ mod tests {
         let ch = ExrChannels::read(&p).unwrap();
         assert_eq!(ch.attr("cvtrace.spp"), Some(&AttrValue::Int(7)));
         assert_eq!(ch.attr("cvtrace.note"), Some(&AttrValue::Text("hi".into())));
+        // Text beyond Latin-1 (a scene path in Chinese) round-trips as UTF-8.
+        let q = dir.path().join("utf8.exr");
+        write_rgb(&q, &img, &[("cvtrace.scene", AttrValue::Text("场景/ü.gltf".into()))], false).unwrap();
+        assert_eq!(ExrChannels::read(&q).unwrap().attr("cvtrace.scene"), Some(&AttrValue::Text("场景/ü.gltf".into())));
     }
 
     #[test]
