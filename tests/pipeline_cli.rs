@@ -168,10 +168,17 @@ fn study_resumes_and_report_builds_the_viewer() {
     // Other settings into the same folder: an error naming the file and the difference, not a
     // silent reuse of renders made otherwise.
     let deeper: Vec<&str> = study.iter().zip(std::iter::once(&"").chain(&study)).map(|(a, prev)| if *prev == "--max-depth" { "3" } else { a }).collect();
-    for (args, recorded) in [([&study[..], &["--traversal", "fast"]].concat(), "traversal robust"), (deeper, "max depth 6")] {
+    // Settings that change the image itself make the reference another image's: that comes first.
+    let cases: [(Vec<&str>, [&str; 2]); 4] = [
+        ([&study[..], &["--traversal", "fast"]].concat(), ["seed-000", "traversal robust (in the file) vs fast (now)"]),
+        ([&study[..], &["--rr-depth", "3"]].concat(), ["seed-000", "rr depth 5 (in the file) vs 3 (now)"]),
+        (deeper, ["ref.exr: not a reference of this study's image", "max depth 6 (in the file) vs 3 (now)"]),
+        ([&study[..], &["--camera", "278,273,-700:278,273,0:37"]].concat(), ["ref.exr: not a reference of this study's image", "camera"]),
+    ];
+    for (args, needles) in cases {
         let out = cvtrace(d, &args);
-        assert!(!out.status.success(), "{recorded}: the old renders were reused");
-        assert!(stderr(&out).contains("seed-000") && stderr(&out).contains(recorded), "{}", stderr(&out));
+        assert!(!out.status.success(), "{needles:?}: the old renders were reused");
+        assert!(needles.iter().all(|n| stderr(&out).contains(n)), "{needles:?}: {}", stderr(&out));
     }
     assert_eq!(stamp("study/cbox/spp00008/seed-001.streams.exr"), before);
 

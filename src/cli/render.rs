@@ -123,27 +123,50 @@ fn recorded_traversal(attr: Option<&AttrValue>) -> String {
     attr.map_or_else(|| Traversal::Robust.name().to_string(), |v| v.as_text())
 }
 
-/// How the finished render at `path` differs from what `args` asks for, as far as its header
-/// records and the flags pin down (unset sizes and depths come from the scene, so they are not
-/// compared): spp, seed, traversal, and the size and path limits given as flags.
-pub fn recorded_differences(path: &Path, args: &RenderArgs) -> Result<Vec<String>> {
+/// How the finished render at `path` differs from `planned` (seed included) and the asked `spp`
+/// and, for stream files, `batches`: everything its header records. Values an older file did
+/// not record are not compared.
+pub fn recorded_differences(path: &Path, planned: &RenderIdentity, spp: u32, batches: Option<u32>) -> Result<Vec<String>> {
+    Ok(differing_fields(path, planned, spp, batches)?.into_iter().map(|(_, message)| message).collect())
+}
+
+/// [`recorded_differences`] as (field, message) pairs.
+fn differing_fields(path: &Path, planned: &RenderIdentity, spp: u32, batches: Option<u32>) -> Result<Vec<(&'static str, String)>> {
     let (width, height, attrs) = ExrChannels::read_header(path)?;
-    let text = |k: &str| attrs.get(k).map(|v| v.as_text());
-    let mut d = Vec::new();
-    let mut cmp = |what: &str, recorded: Option<String>, asked: Option<String>| {
-        if let (Some(r), Some(a)) = (recorded, asked) {
-            if r != a {
-                d.push(format!("{what} {r} in the file, {a} asked"));
-            }
-        }
-    };
-    cmp("spp", text("cvtrace.spp"), args.spp.map(|n| n.to_string()));
-    cmp("seed", text("cvtrace.seed"), Some(args.seed.to_string()));
-    cmp("traversal", Some(recorded_traversal(attrs.get(ATTR_TRAVERSAL))), Some(args.view.traversal.name().into()));
-    cmp("max depth", text("cvtrace.maxDepth"), args.view.max_depth.map(|n| n.to_string()));
-    cmp("width", Some(width.to_string()), args.view.width.map(|n| n.to_string()));
-    cmp("height", Some(height.to_string()), args.view.height.map(|n| n.to_string()));
-    Ok(d)
+    let text = |k: &str| attrs.get(k).map_or_else(|| UNRECORDED.to_string(), |v| v.as_text());
+    let recorded = [
+        ("size", format!("{width}x{height}")),
+        ("seed", text("cvtrace.seed")),
+        ("max depth", text("cvtrace.maxDepth")),
+        ("rr depth", text("cvtrace.rrDepth")),
+        ("scene hash", text("cvtrace.sceneHash")),
+        ("camera", text("cvtrace.camera")),
+        ("traversal", recorded_traversal(attrs.get(ATTR_TRAVERSAL))),
+        ("spp", text("cvtrace.spp")),
+        ("batches", if batches.is_some() { text("cvtrace.batches") } else { UNRECORDED.into() }),
+    ];
+    let mut asked = planned.fields().to_vec();
+    asked.push(("spp", spp.to_string()));
+    asked.push(("batches", batches.map_or_else(|| UNRECORDED.into(), |b| b.to_string())));
+    Ok(field_differences(&asked, &recorded, "in the file"))
+}
+
+/// How the reference at `path` is of another image than `planned` would render: scene, camera,
+/// size or path length (what changes the expectation). Unrecorded values are not compared, so
+/// references from other renderers pass.
+pub fn reference_mismatches(path: &Path, planned: &RenderIdentity) -> Result<Vec<String>> {
+    let same_image = ["size", "max depth", "scene hash", "camera"];
+    let all = differing_fields(path, planned, 0, None)?;
+    Ok(all.into_iter().filter(|(field, _)| same_image.contains(field)).map(|(_, message)| message).collect())
+}
+
+/// `what_saved` differs from `now` in these fields (an unrecorded saved value never differs).
+fn field_differences(now: &[(&'static str, String)], saved: &[(&'static str, String)], what_saved: &str) -> Vec<(&'static str, String)> {
+    now.iter()
+        .zip(saved)
+        .filter(|((_, a), (_, b))| a != b && b != UNRECORDED && a != UNRECORDED)
+        .map(|((name, a), (_, b))| (*name, format!("{name} {b} ({what_saved}) vs {a} (now)")))
+        .collect()
 }
 
 pub fn run(args: RenderArgs) -> Result<()> {
@@ -180,24 +203,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
     // Denormal flushing in this thread too, for any work rayon runs on the caller.
     set_flush_denormals();
 
-    let t = Instant::now();
-    let mut scene = Scene::load(&args.scene)?;
-    tracing::info!(
-        "loaded {} in {:.1} ms: {} triangles, {} materials",
-        args.scene.display(),
-        ms(t),
-        scene.triangles().len(),
-        scene.materials().len()
-    );
-    if let Some(view) = camera_override {
-        let c = scene.camera().clone();
-        let camera = Camera { eye: view.eye, target: view.target, vfov_deg: view.vfov_deg, ..c };
-        camera.validate().map_err(|m| anyhow::anyhow!("--camera: {m}"))?;
-        scene.set_camera(camera);
-    }
-    let size = image_size(&args.view, scene.render_defaults(), scene.camera());
-    let settings = resolve_settings(&args, batches, scene.render_defaults(), size);
-    settings.validate().with_context(|| format!("{}: settings from the command line and the scene", args.scene.display()))?;
+    let (scene, settings) = prepare(&args, batches, camera_override)?;
 
     let build = BuildOptions { robust: args.view.traversal == Traversal::Robust, ..BuildOptions::default() };
     let tracer = Device::new()
@@ -219,6 +225,40 @@ pub fn run(args: RenderArgs) -> Result<()> {
     }
 }
 
+/// The scene as this render sees it (the `--camera` override applied) and the settings that
+/// the flags and the scene's defaults resolve to.
+fn prepare(args: &RenderArgs, batches: u32, camera_override: Option<CameraView>) -> Result<(Scene, RenderSettings)> {
+    let t = Instant::now();
+    let mut scene = Scene::load(&args.scene)?;
+    tracing::info!(
+        "loaded {} in {:.1} ms: {} triangles, {} materials",
+        args.scene.display(),
+        ms(t),
+        scene.triangles().len(),
+        scene.materials().len()
+    );
+    if let Some(view) = camera_override {
+        let c = scene.camera().clone();
+        let camera = Camera { eye: view.eye, target: view.target, vfov_deg: view.vfov_deg, ..c };
+        camera.validate().map_err(|m| anyhow::anyhow!("--camera: {m}"))?;
+        scene.set_camera(camera);
+    }
+    let size = image_size(&args.view, scene.render_defaults(), scene.camera());
+    let settings = resolve_settings(args, batches, scene.render_defaults(), size);
+    settings.validate().with_context(|| format!("{}: settings from the command line and the scene", args.scene.display()))?;
+    Ok((scene, settings))
+}
+
+/// What a render with `args` would record about itself (scene hash, camera, size, depths, seed,
+/// traversal), found by loading the scene without rendering: `study` compares it with the
+/// finished renders it is about to reuse.
+pub fn planned_identity(args: &RenderArgs) -> Result<RenderIdentity> {
+    let batches = if args.reference { 1 } else { args.batches.unwrap_or(DEFAULT_BATCHES) };
+    let camera_override = args.view.camera.as_deref().map(parse_camera).transpose()?;
+    let (scene, settings) = prepare(args, batches, camera_override)?;
+    Ok(RenderIdentity::new(&scene, &settings, args.view.traversal))
+}
+
 fn render_stream_file(args: &RenderArgs, scene: &Scene, tracer: &EmbreeScene, s: &RenderSettings, pool: &rayon::ThreadPool) -> Result<()> {
     let total = s.width as u64 * s.height as u64 * s.spp as u64 * 2;
     tracing::info!(
@@ -238,7 +278,16 @@ fn render_stream_file(args: &RenderArgs, scene: &Scene, tracer: &EmbreeScene, s:
     let mut set = result?;
     clock.log_rate("render", total);
     set.meta.scene = args.scene.to_string_lossy().into_owned();
-    set.meta.settings.insert(SETTING_TRAVERSAL.into(), args.view.traversal.name().into());
+    // The identity a checkpoint records, so that a study can tell whether it may reuse the file.
+    let identity = RenderIdentity::new(scene, s, args.view.traversal);
+    for (key, value) in [
+        (SETTING_TRAVERSAL, identity.traversal),
+        ("rrDepth", identity.rr_depth.to_string()),
+        ("sceneHash", identity.scene_hash),
+        ("camera", identity.camera),
+    ] {
+        set.meta.settings.insert(key.into(), value);
+    }
     let t = Instant::now();
     set.write(&args.output, args.force)?;
     tracing::info!("wrote {} in {:.1} ms", args.output.display(), ms(t));
@@ -253,7 +302,7 @@ fn render_reference(
     checkpoint: &Path,
     pool: &rayon::ThreadPool,
 ) -> Result<()> {
-    let identity = CheckpointIdentity::new(scene, s, args.view.traversal);
+    let identity = RenderIdentity::new(scene, s, args.view.traversal);
     // An interrupted extension left a checkpoint, which is exact: it comes first.
     let mut accum = match load_checkpoint(checkpoint, &identity)? {
         Some(a) => {
@@ -346,11 +395,12 @@ fn checkpoint_path(output: &Path) -> PathBuf {
     output.with_file_name(format!("{stem}.checkpoint.exr"))
 }
 
-/// Everything a checkpoint must agree on with the current run for its sums to be continued.
-/// The sample count is not part of it: passes add samples in index order, so any later
-/// target (at least the samples done) continues the same sequence.
-#[derive(Debug, PartialEq)]
-struct CheckpointIdentity {
+/// Everything that decides a render's samples: what a checkpoint must agree on with the current
+/// run for its sums to be continued, and what every output records about itself. The sample
+/// count is not part of it: passes add samples in index order, so any later target (at least
+/// the samples done) continues the same sequence.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderIdentity {
     width: u32,
     height: u32,
     seed: u64,
@@ -367,10 +417,10 @@ const CKPT_KIND: (&str, &str) = ("cvtrace.checkpoint", "reference-v1");
 /// Stands for a scene hash or camera that an older finished reference did not record.
 const UNRECORDED: &str = "unrecorded";
 
-impl CheckpointIdentity {
+impl RenderIdentity {
     fn new(scene: &Scene, s: &RenderSettings, traversal: Traversal) -> Self {
         let c = scene.camera();
-        CheckpointIdentity {
+        RenderIdentity {
             width: s.width,
             height: s.height,
             seed: s.seed,
@@ -427,7 +477,7 @@ impl CheckpointIdentity {
         let parse = |k: &str| -> Result<i64> {
             text(k)?.parse::<i64>().with_context(|| format!("{}: attribute {k} is not an integer", path.display()))
         };
-        Ok(CheckpointIdentity {
+        Ok(RenderIdentity {
             width: ch.width as u32,
             height: ch.height as u32,
             seed: text("cvtrace.seed")?.parse().with_context(|| format!("{}: bad cvtrace.seed", path.display()))?,
@@ -439,23 +489,28 @@ impl CheckpointIdentity {
         })
     }
 
+    /// The recorded fields, named as in error messages.
+    fn fields(&self) -> [(&'static str, String); 7] {
+        [
+            ("size", format!("{}x{}", self.width, self.height)),
+            ("seed", self.seed.to_string()),
+            ("max depth", self.max_depth.to_string()),
+            ("rr depth", self.rr_depth.to_string()),
+            ("scene hash", self.scene_hash.clone()),
+            ("camera", self.camera.clone()),
+            ("traversal", self.traversal.clone()),
+        ]
+    }
+
+    /// The same render with another seed (a study's renders differ only in seed and spp).
+    pub fn with_seed(&self, seed: u64) -> Self {
+        RenderIdentity { seed, ..self.clone() }
+    }
+
     /// Human-readable differences from `saved` (a `what` file), for the mismatch error.
     /// An unrecorded value in `saved` is not a difference (see [`Self::from_file`]).
     fn differences(&self, saved: &Self, what: &str) -> Vec<String> {
-        let mut d = Vec::new();
-        let mut cmp = |what_differs: &str, a: String, b: String| {
-            if a != b && b != UNRECORDED {
-                d.push(format!("{what_differs} {b} ({what}) vs {a} (now)"));
-            }
-        };
-        cmp("size", format!("{}x{}", self.width, self.height), format!("{}x{}", saved.width, saved.height));
-        cmp("seed", self.seed.to_string(), saved.seed.to_string());
-        cmp("max depth", self.max_depth.to_string(), saved.max_depth.to_string());
-        cmp("rr depth", self.rr_depth.to_string(), saved.rr_depth.to_string());
-        cmp("scene hash", self.scene_hash.clone(), saved.scene_hash.clone());
-        cmp("camera", self.camera.clone(), saved.camera.clone());
-        cmp("traversal", self.traversal.clone(), saved.traversal.clone());
-        d
+        field_differences(&self.fields(), &saved.fields(), what).into_iter().map(|(_, message)| message).collect()
     }
 }
 
@@ -467,7 +522,7 @@ fn sum_channel(c: usize, piece: usize) -> String {
     format!("sum.{}.w{piece}", ["R", "G", "B"][c])
 }
 
-fn save_checkpoint(path: &Path, accum: &ReferenceAccum, identity: &CheckpointIdentity) -> Result<()> {
+fn save_checkpoint(path: &Path, accum: &ReferenceAccum, identity: &RenderIdentity) -> Result<()> {
     let t = Instant::now();
     let (w, h) = (accum.width as usize, accum.height as usize);
     let mut ch = ExrChannels::new(w, h);
@@ -491,7 +546,7 @@ fn save_checkpoint(path: &Path, accum: &ReferenceAccum, identity: &CheckpointIde
 
 /// The accumulator saved at `path`, `None` if there is no checkpoint, or an error if it
 /// belongs to a different render.
-fn load_checkpoint(path: &Path, identity: &CheckpointIdentity) -> Result<Option<ReferenceAccum>> {
+fn load_checkpoint(path: &Path, identity: &RenderIdentity) -> Result<Option<ReferenceAccum>> {
     if !path.exists() {
         return Ok(None);
     }
@@ -499,9 +554,9 @@ fn load_checkpoint(path: &Path, identity: &CheckpointIdentity) -> Result<Option<
     read_checkpoint(path, identity).map(Some).map_err(|e| anyhow::anyhow!("{e:#}; delete it to start the reference over"))
 }
 
-fn read_checkpoint(path: &Path, identity: &CheckpointIdentity) -> Result<ReferenceAccum> {
+fn read_checkpoint(path: &Path, identity: &RenderIdentity) -> Result<ReferenceAccum> {
     let mut ch = ExrChannels::read(path)?;
-    let saved = CheckpointIdentity::from_file(&ch, path, false)?;
+    let saved = RenderIdentity::from_file(&ch, path, false)?;
     let diff = identity.differences(&saved, "checkpoint");
     if !diff.is_empty() {
         bail!(
@@ -546,9 +601,9 @@ fn read_checkpoint(path: &Path, identity: &CheckpointIdentity) -> Result<Referen
 
 /// The accumulator of the finished reference at `path`, to be extended: its identity must
 /// match this render's, and it must hold fewer samples than `s.spp`.
-fn load_finished_reference(path: &Path, identity: &CheckpointIdentity, s: &RenderSettings) -> Result<ReferenceAccum> {
+fn load_finished_reference(path: &Path, identity: &RenderIdentity, s: &RenderSettings) -> Result<ReferenceAccum> {
     let mut ch = ExrChannels::read(path)?;
-    let saved = CheckpointIdentity::from_file(&ch, path, true)?;
+    let saved = RenderIdentity::from_file(&ch, path, true)?;
     let diff = identity.differences(&saved, "reference");
     if !diff.is_empty() {
         bail!("{}: --extend: the reference is of a different render ({})", path.display(), diff.join(", "));

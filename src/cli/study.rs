@@ -7,7 +7,7 @@
 //! a file written atomically, so an interrupted study keeps its finished seeds and only
 //! re-runs the (cheap) reconstructions.
 use crate::cli::reconstruct::{read_input, EstimatorArgs};
-use crate::cli::render::{self as render_cli, RenderArgs, ViewArgs};
+use crate::cli::render::{self as render_cli, RenderArgs, RenderIdentity, ViewArgs};
 use anyhow::{bail, Context, Result};
 use cvtrace_eval::falsecolor::{scale_for_maps, write_false_color_png};
 use cvtrace_eval::reference_noise::{from_variance_image, too_noisy_warning};
@@ -161,8 +161,10 @@ pub fn run(args: StudyArgs) -> Result<()> {
     if !args.scene.is_file() {
         bail!("{}: scene file not found", args.scene.display());
     }
-    // A scene that does not load fails here, before the study folder is made.
-    cvtrace_render::Scene::load(&args.scene)?;
+    // Loading the scene once tells what every render of this study records about itself (so a
+    // finished one is only reused if it matches), and a scene that does not load fails here,
+    // before the study folder is made.
+    let planned = render_cli::planned_identity(&render_args(&args, spps[0], Some(args.batches), args.seed, &args.output, false))?;
     let options = args.options.to_options();
     let list = entries(&options, args.ablations)?;
     check_needs_before_rendering(&list, &spps, args.batches)?;
@@ -183,6 +185,12 @@ pub fn run(args: StudyArgs) -> Result<()> {
         Some(AttrValue::Int(v)) if *v > 0 => Some(*v as u32),
         _ => None,
     };
+    // A reference of another scene, view or path length is the ground truth of another image.
+    // Seed, spp and rr depth may differ (the expectation does not), and so may the traversal.
+    let mismatch: Vec<String> = render_cli::reference_mismatches(&args.reference, &planned)?;
+    if !mismatch.is_empty() {
+        bail!("{}: not a reference of this study's image ({})", args.reference.display(), mismatch.join(", "));
+    }
     if let Some(seed) = ref_file.attr("cvtrace.seed").and_then(|v| v.as_text().parse::<u64>().ok()) {
         let uses = |s: u64| (args.seed..args.seed + args.seeds as u64).any(|x| x == s || x + PT2N_SEED_OFFSET == s);
         if uses(seed) {
@@ -197,7 +205,7 @@ pub fn run(args: StudyArgs) -> Result<()> {
     let mut main = None;
     for (si, &n) in spps.iter().enumerate() {
         let last = si + 1 == spps.len();
-        let r = run_spp(&args, &list, &reference, n, last)?;
+        let r = run_spp(&args, &planned, &list, &reference, n, last)?;
         for (e, acc) in list.iter().zip(&r.accs) {
             if e.ablation {
                 continue;
@@ -289,7 +297,14 @@ struct SppRun<'r> {
     pt_variance: Option<Image>,
 }
 
-fn run_spp<'r>(args: &StudyArgs, list: &[Entry], reference: &'r Reference, n: u32, keep_images: bool) -> Result<SppRun<'r>> {
+fn run_spp<'r>(
+    args: &StudyArgs,
+    planned: &RenderIdentity,
+    list: &[Entry],
+    reference: &'r Reference,
+    n: u32,
+    keep_images: bool,
+) -> Result<SppRun<'r>> {
     let dir = args.output.join(format!("spp{n:05}"));
     std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
     let mut accs: Vec<SeedAccumulator> = list.iter().map(|e| SeedAccumulator::new(reference, e.key.clone())).collect();
@@ -301,8 +316,8 @@ fn run_spp<'r>(args: &StudyArgs, list: &[Entry], reference: &'r Reference, n: u3
         let seed = args.seed + i;
         let streams_path = dir.join(format!("seed-{i:03}.streams.exr"));
         let pt2n_path = dir.join(format!("seed-{i:03}.pt2n.exr"));
-        let t_streams = ensure_rendered(render_args(args, n, Some(args.batches), seed, &streams_path, false))?;
-        let t_pt2n = ensure_rendered(render_args(args, 2 * n, None, seed + PT2N_SEED_OFFSET, &pt2n_path, true))?;
+        let t_streams = ensure_rendered(render_args(args, n, Some(args.batches), seed, &streams_path, false), planned)?;
+        let t_pt2n = ensure_rendered(render_args(args, 2 * n, None, seed + PT2N_SEED_OFFSET, &pt2n_path, true), planned)?;
         let set = read_input(&streams_path)?;
         if !set.pt.mean.same_size(&reference.image) {
             bail!(
@@ -339,12 +354,15 @@ fn run_spp<'r>(args: &StudyArgs, list: &[Entry], reference: &'r Reference, n: u3
 /// Renders `args.output` unless a finished file is already there; returns the render's seconds
 /// (recorded in a sidecar so that resumed studies still report real times). A finished file
 /// rendered with other settings is an error, not silently reused.
-fn ensure_rendered(args: RenderArgs) -> Result<f64> {
+/// Renders `args` unless its output is already there, finished (with its timing file) and the
+/// same render: `planned`, the study's identity, with this render's seed, spp and batches.
+fn ensure_rendered(args: RenderArgs, planned: &RenderIdentity) -> Result<f64> {
     let path = args.output.clone();
     let timing = path.with_extension("seconds");
     if path.exists() {
         if let Some(t) = std::fs::read_to_string(&timing).ok().and_then(|s| s.trim().parse::<f64>().ok()) {
-            let differences = render_cli::recorded_differences(&path, &args)?;
+            let spp = args.spp.expect("study renders give --spp");
+            let differences = render_cli::recorded_differences(&path, &planned.with_seed(args.seed), spp, args.batches)?;
             if !differences.is_empty() {
                 bail!(
                     "{}: this finished render differs from what the study asks for ({}); use another -o or delete the folder's renders",
