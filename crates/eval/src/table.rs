@@ -167,8 +167,8 @@ pub fn terminal_report(results: &StudyResults) -> String {
         let g = results.geomean_ratios();
         if !g.is_empty() {
             out += &format!(
-                "\ngeometric mean over {} scenes: {}\n",
-                results.scenes.len(),
+                "\ngeometric mean over {}: {}\n",
+                geomean_scenes(results),
                 g.iter().map(|r| format!("{} = {}", ratio_name(r), fmt_num(r.value))).collect::<Vec<_>>().join("   ")
             );
         }
@@ -176,12 +176,25 @@ pub fn terminal_report(results: &StudyResults) -> String {
     out
 }
 
+/// "N scenes", or "k of N scenes" when some scenes define none of the headline ratios (every
+/// method's relMSE is 0 there, say) and so do not enter the geometric means.
+fn geomean_scenes(results: &StudyResults) -> String {
+    let n = results.scenes.len();
+    let k = results.scenes.iter().filter(|s| HEADLINE_RATIOS.iter().any(|(a, b)| s.ratio(a, b).is_some())).count();
+    if k == n {
+        format!("{n} scenes")
+    } else {
+        format!("{k} of {n} scenes")
+    }
+}
+
 /// A Markdown table of one scene (methods and ablations), for the project's docs.
 pub fn markdown_table(scene: &SceneResult) -> String {
-    let mut out = format!("**{}**\n\n", scene_title(scene));
+    let mut out = format!("**{}**\n\n", md_text(&scene_title(scene)));
     out += &md_row(&HEADERS.map(String::from));
     out += &format!("|{}\n", "---|".repeat(HEADERS.len()));
-    for r in rows(scene, false).into_iter().chain(rows(scene, true)) {
+    for mut r in rows(scene, false).into_iter().chain(rows(scene, true)) {
+        r[0] = md_text(&r[0]);
         out += &md_row(&r);
     }
     let ratios = scene.ratios();
@@ -208,7 +221,7 @@ pub fn markdown_summary(results: &StudyResults) -> String {
     out += &format!("|{}\n", "---|".repeat(header.len()));
     let mut paper_logs = Vec::new();
     for s in &results.scenes {
-        let mut row = vec![format!("{} ({}+{})", s.name, s.spp_per_stream, s.spp_per_stream)];
+        let mut row = vec![format!("{} ({}+{})", md_text(&s.name), s.spp_per_stream, s.spp_per_stream)];
         row.extend(methods.iter().map(|k| s.method(k).map(|m| fmt_num(m.relmse_mean)).unwrap_or_else(|| "–".into())));
         row.extend(HEADLINE_RATIOS.iter().map(|(a, b)| s.ratio(a, b).map(|r| fmt_ratio(&r)).unwrap_or_else(|| "–".into())));
         let paper = paper_pt2n_ratio(s);
@@ -220,7 +233,7 @@ pub fn markdown_summary(results: &StudyResults) -> String {
         out += &md_row(&row);
     }
     if results.scenes.len() > 1 {
-        let mut row = vec![format!("**geometric mean ({} scenes)**", results.scenes.len())];
+        let mut row = vec![format!("**geometric mean ({})**", geomean_scenes(results))];
         row.extend(methods.iter().map(|_| String::new()));
         let g = results.geomean_ratios();
         row.extend(HEADLINE_RATIOS.iter().map(|(a, b)| {
@@ -238,12 +251,12 @@ pub fn markdown_summary(results: &StudyResults) -> String {
     if !ablations.is_empty() {
         out += "\nAblations of ours: relMSE change against the default `ours` of the same scene and seeds.\n\n";
         let mut header = vec!["scene".to_string()];
-        header.extend(ablations.iter().map(|(_, label)| label.clone()));
+        header.extend(ablations.iter().map(|(_, label)| md_text(label)));
         out += &md_row(&header);
         out += &format!("|{}\n", "---|".repeat(header.len()));
         let mut logs = vec![Vec::new(); ablations.len()];
         for s in &results.scenes {
-            let mut row = vec![s.name.clone()];
+            let mut row = vec![md_text(&s.name)];
             for (j, (key, _)) in ablations.iter().enumerate() {
                 let r = s.ratio(key, keys::OURS);
                 if let Some(r) = &r {
@@ -295,6 +308,26 @@ fn fmt_change(ratio: f64) -> String {
         return "–".into();
     }
     format!("{:+.0}%", (ratio - 1.0) * 100.0)
+}
+
+/// Text from a results file (scene names, labels, paths) as literal Markdown: one line, with
+/// the characters that would start emphasis, code, links or HTML escaped.
+fn md_text(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '\r' | '\n' => out.push(' '),
+            '\\' | '`' | '*' | '_' | '[' | ']' => {
+                out.push('\\');
+                out.push(c);
+            }
+            '<' => out += "&lt;",
+            '>' => out += "&gt;",
+            '&' => out += "&amp;",
+            _ => out.push(c),
+        }
+    }
+    out
 }
 
 fn md_row(cells: &[String]) -> String {
@@ -423,6 +456,19 @@ mod tests {
         assert!(md.contains("**+34%**"), "{md}");
         // Per-scene tables follow.
         assert_eq!(md.matches("**a — ").count(), 1, "{md}");
+    }
+
+    #[test]
+    fn markdown_keeps_names_literal_and_counts_the_scenes_in_the_means() {
+        let odd = "x</td><script>|*y*\nz_";
+        let a = scene(odd, &[("pt", 0.4, false), ("pt2n", 0.2, false), ("iduw", 0.1, false), ("cv", 0.08, false), ("ours", 0.05, false)]);
+        // Every relMSE 0: no ratio is defined, so this scene is not in the geometric means.
+        let void = scene("void", &[("pt", 0.0, false), ("pt2n", 0.0, false), ("iduw", 0.0, false), ("cv", 0.0, false), ("ours", 0.0, false)]);
+        let md = markdown_summary(&StudyResults::new(vec![a, void]));
+        let escaped = "x&lt;/td&gt;&lt;script&gt;\\|\\*y\\* z\\_";
+        assert!(md.contains(&format!("| {escaped} (96+96) |")), "{md}");
+        assert!(!md.contains("<script>") && md.lines().all(|l| !l.starts_with("z_")), "{md}");
+        assert!(md.contains("geometric mean (1 of 2 scenes)"), "{md}");
     }
 
     #[test]
