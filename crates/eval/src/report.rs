@@ -208,8 +208,12 @@ impl<'a> ImageCopier<'a> {
                 format!("{} is {w}x{h}, expected the scene size {}x{}", src.display(), self.width, self.height),
             ));
         }
-        let file =
-            Path::new(rel).file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_else(|| "image.png".into());
+        // The copy's name goes into the page as a link, so it keeps to characters that need no
+        // URL encoding (a results file from another tool may name `pt #1?.png`).
+        let file: String = Path::new(rel)
+            .file_name()
+            .map(|f| f.to_string_lossy().chars().map(|c| if c.is_ascii_alphanumeric() || "._-".contains(c) { c } else { '-' }).collect())
+            .unwrap_or_else(|| "image.png".into());
         let mut name = file.clone();
         let mut k = 2;
         while !self.names.insert(name.clone()) {
@@ -252,7 +256,13 @@ mod tests {
 
     #[test]
     fn report_folder_is_self_contained() {
-        let (dir, results) = study();
+        let (dir, mut results) = study();
+        // A results file from another tool may name its images anything: the page's links to
+        // the copies must still resolve without URL encoding.
+        let odd = "pt #1 %41?.png";
+        let m = &mut results.scenes[0].methods[0];
+        std::fs::rename(dir.path().join("study").join(m.image.as_ref().unwrap()), dir.path().join("study").join(odd)).unwrap();
+        m.image = Some(odd.into());
         let out = dir.path().join("report");
         let index = write_report(&results, &dir.path().join("study"), &out, &ReportOptions::default()).unwrap();
         assert_eq!(index, out.join("index.html"));
@@ -277,6 +287,7 @@ mod tests {
         assert!(refs.len() >= 10, "{refs:?}");
         for r in &refs {
             assert!(!r.starts_with('/') && !r.contains(".."), "{r}");
+            assert!(r.chars().all(|c| c.is_ascii_alphanumeric() || "._-/".contains(c)), "{r} needs URL encoding");
             assert!(out.join(r).is_file(), "{r} not copied");
         }
         // The copied results are valid and point at the copies.
