@@ -203,6 +203,10 @@ fn study_resumes_and_report_builds_the_viewer() {
     let light = pngs("light");
     assert!(light.contains(&"ours.png".to_string()) && !light.iter().any(|p| p.starts_with("ours-")), "{light:?}");
     assert!(std::fs::read_to_string(d.join("light/data.js")).unwrap().contains("ours-window"));
+
+    // A viewer written among the studies is not taken for a study when the report is redone.
+    ok(&cvtrace(d, &["--log", "warn", "report", "study", "-o", "study/viewer"]));
+    ok(&cvtrace(d, &["--log", "warn", "report", "study", "-o", "study/viewer", "--force"]));
 }
 
 /// Every file under `dir`, as paths.

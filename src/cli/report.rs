@@ -40,7 +40,8 @@ fn find_studies(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
         let mut subs: Vec<PathBuf> = std::fs::read_dir(p)
             .with_context(|| format!("{}: cannot list", p.display()))?
             .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|d| d.join("results.json").is_file())
+            // A report written next to the studies holds a results.json too; it is not a study.
+            .filter(|d| d.join("results.json").is_file() && !d.join("viewer.js").is_file())
             .collect();
         if subs.is_empty() {
             bail!("{}: no results.json in it or its sub-folders (run `cvtrace study` first)", p.display());
