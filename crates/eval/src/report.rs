@@ -76,8 +76,57 @@ pub fn write_report(
     if index.exists() && !options.overwrite {
         return Err(cvtrace_streams::StreamError::AlreadyExists { path: index }.into());
     }
+    let created = !out_dir.exists();
     std::fs::create_dir_all(out_dir).map_err(|e| EvalError::io(out_dir, e))?;
+    let written = write_viewer(results, source_dir, out_dir, options, &index);
+    match written {
+        // A folder this call made is removed again: a failed report leaves nothing behind.
+        Err(e) if created => {
+            let _ = std::fs::remove_dir_all(out_dir);
+            Err(e)
+        }
+        Err(e) => Err(e),
+        Ok(files) => {
+            remove_stale_images(out_dir, &files);
+            Ok(index)
+        }
+    }
+}
 
+/// Removes what an earlier report left in the folders this one writes (`images/`, `plots/`)
+/// and no longer uses: a report redone with --force would otherwise carry old scenes' images.
+fn remove_stale_images(out_dir: &Path, keep: &BTreeSet<String>) {
+    for folder in ["images", "plots"] {
+        let root = out_dir.join(folder);
+        let Ok(scenes) = std::fs::read_dir(&root) else { continue };
+        let mut dirs = vec![root.clone()];
+        let mut stack: Vec<PathBuf> = scenes.filter_map(|e| e.ok().map(|e| e.path())).collect();
+        while let Some(p) = stack.pop() {
+            if p.is_dir() {
+                stack.extend(std::fs::read_dir(&p).into_iter().flatten().filter_map(|e| e.ok().map(|e| e.path())));
+                dirs.push(p);
+            } else if let Ok(rel) = p.strip_prefix(out_dir) {
+                if !keep.contains(&rel.to_string_lossy().replace('\\', "/")) {
+                    let _ = std::fs::remove_file(&p);
+                }
+            }
+        }
+        // Deepest first; only empty ones go.
+        for d in dirs.iter().rev() {
+            let _ = std::fs::remove_dir(d);
+        }
+    }
+}
+
+/// The report's files; returns the images and plots it wrote, relative to `out_dir`.
+fn write_viewer(
+    results: &StudyResults,
+    source_dir: &Path,
+    out_dir: &Path,
+    options: &ReportOptions,
+    index: &Path,
+) -> Result<BTreeSet<String>, EvalError> {
+    let mut files = BTreeSet::new();
     let mut out = results.clone();
     let mut scenes = Vec::new();
     let mut slugs = BTreeSet::new();
@@ -98,6 +147,8 @@ pub fn write_report(
         let plot_rel = format!("plots/{slug}.svg");
         std::fs::create_dir_all(out_dir.join("plots")).map_err(|e| EvalError::io(out_dir.join("plots"), e))?;
         let plot = write_convergence_svg(scene, &out_dir.join(&plot_rel), true)?.then_some(plot_rel);
+        files.extend(plot.iter().cloned());
+        files.extend(copier.done.into_values());
         let colors = scene
             .ordered_methods()
             .iter()
@@ -124,13 +175,13 @@ pub fn write_report(
     write_text(&out_dir.join("viewer.js"), VIEWER_JS)?;
     let title = html_escape(&options.title);
     write_text(
-        &index,
+        index,
         &INDEX_HTML.replace(
             "<title>cvtrace — estimator comparison</title>",
             &format!("<title>{title} — estimator comparison</title>"),
         ),
     )?;
-    Ok(index)
+    Ok(files)
 }
 
 fn write_text(path: &Path, text: &str) -> Result<(), EvalError> {
@@ -321,6 +372,28 @@ mod tests {
         let err =
             write_report(&results, &src, &dir.path().join("r3"), &ReportOptions::default()).unwrap_err().to_string();
         assert!(err.contains("not a PNG"), "{err}");
+        // Each failure left no report folder behind.
+        for r in ["r1", "r2", "r3"] {
+            assert!(!dir.path().join(r).exists(), "{r} left behind");
+        }
+    }
+
+    #[test]
+    fn a_redone_report_drops_what_it_no_longer_shows() {
+        let (dir, results) = study();
+        let out = dir.path().join("report");
+        write_report(&results, &dir.path().join("study"), &out, &ReportOptions::default()).unwrap();
+        // What an earlier report of another scene would have left.
+        std::fs::create_dir_all(out.join("images/old-scene")).unwrap();
+        std::fs::write(out.join("images/old-scene/ours.png"), b"old").unwrap();
+        std::fs::write(out.join("plots/old-scene.svg"), b"old").unwrap();
+        std::fs::write(out.join("notes.txt"), b"the user's").unwrap();
+        let opts = ReportOptions { overwrite: true, ..Default::default() };
+        write_report(&results, &dir.path().join("study"), &out, &opts).unwrap();
+        assert!(!out.join("images/old-scene").exists() && !out.join("plots/old-scene.svg").exists());
+        assert!(out.join("notes.txt").is_file(), "files outside images/ and plots/ are the user's");
+        let slug = slug(&results.scenes[0].name);
+        assert!(std::fs::read_dir(out.join("images").join(&slug)).unwrap().count() >= 4, "this report's images stay");
     }
 
     #[test]
