@@ -160,12 +160,13 @@ pub fn reference_mismatches(path: &Path, planned: &RenderIdentity) -> Result<Vec
     Ok(all.into_iter().filter(|(field, _)| same_image.contains(field)).map(|(_, message)| message).collect())
 }
 
-/// `what_saved` differs from `now` in these fields (an unrecorded saved value never differs).
+/// `what_saved` differs from `now` in these fields, matched by name (an unrecorded value, or a
+/// field one side does not list, never differs).
 fn field_differences(now: &[(&'static str, String)], saved: &[(&'static str, String)], what_saved: &str) -> Vec<(&'static str, String)> {
     now.iter()
-        .zip(saved)
-        .filter(|((_, a), (_, b))| a != b && b != UNRECORDED && a != UNRECORDED)
-        .map(|((name, a), (_, b))| (*name, format!("{name} {b} ({what_saved}) vs {a} (now)")))
+        .filter_map(|(name, a)| Some((*name, a, &saved.iter().find(|(n, _)| n == name)?.1)))
+        .filter(|(_, a, b)| a != b && *b != UNRECORDED && *a != UNRECORDED)
+        .map(|(name, a, b)| (name, format!("{name} {b} ({what_saved}) vs {a} (now)")))
         .collect()
 }
 
