@@ -223,6 +223,11 @@ impl StreamSet {
             }
             streams.push(Stream { mean, batches: bs });
         }
+        // Batch channels left over mean the count is wrong (or has a gap): reading fewer batches
+        // than the file holds would silently drop samples.
+        if let Some(extra) = ch.channels.keys().find(|k| k.starts_with("pt.b") || k.starts_with("crn.b")) {
+            return Err(StreamError::invalid(path, format!("has channel {extra} beyond its {batches} batches (b00 to b{:02})", batches - 1)));
+        }
         const FEATURES: [&str; 7] = ["albedo.R", "albedo.G", "albedo.B", "normal.X", "normal.Y", "normal.Z", "depth.Z"];
         let present: Vec<&str> = FEATURES.iter().copied().filter(|c| ch.channels.contains_key(*c)).collect();
         if !present.is_empty() && present.len() < FEATURES.len() {
@@ -392,6 +397,12 @@ mod tests {
             ch.attributes.insert(ATTR_SPP.into(), AttrValue::Int(10));
         });
         assert!(e.contains("10 spp per stream do not split into 4 equal batches"), "{e}");
+        // More batch channels than the header's count.
+        let e = read_error_after(|ch| {
+            ch.attributes.insert(ATTR_BATCHES.into(), AttrValue::Int(2));
+            ch.attributes.insert(ATTR_SPP.into(), AttrValue::Int(8));
+        });
+        assert!(e.contains("beyond its 2 batches"), "{e}");
         let e = read_error_after(|ch| {
             ch.attributes.insert(ATTR_SEED.into(), AttrValue::Text("seven".into()));
         });
