@@ -266,11 +266,10 @@ pub fn run(args: StudyArgs) -> Result<()> {
         error_map_scale: Some(scale),
         warnings: Vec::new(),
     };
-    if let (Some(noise), Some(best)) = (noise, scene.best_relmse()) {
-        if let Some(w) = too_noisy_warning(noise.relmse, best) {
-            tracing::warn!("{w}");
-            scene.warnings.push(w);
-        }
+    let too_noisy = noise.zip(scene.best_relmse()).and_then(|(noise, best)| too_noisy_warning(noise.relmse, best));
+    for w in reference.unusable_warning().into_iter().chain(too_noisy) {
+        tracing::warn!("{w}");
+        scene.warnings.push(w);
     }
     let results = StudyResults::new(vec![scene]);
     results.write_json(&args.output.join("results.json"), true)?;

@@ -63,7 +63,7 @@ pub fn compare_files(reference: &Path, images: &[PathBuf]) -> Result<SceneResult
         methods,
         convergence: Vec::new(),
         error_map_scale: None,
-        warnings: Vec::new(),
+        warnings: reference_img.unusable_warning().into_iter().collect(),
     })
 }
 
@@ -101,6 +101,20 @@ mod tests {
         assert!(ours.relmse_se.is_none() && ours.bias2.is_none());
         crate::results::StudyResults::new(vec![scene.clone()]).validate().unwrap();
         assert!(crate::table::terminal_table(&scene).contains("ours"));
+        assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
+
+        // A black reference cannot rank anything, and one with negative pixels is not radiance.
+        for (image, needle) in [(Image::new(6, 4), "black everywhere"), (off.clone(), "")] {
+            let mut image = image;
+            if needle.is_empty() {
+                image.pixels[3][1] = -0.5;
+            }
+            write_rgb(&ref_path, &image, &[], true).unwrap();
+            let scene = compare_files(&ref_path, &[dir.path().join("plain.exr")]).unwrap();
+            let expected = if needle.is_empty() { "1 reference pixels are negative" } else { needle };
+            assert!(scene.warnings.iter().any(|w| w.contains("cbox.ref.exr") && w.contains(expected)), "{:?}", scene.warnings);
+            assert!(crate::table::terminal_table(&scene).contains(&format!("warning: {}", scene.warnings[0])));
+        }
     }
 
     #[test]

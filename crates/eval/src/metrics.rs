@@ -29,6 +29,18 @@ impl Reference {
         Ok(Reference { label, image, weights })
     }
 
+    /// Why this reference cannot rank estimators, if it cannot: black everywhere (relMSE then
+    /// measures each image's own brightness) or with negative pixels (relMSE's weights assume
+    /// radiance, which is never negative).
+    pub fn unusable_warning(&self) -> Option<String> {
+        let pixels = &self.image.pixels;
+        if pixels.iter().flatten().all(|&v| v == 0.0) {
+            return Some(format!("{}: the reference is black everywhere, so relMSE does not measure error here", self.label));
+        }
+        let negative = pixels.iter().filter(|p| p.iter().any(|&v| v < 0.0)).count();
+        (negative > 0).then(|| format!("{}: {negative} reference pixels are negative; relMSE assumes non-negative radiance", self.label))
+    }
+
     /// Reads an RGB OpenEXR reference; errors name the file.
     pub fn read_exr(path: &Path) -> Result<Self, EvalError> {
         let image = cvtrace_streams::exr_io::read_rgb(path)?;
