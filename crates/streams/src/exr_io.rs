@@ -82,8 +82,10 @@ impl ExrChannels {
         for ch in &layer.channel_data.list {
             let mut name = ch.name.to_string();
             if let Some(p) = &prefix {
-                // A named single layer: keep full dotted names.
-                if !name.starts_with(p.as_str()) {
+                // A named single layer whose channels are bare (`R` in layer `pt`): give them
+                // their full dotted names. Channels already dotted (`pt.R`, as cvtrace and most
+                // tools write them, whatever the part's name) are kept as they are.
+                if !name.contains('.') {
                     name = format!("{p}{name}");
                 }
             }
@@ -254,6 +256,20 @@ pub fn write_rgb(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_named_part_keeps_dotted_channel_names_and_completes_bare_ones() {
+        // Other tools name the single part (`name` attribute); cvtrace's own files do not.
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("named.exr");
+        let plane = |v: f32| FlatSamples::F32(vec![v; 6]);
+        let channels = AnyChannels::sort(SmallVec::from_vec(vec![AnyChannel::new("pt.R", plane(1.0)), AnyChannel::new("G", plane(2.0))]));
+        let layer = Layer::new((3, 2), LayerAttributes::named("a"), Encoding::SMALL_LOSSLESS, channels);
+        exr::image::Image::from_layer(layer).write().to_file(&p).unwrap();
+        let ch = ExrChannels::read(&p).unwrap();
+        assert_eq!(ch.channels.keys().collect::<Vec<_>>(), ["a.G", "pt.R"]);
+        assert_eq!(ch.channels["pt.R"], vec![1.0; 6]);
+    }
 
     #[test]
     fn round_trip_keeps_channels_and_attributes() {
