@@ -261,6 +261,26 @@ fn check_accessors(doc: &gltf::Document, buffers: &[gltf::buffer::Data], path: &
             {
                 return err(format!("sparse accessor {} reads past the end of its buffer views", a.index()));
             }
+            // The gltf crate applies whatever indices it finds: out of range they are dropped,
+            // repeated or unsorted they overwrite each other, all silently.
+            let bytes = &buffers[iv.buffer().index()][iv.offset() + sp.indices().offset()..];
+            let mut previous: Option<usize> = None;
+            for k in 0..sp.count() {
+                let b = &bytes[k * isz..(k + 1) * isz];
+                let i = match isz {
+                    1 => b[0] as usize,
+                    2 => u16::from_le_bytes([b[0], b[1]]) as usize,
+                    _ => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize,
+                };
+                if i >= a.count() || previous.is_some_and(|p| i <= p) {
+                    return err(format!(
+                        "sparse accessor {}: index {i} at position {k}; sparse indices must increase strictly and stay below the count {}",
+                        a.index(),
+                        a.count()
+                    ));
+                }
+                previous = Some(i);
+            }
         }
     }
     Ok(())
@@ -799,6 +819,11 @@ mod tests {
             (&[("/accessors/1/componentType", "5120")], "indices accessor 1 is Scalar I8"),
             (&[("/accessors/0/type", r#""VEC2""#)], "POSITION accessor 0 is Vec2 F32"),
             (&[("/accessors/1/count", "0")], "accessor 1 has count 0"),
+            // Sparse indices 0, 1, 2, 0 (the index buffer read as sparse indices): not increasing.
+            (
+                &[("/accessors/0/sparse", r#"{"count": 4, "indices": {"bufferView": 1, "componentType": 5123}, "values": {"bufferView": 0}}"#)],
+                "sparse accessor 0: index 0 at position 3",
+            ),
             (&[("/accessors/1/count", "5")], "5 indices (not a multiple of 3)"),
             (&[("/asset/version", r#""1.0""#)], "asset.version"),
             (&[("/nodes/0/children", "[1]")], "node 1 is reached twice"),
