@@ -168,6 +168,15 @@ pub fn run(args: StudyArgs) -> Result<()> {
     let options = args.options.to_options();
     let list = entries(&options, args.ablations)?;
     check_needs_before_rendering(&list, &spps, args.batches)?;
+    // A given reference of another scene, view or path length is the ground truth of another
+    // image. Seed, spp and rr depth may differ (the expectation does not), and so may the
+    // traversal. Checked before the study folder is made; one the study renders always matches.
+    if args.reference.exists() {
+        let mismatch = render_cli::reference_mismatches(&args.reference, &planned)?;
+        if !mismatch.is_empty() {
+            bail!("{}: not a reference of this study's image ({})", args.reference.display(), mismatch.join(", "));
+        }
+    }
     std::fs::create_dir_all(&args.output).with_context(|| format!("{}: cannot create the study folder", args.output.display()))?;
 
     // The reference: reuse the file, or render it (resumable through render's checkpoint).
@@ -185,12 +194,6 @@ pub fn run(args: StudyArgs) -> Result<()> {
         Some(AttrValue::Int(v)) if *v > 0 => Some(*v as u32),
         _ => None,
     };
-    // A reference of another scene, view or path length is the ground truth of another image.
-    // Seed, spp and rr depth may differ (the expectation does not), and so may the traversal.
-    let mismatch: Vec<String> = render_cli::reference_mismatches(&args.reference, &planned)?;
-    if !mismatch.is_empty() {
-        bail!("{}: not a reference of this study's image ({})", args.reference.display(), mismatch.join(", "));
-    }
     if let Some(seed) = ref_file.attr("cvtrace.seed").and_then(|v| v.as_text().parse::<u64>().ok()) {
         let uses = |s: u64| (args.seed..args.seed + args.seeds as u64).any(|x| x == s || x + PT2N_SEED_OFFSET == s);
         if uses(seed) {
