@@ -39,14 +39,17 @@ fn reconstruct_all_then_compare_ranks_against_the_reference() {
     let set = cvtrace_streams::StreamSet::read(&d.join("s.streams.exr")).unwrap();
     assert_eq!(pt, set.pt.mean);
 
-    // compare: one row per image, the JSON it writes is a valid results file.
-    let images: Vec<String> = ["pt", "average", "ours"].iter().map(|m| format!("out/{m}.exr")).collect();
+    // compare: one row per image (the reference, given again under another spelling, is no
+    // image to score), the JSON it writes is a valid results file naming the reference absolutely.
+    let mut images: Vec<String> = ["pt", "average", "ours"].iter().map(|m| format!("out/{m}.exr")).collect();
+    images.push("./out/../ref.exr".into());
     let mut args = vec!["--log", "warn", "compare", "--reference", "ref.exr", "--json", "cmp.json", "--csv", "cmp.csv"];
     args.extend(images.iter().map(String::as_str));
     ok(&cvtrace(d, &args));
     let r = StudyResults::read_json(&d.join("cmp.json")).unwrap();
     let scene = &r.scenes[0];
     assert_eq!(scene.methods.len(), 3);
+    assert_eq!(Path::new(&scene.reference.path), d.join("ref.exr").canonicalize().unwrap());
     let rel = |k: &str| scene.method(k).unwrap().relmse_mean;
     // Averaging two independent-enough estimates beats one of them, even at 32×32.
     assert!(rel("average") < rel("pt"), "average {} vs pt {}", rel("average"), rel("pt"));

@@ -44,7 +44,14 @@ pub fn run(args: CompareArgs) -> Result<()> {
     if images.is_empty() {
         bail!("no EXR images to compare among the {} paths given", args.images.len());
     }
-    let images: Vec<PathBuf> = images.into_iter().filter(|p| *p != args.reference).collect();
+    // `compare --reference ref.exr out/*.exr` with the reference inside `out/`: it is no estimate.
+    let (references, images): (Vec<PathBuf>, Vec<PathBuf>) = images.into_iter().partition(|p| crate::cli::same_file(p, &args.reference));
+    for p in &references {
+        tracing::info!("{}: the reference itself, not scored", p.display());
+    }
+    if images.is_empty() {
+        bail!("no images to compare: every EXR given is the reference {}", args.reference.display());
+    }
     let scene = compare_files(&args.reference, &images)?;
     let results = StudyResults::new(vec![scene]);
     print!("{}", table::terminal_report(&results));

@@ -9,12 +9,17 @@ pub mod throughput;
 use anyhow::{bail, Result};
 use std::path::Path;
 
+/// True if both paths exist and name the same file (links and `./` resolved); a path that does
+/// not exist yet is no other file.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    matches!((a.canonicalize(), b.canonicalize()), (Ok(a), Ok(b)) if a == b)
+}
+
 /// Refuses an output path that names one of the command's inputs: with `--force` the input
 /// would be replaced by the output (a stream file by an image, a reference by a CSV table).
 pub fn refuse_overwriting_inputs(output: &Path, inputs: &[&Path]) -> Result<()> {
-    let Ok(out) = output.canonicalize() else { return Ok(()) }; // not there yet: no input it can be
     for input in inputs {
-        if input.canonicalize().is_ok_and(|i| i == out) {
+        if same_file(output, input) {
             bail!("{}: is also an input of this command; write the output elsewhere", output.display());
         }
     }

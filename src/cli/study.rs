@@ -259,7 +259,7 @@ pub fn run(args: StudyArgs) -> Result<()> {
         spp_per_stream: n,
         seeds: args.seeds,
         reference: ReferenceInfo {
-            path: args.reference.display().to_string(),
+            path: ReferenceInfo::path_of(&args.reference),
             spp: reference_spp,
             image: Some("reference.png".into()),
             noise,

@@ -59,7 +59,7 @@ pub fn compare_files(reference: &Path, images: &[PathBuf]) -> Result<SceneResult
         height: reference_img.height(),
         spp_per_stream: 0,
         seeds: 1,
-        reference: ReferenceInfo { path: reference.display().to_string(), spp: None, image: None, noise: None },
+        reference: ReferenceInfo { path: ReferenceInfo::path_of(reference), spp: None, image: None, noise: None },
         methods,
         convergence: Vec::new(),
         error_map_scale: None,

@@ -66,7 +66,8 @@ pub struct SceneResult {
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ReferenceInfo {
-    /// Where the reference EXR was read from (as given by the user; informational).
+    /// Where the reference EXR was read from: absolute (see [`ReferenceInfo::path_of`]), so it
+    /// still names the file when the results are read from another directory.
     pub path: String,
     #[serde(default)]
     pub spp: Option<u32>,
@@ -76,6 +77,14 @@ pub struct ReferenceInfo {
     /// The relMSE the reference's own noise adds to every method (see `reference_noise`).
     #[serde(default)]
     pub noise: Option<ReferenceNoise>,
+}
+
+impl ReferenceInfo {
+    /// The text recorded for the reference read from `path`: its absolute path with links
+    /// resolved, or `path` as given if that fails.
+    pub fn path_of(path: &std::path::Path) -> String {
+        std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf()).display().to_string()
+    }
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

@@ -342,12 +342,24 @@ fn csv_field(s: &str) -> String {
     }
 }
 
-fn csv_opt(x: Option<f64>) -> String {
-    x.map(|v| v.to_string()).unwrap_or_default()
+/// Shortest round-trip text of `x`: plain decimal for ordinary magnitudes, scientific notation
+/// (`1.5e-9`) outside them, where plain decimal would run to dozens of digits. Spreadsheets and
+/// CSV readers parse both.
+fn csv_num(x: f64) -> String {
+    let a = x.abs();
+    if x == 0.0 || !x.is_finite() || (1e-4..1e15).contains(&a) {
+        x.to_string()
+    } else {
+        format!("{x:e}")
+    }
 }
 
-/// One row per scene and method, full precision (shortest round-trip decimal), empty
-/// cells for values that need more than one seed.
+fn csv_opt(x: Option<f64>) -> String {
+    x.map(csv_num).unwrap_or_default()
+}
+
+/// One row per scene and method, full precision (shortest round-trip), empty cells for values
+/// that need more than one seed.
 pub fn to_csv(results: &StudyResults) -> String {
     let mut out = String::from(
         "scene,method,label,spp_per_stream,spp_total,seeds,relmse_mean,relmse_se,bias2,variance,mse_mean,render_seconds,reconstruct_seconds,ablation\n",
@@ -361,13 +373,13 @@ pub fn to_csv(results: &StudyResults) -> String {
                 s.spp_per_stream.to_string(),
                 m.spp_total.to_string(),
                 s.seeds.to_string(),
-                m.relmse_mean.to_string(),
+                csv_num(m.relmse_mean),
                 csv_opt(m.relmse_se),
                 csv_opt(m.bias2),
                 csv_opt(m.variance),
-                m.mse_mean.to_string(),
-                m.time_seconds.render.to_string(),
-                m.time_seconds.reconstruct.to_string(),
+                csv_num(m.mse_mean),
+                csv_num(m.time_seconds.render),
+                csv_num(m.time_seconds.reconstruct),
                 m.ablation.to_string(),
             ];
             out += &cells.join(",");
@@ -402,6 +414,17 @@ mod tests {
             let back: f64 = fmt_num(v).parse().unwrap();
             assert!((back - v).abs() <= 5e-4 * v.abs(), "{v} -> {}", fmt_num(v));
         }
+    }
+
+    #[test]
+    fn csv_numbers_round_trip_and_stay_short() {
+        for v in [0.0, 1.0, 0.25, 1e-4, 3.0e-7, 1.234_567_890_123e-12, 6.02e23, 123456.789, f64::MIN_POSITIVE, -4.5e-9] {
+            let text = csv_num(v);
+            assert_eq!(text.parse::<f64>().unwrap(), v, "{text}");
+            assert!(text.len() <= 24, "{v}: {text}");
+        }
+        assert_eq!(csv_num(0.5), "0.5");
+        assert_eq!(csv_num(2.5e-9), "2.5e-9");
     }
 
     fn scene(name: &str, relmse: &[(&str, f64, bool)]) -> SceneResult {
