@@ -104,6 +104,9 @@ fn check_needs_before_rendering(list: &[Entry], spps: &[u32], batches: u32) -> R
     Ok(())
 }
 
+/// An ablation of `ours`: result key, label, and how it changes the options.
+type Ablation = (&'static str, &'static str, fn(&mut Options));
+
 fn entries(options: &Options, ablations: bool) -> Result<Vec<Entry>> {
     let mut list = Vec::new();
     let labels = [
@@ -119,7 +122,7 @@ fn entries(options: &Options, ablations: bool) -> Result<Vec<Entry>> {
     }
     list.push(Entry { key: keys::PT_2N.into(), label: "PT (2n)".into(), source: Source::Pt2n, ablation: false });
     if ablations {
-        let variants: [(&str, &str, fn(&mut Options)); 6] = [
+        let variants: [Ablation; 6] = [
             ("ours-no-penalty", "Ours, no penalty (CBF errors)", |o| o.ours.penalty = Penalty::None),
             ("ours-oracle", "Ours, oracle errors", |o| o.ours.errors = ErrorEstimate::Oracle),
             ("ours-oracle-no-penalty", "Ours, oracle errors, no penalty", |o| {

@@ -483,7 +483,7 @@ impl<'a> Builder<'a> {
             if normals.as_ref().is_some_and(|v| v.len() != n) || uvs.as_ref().is_some_and(|v| v.len() != n) {
                 return Err(self.err(format!("mesh {}: attribute counts differ from POSITION", mesh.index())));
             }
-            if mode == Mode::Triangles && indices.len() % 3 != 0 {
+            if mode == Mode::Triangles && !indices.len().is_multiple_of(3) {
                 return Err(self.err(format!(
                     "mesh {}: a triangle list of {} indices (not a multiple of 3)",
                     mesh.index(),

@@ -224,7 +224,7 @@ fn binary_glb_loads_from_its_bin_chunk() {
     // The same document with the buffer in the GLB's BIN chunk (no uri).
     let json = gltf_json("REMOVE", "", "").replace(r#", "uri": "REMOVE""#, "");
     let mut json = json.into_bytes();
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let bin = quad_buffer(); // 60 bytes, already a multiple of 4

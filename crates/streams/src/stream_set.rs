@@ -142,7 +142,7 @@ impl StreamSet {
         for (name, s) in named {
             check_batch_means(origin, name, s)?;
         }
-        if self.meta.spp > 0 && self.meta.spp as usize % b != 0 {
+        if self.meta.spp > 0 && !(self.meta.spp as usize).is_multiple_of(b) {
             return Err(StreamError::invalid(origin, format!("{} spp per stream do not split into {b} equal batches", self.meta.spp)));
         }
         if let Some(f) = &self.features {
