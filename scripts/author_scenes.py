@@ -576,7 +576,7 @@ class Scene:
 
 RENDER = {"width": 320, "height": 180, "max_depth": -1, "rr_depth": 5}
 # Samples per pixel of each committed reference (scene.ref.exr), recorded as the scene's default.
-REFERENCE_SPP = {"door-ajar": 24576, "glass-of-water": 32768, "glossy-room": 32768}
+REFERENCE_SPP = {"door-ajar": 36864, "glass-of-water": 49152, "glossy-room": 49152}
 
 
 # ---------------------------------------------------------------------------------------------

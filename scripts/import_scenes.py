@@ -333,7 +333,7 @@ class MeshBuilder:
 
 
 # Samples per pixel of each committed reference (scene.ref.exr), recorded as the scene's default.
-REFERENCE_SPP = {"sponza": 6144, "engine": 6144, "head": 16384, "teapots": 20480}
+REFERENCE_SPP = {"sponza": 12288, "engine": 12288, "head": 28672, "teapots": 40960}
 
 
 def write_sidecar(out_dir, scene, environment=None, comment=None):

@@ -1,5 +1,5 @@
 //! Evaluation of cvtrace's estimators, following the paper's protocol
-//! (`docs/` and `../shared/reference/method.md`):
+//! (docs/results.md):
 //!
 //! - [`metrics`]: relMSE (IDUW's definition, ε = 0.01) and MSE against a reference;
 //! - [`stats`]: per-method statistics over seeds — relMSE mean ± standard error and its

@@ -1,5 +1,5 @@
 //! `iduw`: input-dependent uncorrelated weighting (Back et al. 2023), as described in
-//! `method.md` (from their public code; the description, not the code, is what we follow).
+//! docs/estimators.md (from their public code; the description, not the code, is what we follow).
 //!
 //! Per pixel `c` and channel, over a `W×W` window without the centre (mirrored at borders):
 //! `out_c = h̄_c + 1/(W²−1) · Σ_{i≠c} w_i [(ḡ_c − ḡ_i) − (h̄_c − h̄_i)]`,
