@@ -30,8 +30,10 @@ demo: build
 study: build
 	BIN=$(BIN) bash scripts/study_scenes.sh
 
+# CVTRACE_REQUIRE_TOOLS: setup installed oiiotool, idiff and chromium, so the tests that use them
+# fail rather than skip if one is missing.
 test: setup
-	$(CARGO) test --workspace --locked
+	CVTRACE_REQUIRE_TOOLS=1 $(CARGO) test --workspace --locked
 
 # The same tests inside a Debian 13 root (debootstrap; needs root and deb.debian.org), where
 # Debian's Embree is 4.x: checks the Embree 4 side of build.rs and the shim. Not part of CI.

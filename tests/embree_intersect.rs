@@ -187,6 +187,9 @@ fn robust_traversal_is_watertight_at_shared_edges() {
         let robust = leaks_through_shared_edges(true, quads, n);
         eprintln!("rays aimed at shared edges of a closed box that miss it (quads {quads}): robust {robust}, fast {fast} of {n}");
         assert_eq!(robust, 0, "robust traversal (quads {quads}) let {robust} of {n} rays through shared edges (fast: {fast})");
+        // The rays do hit shared edges exactly: fast traversal leaks there (docs/performance.md:
+        // 966 as triangles, 1179 as quads), so a robust count of 0 means something.
+        assert!(fast > n / 1000, "fast traversal (quads {quads}) let only {fast} of {n} rays through: the rays no longer aim at shared edges");
     }
 }
 
