@@ -45,6 +45,15 @@ fn main() -> std::process::ExitCode {
         }
         rayon::ThreadPoolBuilder::new().num_threads(n).build_global().expect("thread pool is built once");
     }
+    // Ctrl-C, SIGTERM, SIGHUP: remove the temporary files of the outputs being written, so an
+    // interrupted run leaves no half files (finished outputs and checkpoints stay).
+    if let Err(e) = ctrlc::set_handler(|| {
+        cvtrace_streams::atomic::remove_pending_temporaries();
+        eprintln!("interrupted");
+        std::process::exit(130);
+    }) {
+        tracing::warn!("no signal handler: an interrupted run may leave temporary files ({e})");
+    }
     let result = match cli.command {
         Command::Render(a) => cli::render::run(a),
         Command::Reconstruct(a) => cli::reconstruct::run(a),

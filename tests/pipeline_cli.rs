@@ -121,6 +121,13 @@ fn absurd_arguments_fail_before_any_work() {
         (["--threads", "100000", "reconstruct", "s.streams.exr", "-o", "x.exr"].map(String::from).to_vec(), "--threads 100000"),
         (["compare", "--reference", "ref.exr", "s.streams.exr"].map(String::from).to_vec(), "s.streams.exr: is a PT/CRN stream file"),
         (["compare", "--reference", "ref.exr", "ref.exr", "--csv", "ref.exr", "--force"].map(String::from).to_vec(), "ref.exr: is also an input"),
+        (["compare", "--reference", "ref.exr", "ref.exr", "--csv", "/dev/null", "--force"].map(String::from).to_vec(), "/dev/null: is not a regular file"),
+        (
+            ["study", sp, "--reference", "ref.exr", "--spp", "8", "--batches", "4", "--seeds", "1", "--width", "32", "--height", "32", "--max-depth", "6", "-o", "s.streams.exr"]
+                .map(String::from)
+                .to_vec(),
+            "s.streams.exr: is a file; the study needs a folder",
+        ),
     ];
     for (args, needle) in cases {
         let args: Vec<&str> = args.iter().map(String::as_str).collect();

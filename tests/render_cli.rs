@@ -100,6 +100,31 @@ fn one_and_two_threads_give_identical_output() {
     assert_ne!(a.channels["pt.R"], c.channels["pt.R"]);
 }
 
+/// SIGTERM (and Ctrl-C) end a run through cvtrace's handler: exit code 130 and no temporary file
+/// left, even when the signal arrives while a file is being written (here a checkpoint after
+/// every 1-spp pass, so writes are frequent); the last checkpoint stays readable.
+#[test]
+fn a_terminated_render_leaves_no_temporary_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene();
+    let args = [&["--log", "warn", "render", s.to_str().unwrap(), "--reference", "--spp", "100000", "--pass-spp", "1", "-o", "t.ref.exr"][..], SMALL].concat();
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_cvtrace")).args(&args).current_dir(dir.path()).spawn().unwrap();
+    let ckpt = dir.path().join("t.ref.checkpoint.exr");
+    let start = std::time::Instant::now();
+    while !ckpt.exists() {
+        assert!(start.elapsed().as_secs() < 60, "no checkpoint after 60 s");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    // SAFETY: kill(2) on our own child's pid.
+    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGTERM) }, 0);
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "{status}");
+    let names: Vec<String> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    assert_eq!(names, ["t.ref.checkpoint.exr"], "only the checkpoint stays");
+    ExrChannels::read(&ckpt).unwrap();
+}
+
 #[test]
 fn interrupted_reference_resumes_to_the_same_image() {
     let dir = tempfile::tempdir().unwrap();

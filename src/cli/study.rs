@@ -180,6 +180,9 @@ pub fn run(args: StudyArgs) -> Result<()> {
             bail!("{}: not a reference of this study's image ({})", args.reference.display(), mismatch.join(", "));
         }
     }
+    if args.output.exists() && !args.output.is_dir() {
+        bail!("{}: is a file; the study needs a folder (-o)", args.output.display());
+    }
     std::fs::create_dir_all(&args.output).with_context(|| format!("{}: cannot create the study folder", args.output.display()))?;
 
     // The reference: reuse the file, or render it (resumable through render's checkpoint).

@@ -6,6 +6,7 @@
 //! out/images/<scene>/*.png                  copies of the study's previews and relMSE maps
 //! out/plots/<scene>.svg                      convergence plots
 //! out/colorbar.png  results.json  results.csv
+//! out/.cvtrace-report                        the images and plots this report wrote (one per line)
 //! ```
 //! The page builds itself from data.js (a plain script, so no server or fetch is needed);
 //! every number it shows comes from the results tree, formatted like the terminal table.
@@ -29,7 +30,7 @@ const VIEWER_JS: &str = include_str!("../assets/viewer.js");
 pub struct ReportOptions {
     /// Shown in the page title.
     pub title: String,
-    /// Replace an existing report in `out_dir` (its index.html); otherwise refuse.
+    /// Write into an `out_dir` that is not empty (replacing an earlier report); otherwise refuse.
     pub overwrite: bool,
 }
 
@@ -72,10 +73,19 @@ pub fn write_report(
     if results.scenes.is_empty() {
         return Err(EvalError::invalid("results", "no scene to report"));
     }
-    let index = out_dir.join("index.html");
-    if index.exists() && !options.overwrite {
-        return Err(cvtrace_streams::StreamError::AlreadyExists { path: index }.into());
+    if out_dir.exists() && !out_dir.is_dir() {
+        return Err(EvalError::invalid(out_dir.display().to_string(), "is a file; the report needs a folder"));
     }
+    let index = out_dir.join("index.html");
+    if !options.overwrite {
+        if index.exists() {
+            return Err(cvtrace_streams::StreamError::AlreadyExists { path: index }.into());
+        }
+        if std::fs::read_dir(out_dir).is_ok_and(|mut d| d.next().is_some()) {
+            return Err(EvalError::invalid(out_dir.display().to_string(), "exists and is not empty; pass --force to write the report into it"));
+        }
+    }
+    let earlier = earlier_report_files(out_dir);
     let created = !out_dir.exists();
     std::fs::create_dir_all(out_dir).map_err(|e| EvalError::io(out_dir, e))?;
     let written = write_viewer(results, source_dir, out_dir, options, &index);
@@ -87,33 +97,39 @@ pub fn write_report(
         }
         Err(e) => Err(e),
         Ok(files) => {
-            remove_stale_images(out_dir, &files);
+            remove_stale_images(out_dir, &earlier, &files);
+            let list: String = files.iter().map(|f| format!("{f}\n")).collect();
+            write_text(&out_dir.join(MANIFEST), &list)?;
             Ok(index)
         }
     }
 }
 
-/// Removes what an earlier report left in the folders this one writes (`images/`, `plots/`)
-/// and no longer uses: a report redone with --force would otherwise carry old scenes' images.
-fn remove_stale_images(out_dir: &Path, keep: &BTreeSet<String>) {
-    for folder in ["images", "plots"] {
-        let root = out_dir.join(folder);
-        let Ok(scenes) = std::fs::read_dir(&root) else { continue };
-        let mut dirs = vec![root.clone()];
-        let mut stack: Vec<PathBuf> = scenes.filter_map(|e| e.ok().map(|e| e.path())).collect();
-        while let Some(p) = stack.pop() {
-            if p.is_dir() {
-                stack.extend(std::fs::read_dir(&p).into_iter().flatten().filter_map(|e| e.ok().map(|e| e.path())));
-                dirs.push(p);
-            } else if let Ok(rel) = p.strip_prefix(out_dir) {
-                if !keep.contains(&rel.to_string_lossy().replace('\\', "/")) {
-                    let _ = std::fs::remove_file(&p);
-                }
-            }
+/// The list of images and plots a report keeps in its folder, so that the next report there
+/// removes only files a report wrote, never the user's.
+const MANIFEST: &str = ".cvtrace-report";
+
+/// The images and plots an earlier report in `out_dir` wrote, from its [`MANIFEST`]; only
+/// plain relative paths under `images/` and `plots/` are taken.
+fn earlier_report_files(out_dir: &Path) -> BTreeSet<String> {
+    let text = std::fs::read_to_string(out_dir.join(MANIFEST)).unwrap_or_default();
+    text.lines()
+        .filter(|l| (l.starts_with("images/") || l.starts_with("plots/")) && !l.split('/').any(|c| c.is_empty() || c == "." || c == ".."))
+        .map(str::to_string)
+        .collect()
+}
+
+/// Removes what the earlier report wrote and this one no longer uses (a report redone with
+/// --force would otherwise carry old scenes' images), then the folders that became empty.
+fn remove_stale_images(out_dir: &Path, earlier: &BTreeSet<String>, keep: &BTreeSet<String>) {
+    for rel in earlier.difference(keep) {
+        let path = out_dir.join(rel);
+        if std::fs::symlink_metadata(&path).is_ok_and(|m| m.is_file()) {
+            let _ = std::fs::remove_file(&path);
         }
-        // Deepest first; only empty ones go.
-        for d in dirs.iter().rev() {
-            let _ = std::fs::remove_dir(d);
+        // Deepest first; only empty ones go, and never the report folder itself.
+        for dir in Path::new(rel).ancestors().skip(1).filter(|d| !d.as_os_str().is_empty()) {
+            let _ = std::fs::remove_dir(out_dir.join(dir));
         }
     }
 }
@@ -383,15 +399,33 @@ mod tests {
         let (dir, results) = study();
         let out = dir.path().join("report");
         write_report(&results, &dir.path().join("study"), &out, &ReportOptions::default()).unwrap();
-        // What an earlier report of another scene would have left.
+        // What an earlier report of another scene would have left, and listed as its own.
         std::fs::create_dir_all(out.join("images/old-scene")).unwrap();
         std::fs::write(out.join("images/old-scene/ours.png"), b"old").unwrap();
         std::fs::write(out.join("plots/old-scene.svg"), b"old").unwrap();
+        let mut manifest = std::fs::read_to_string(out.join(MANIFEST)).unwrap();
+        assert!(manifest.lines().count() >= 4, "{manifest}");
+        manifest += "images/old-scene/ours.png\nplots/old-scene.svg\nimages/../../escape.png\n";
+        std::fs::write(out.join(MANIFEST), manifest).unwrap();
+        // The user's own files, in the report's folders too.
         std::fs::write(out.join("notes.txt"), b"the user's").unwrap();
+        std::fs::create_dir_all(out.join("images/photos")).unwrap();
+        std::fs::write(out.join("images/photos/me.jpg"), b"the user's").unwrap();
+        std::fs::write(out.join("plots/mine.svg"), b"the user's").unwrap();
+        std::fs::write(dir.path().join("escape.png"), b"the user's").unwrap();
+        // Without --force a folder with files in it is refused, with or without an index.html.
+        let e = write_report(&results, &dir.path().join("study"), &out, &ReportOptions::default()).unwrap_err().to_string();
+        assert!(e.contains("index.html") && e.contains("already exists"), "{e}");
+        std::fs::remove_file(out.join("index.html")).unwrap();
+        let e = write_report(&results, &dir.path().join("study"), &out, &ReportOptions::default()).unwrap_err().to_string();
+        assert!(e.contains("not empty") && e.contains("--force"), "{e}");
         let opts = ReportOptions { overwrite: true, ..Default::default() };
         write_report(&results, &dir.path().join("study"), &out, &opts).unwrap();
         assert!(!out.join("images/old-scene").exists() && !out.join("plots/old-scene.svg").exists());
-        assert!(out.join("notes.txt").is_file(), "files outside images/ and plots/ are the user's");
+        for f in ["notes.txt", "images/photos/me.jpg", "plots/mine.svg", "../escape.png"] {
+            assert!(out.join(f).is_file(), "{f}: the user's file was removed");
+        }
+        assert!(!std::fs::read_to_string(out.join(MANIFEST)).unwrap().contains("old-scene"));
         let slug = slug(&results.scenes[0].name);
         assert!(std::fs::read_dir(out.join("images").join(&slug)).unwrap().count() >= 4, "this report's images stay");
     }

@@ -1,17 +1,32 @@
 //! Atomic output: write next to the target under a temporary name, then rename.
 //!
 //! A crash never leaves half a file at the target path, and an existing file is only
-//! replaced when the caller says so.
+//! replaced when the caller says so. The temporary files of a run that was killed are
+//! removed by the next write of the same output; those of a run stopped by SIGINT/SIGTERM
+//! by the binary's signal handler ([`remove_pending_temporaries`]).
 use crate::StreamError;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+/// The longest file name the usual file systems (ext4, XFS, btrfs, tmpfs) take, in bytes.
+const NAME_MAX: usize = 255;
 
 /// Fails early (before any expensive work) when `path` cannot be written as asked.
+///
+/// Only regular files are written: an existing device, FIFO or socket is refused even with
+/// `overwrite`, because writing means renaming a new file over it. An existing symbolic link
+/// counts as an existing file; with `overwrite` the link itself is replaced, not its target.
 pub fn check_writable(path: &Path, overwrite: bool) -> Result<(), StreamError> {
-    if path.exists() && !overwrite {
-        return Err(StreamError::AlreadyExists { path: path.to_path_buf() });
+    if let Ok(target) = std::fs::metadata(path) {
+        if target.is_dir() {
+            return Err(StreamError::invalid(path, "is a directory, expected a file path"));
+        }
+        if !target.is_file() {
+            return Err(StreamError::invalid(path, "is not a regular file (a device, FIFO or socket); cvtrace writes only regular files"));
+        }
     }
-    if path.is_dir() {
-        return Err(StreamError::invalid(path, "is a directory, expected a file path"));
+    if path.symlink_metadata().is_ok() && !overwrite {
+        return Err(StreamError::AlreadyExists { path: path.to_path_buf() });
     }
     let parent = parent_dir(path);
     if !parent.is_dir() {
@@ -20,6 +35,9 @@ pub fn check_writable(path: &Path, overwrite: bool) -> Result<(), StreamError> {
     let md = std::fs::metadata(&parent).map_err(|e| StreamError::Io { path: parent.clone(), error: e })?;
     if md.permissions().readonly() {
         return Err(StreamError::invalid(path, format!("output directory {} is not writable", parent.display())));
+    }
+    if path.file_name().is_some_and(|n| n.len() > NAME_MAX) {
+        return Err(StreamError::invalid(path, format!("the file name is longer than {NAME_MAX} bytes")));
     }
     Ok(())
 }
@@ -45,15 +63,103 @@ fn parent_dir(path: &Path) -> PathBuf {
     }
 }
 
+/// `(prefix, extension)` of the temporary siblings of `path`: `.{name}.tmp-{pid}{extension}`.
+/// The name is shortened (at a character boundary) so that the temporary name fits in
+/// [`NAME_MAX`] bytes whenever the output's own name does.
+fn temp_name_parts(path: &Path) -> (String, String) {
+    let mut name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
+    let ext = path.extension().map(|e| format!(".{}", e.to_string_lossy())).unwrap_or_default();
+    // "." + name + ".tmp-" + a pid of up to 10 digits + ext
+    let room = NAME_MAX.saturating_sub(1 + 5 + 10 + ext.len());
+    while name.len() > room {
+        name.pop();
+    }
+    (format!(".{name}.tmp-"), ext)
+}
+
 /// The temporary sibling used while `path` is being written. It keeps the extension so
 /// that format libraries which look at it behave the same.
 pub fn temp_path_for(path: &Path) -> PathBuf {
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
-    let ext = path.extension().map(|e| format!(".{}", e.to_string_lossy())).unwrap_or_default();
-    parent_dir(path).join(format!(".{name}.tmp-{}{ext}", std::process::id()))
+    let (prefix, ext) = temp_name_parts(path);
+    parent_dir(path).join(format!("{prefix}{}{ext}", std::process::id()))
 }
 
-/// Runs `write` on a temporary path and renames the result onto `path`.
+/// Removes temporary siblings of `path` left by runs that were killed (their process is gone).
+/// Only on Linux, where `/proc` tells which processes are alive.
+fn remove_stale_temporaries(path: &Path) {
+    if !cfg!(target_os = "linux") {
+        return;
+    }
+    let (prefix, ext) = temp_name_parts(path);
+    let Ok(entries) = std::fs::read_dir(parent_dir(path)) else { return };
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        let Some(pid) = name.strip_prefix(&prefix).and_then(|rest| rest.strip_suffix(&ext)) else { continue };
+        let dead = pid.parse::<u32>().is_ok_and(|pid| pid != std::process::id() && !Path::new("/proc").join(pid.to_string()).exists());
+        if dead && entry.file_type().is_ok_and(|t| t.is_file()) {
+            let _ = std::fs::remove_file(entry.path());
+        }
+    }
+}
+
+/// Temporary files being written right now, for [`remove_pending_temporaries`].
+static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn pending() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    PENDING.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+}
+
+/// Registers a temporary file while it exists.
+struct PendingTemp(PathBuf);
+
+impl PendingTemp {
+    fn new(path: PathBuf) -> PendingTemp {
+        pending().push(path.clone());
+        PendingTemp(path)
+    }
+}
+
+impl Drop for PendingTemp {
+    fn drop(&mut self) {
+        let mut list = pending();
+        if let Some(i) = list.iter().position(|p| *p == self.0) {
+            list.swap_remove(i);
+        }
+    }
+}
+
+/// Removes every temporary file that is being written: for a signal handler that is about to
+/// end the process, so that an interrupted run leaves nothing behind.
+pub fn remove_pending_temporaries() {
+    for p in pending().drain(..) {
+        let _ = std::fs::remove_file(p);
+    }
+}
+
+/// Moves the finished temporary file onto `path`. Without `overwrite` the move fails if `path`
+/// exists by then, atomically (a hard link cannot replace a file), so two runs that finish
+/// together cannot replace each other's output.
+fn publish(tmp: &Path, path: &Path, overwrite: bool) -> Result<(), StreamError> {
+    if overwrite {
+        return std::fs::rename(tmp, path).map_err(|e| StreamError::Io { path: path.to_path_buf(), error: e });
+    }
+    match std::fs::hard_link(tmp, path) {
+        Ok(()) => {
+            let _ = std::fs::remove_file(tmp);
+            Ok(())
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Err(StreamError::AlreadyExists { path: path.to_path_buf() }),
+        // A file system without hard links: check, then rename (a small window remains).
+        Err(_) => {
+            if path.symlink_metadata().is_ok() {
+                return Err(StreamError::AlreadyExists { path: path.to_path_buf() });
+            }
+            std::fs::rename(tmp, path).map_err(|e| StreamError::Io { path: path.to_path_buf(), error: e })
+        }
+    }
+}
+
+/// Runs `write` on a temporary path, flushes it to disk and moves the result onto `path`.
 /// On any error the temporary file is removed and `path` is untouched.
 pub fn write_atomically<E>(
     path: &Path,
@@ -64,19 +170,19 @@ where
     E: std::fmt::Display,
 {
     check_writable(path, overwrite)?;
+    remove_stale_temporaries(path);
     let tmp = temp_path_for(path);
-    if let Err(e) = write(&tmp) {
+    let _pending = PendingTemp::new(tmp.clone());
+    let written = write(&tmp).map_err(|e| e.to_string()).and_then(|()| {
+        // Durable before it is visible: a crash after the rename must not leave an empty file.
+        std::fs::File::open(&tmp).and_then(|f| f.sync_all()).map_err(|e| e.to_string())
+    });
+    if let Err(e) = written {
         let _ = std::fs::remove_file(&tmp);
         return Err(StreamError::invalid(path, format!("could not write: {e}")));
     }
-    // Re-check just before the rename: another process may have created the file meanwhile.
-    if path.exists() && !overwrite {
+    publish(&tmp, path, overwrite).inspect_err(|_| {
         let _ = std::fs::remove_file(&tmp);
-        return Err(StreamError::AlreadyExists { path: path.to_path_buf() });
-    }
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        StreamError::Io { path: path.to_path_buf(), error: e }
     })
 }
 
@@ -118,6 +224,80 @@ mod tests {
             assert!(e.starts_with(bad) && e.contains("OpenEXR") && e.contains(".exr file name"), "{e}");
         }
         assert!(check_extension(Path::new("a.exr"), "png").unwrap_err().to_string().contains("PNG"));
+    }
+
+    #[test]
+    fn special_files_and_directories_are_refused_even_with_overwrite() {
+        let dir = tempfile::tempdir().unwrap();
+        for overwrite in [false, true] {
+            let e = check_writable(Path::new("/dev/null"), overwrite).unwrap_err().to_string();
+            assert!(e.contains("/dev/null") && e.contains("not a regular file"), "{e}");
+            let e = check_writable(dir.path(), overwrite).unwrap_err().to_string();
+            assert!(e.contains("is a directory"), "{e}");
+        }
+        // A dangling link is an existing output too.
+        let link = dir.path().join("l.exr");
+        std::os::unix::fs::symlink(dir.path().join("nowhere"), &link).unwrap();
+        assert!(matches!(check_writable(&link, false), Err(StreamError::AlreadyExists { .. })));
+    }
+
+    #[test]
+    fn long_names_get_a_temporary_name_that_fits() {
+        let dir = tempfile::tempdir().unwrap();
+        let long = format!("{}é.exr", "a".repeat(246)); // 253 bytes
+        let p = dir.path().join(&long);
+        assert!(temp_path_for(&p).file_name().unwrap().len() <= NAME_MAX);
+        write_atomically(&p, false, |tmp| std::fs::write(tmp, b"x")).unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), b"x");
+        let too_long = dir.path().join(format!("{}.exr", "a".repeat(252)));
+        assert!(check_writable(&too_long, false).unwrap_err().to_string().contains("longer than 255 bytes"));
+    }
+
+    #[test]
+    fn temporaries_of_dead_runs_are_removed_and_live_ones_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("x.exr");
+        let (prefix, ext) = temp_name_parts(&p);
+        // PID 4194305 is above Linux's largest (2^22): never a live process.
+        let dead = dir.path().join(format!("{prefix}4194305{ext}"));
+        let alive = dir.path().join(format!("{prefix}1{ext}"));
+        let other = dir.path().join(".y.exr.tmp-4194305.exr");
+        for f in [&dead, &alive, &other] {
+            std::fs::write(f, b"half").unwrap();
+        }
+        write_atomically(&p, false, |tmp| std::fs::write(tmp, b"x")).unwrap();
+        if cfg!(target_os = "linux") {
+            assert!(!dead.exists());
+        }
+        assert!(alive.exists() && other.exists(), "a live run's and another output's temporaries stay");
+    }
+
+    #[test]
+    fn without_overwrite_a_file_that_appears_meanwhile_is_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("x.txt");
+        let r = write_atomically(&p, false, |tmp| {
+            std::fs::write(&p, b"the other run's").unwrap();
+            std::fs::write(tmp, b"ours")
+        });
+        assert!(matches!(r, Err(StreamError::AlreadyExists { .. })));
+        assert_eq!(std::fs::read(&p).unwrap(), b"the other run's");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1, "the temporary file is gone");
+    }
+
+    #[test]
+    fn temporaries_are_registered_while_they_are_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("x.txt");
+        let mut seen = PathBuf::new();
+        write_atomically(&p, false, |tmp| {
+            assert!(pending().contains(&tmp.to_path_buf()));
+            seen = tmp.to_path_buf();
+            std::fs::write(tmp, b"x")
+        })
+        .unwrap();
+        assert!(!pending().contains(&seen));
+        // `remove_pending_temporaries` itself: tests/interrupted_write.rs (its own process).
     }
 
     #[test]

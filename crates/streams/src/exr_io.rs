@@ -204,8 +204,7 @@ fn sort_header_attributes(path: &Path) -> std::io::Result<()> {
     let sorted: Vec<u8> = attributes.concat();
     debug_assert_eq!(sorted.len(), at - 8);
     file.seek(SeekFrom::Start(8))?;
-    file.write_all(&sorted)?;
-    file.sync_all()
+    file.write_all(&sorted)
 }
 
 /// Reads an RGB image from channels `{prefix}R/G/B` (prefix "" for a plain beauty image).
