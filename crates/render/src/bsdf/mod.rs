@@ -11,6 +11,8 @@ pub mod ggx;
 pub mod lambert;
 pub mod microfacet;
 pub mod pbr;
+#[cfg(test)]
+mod reference;
 
 use glam::Vec3;
 
