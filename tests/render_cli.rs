@@ -100,9 +100,10 @@ fn one_and_two_threads_give_identical_output() {
     assert_ne!(a.channels["pt.R"], c.channels["pt.R"]);
 }
 
-/// SIGTERM (and Ctrl-C) end a run through cvtrace's handler: exit code 130 and no temporary file
-/// left, even when the signal arrives while a file is being written (here a checkpoint after
-/// every 1-spp pass, so writes are frequent); the last checkpoint stays readable.
+/// SIGTERM (and Ctrl-C) end a run through cvtrace's handler: exit code 130 and no temporary or
+/// lock file left, even when the signal arrives while a file is being written (here a
+/// checkpoint after every 1-spp pass, so writes are frequent); the last checkpoint stays
+/// readable. Meanwhile a second render of the same reference is refused.
 #[test]
 fn a_terminated_render_leaves_no_temporary_files() {
     let dir = tempfile::tempdir().unwrap();
@@ -115,6 +116,11 @@ fn a_terminated_render_leaves_no_temporary_files() {
         assert!(start.elapsed().as_secs() < 60, "no checkpoint after 60 s");
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
+    // A second process on the same reference is refused at once (it would redo the work and
+    // race over the checkpoint).
+    let second = cvtrace(dir.path(), &args);
+    let e = stderr(&second);
+    assert!(!second.status.success() && e.contains("t.ref.exr") && e.contains("another cvtrace process"), "{e}");
     std::thread::sleep(std::time::Duration::from_millis(300));
     // SAFETY: kill(2) on our own child's pid.
     assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGTERM) }, 0);

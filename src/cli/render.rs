@@ -11,7 +11,7 @@
 use anyhow::{bail, Context, Result};
 use cvtrace::{set_flush_denormals, BuildOptions, Device, EmbreeScene};
 use cvtrace_render::{render_reference_pass, render_streams, Camera, ReferenceAccum, RenderDefaults, RenderSettings, Scene};
-use cvtrace_streams::atomic::{check_extension, check_writable};
+use cvtrace_streams::atomic::{check_extension, check_writable, lock_path_for, OutputLock};
 use cvtrace_streams::exr_io::{take_rgb, write_rgb, AttrValue, ExrChannels};
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -193,6 +193,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
     check_extension(&args.output, "exr")?;
     check_writable(&args.output, args.force || args.extend)?;
     let checkpoint = checkpoint_path(&args.output);
+    // A reference takes many passes and a checkpoint: a second process on the same output
+    // would repeat the work and race over both files.
+    let _claim = if args.reference { Some(OutputLock::acquire(&lock_path_for(&args.output), &args.output)?) } else { None };
     if args.reference {
         if checkpoint.is_dir() {
             bail!("{}: the checkpoint path is a directory", checkpoint.display());

@@ -84,6 +84,14 @@ pub fn temp_path_for(path: &Path) -> PathBuf {
     parent_dir(path).join(format!("{prefix}{}{ext}", std::process::id()))
 }
 
+/// The hidden sibling `.{name}.lock` that an [`OutputLock`] on `path` uses (the name shortened
+/// as for temporary files).
+pub fn lock_path_for(path: &Path) -> PathBuf {
+    let (prefix, _) = temp_name_parts(path);
+    let name = prefix.strip_suffix(".tmp-").unwrap_or(&prefix);
+    parent_dir(path).join(format!("{name}.lock"))
+}
+
 /// Removes temporary siblings of `path` left by runs that were killed (their process is gone).
 /// Only on Linux, where `/proc` tells which processes are alive.
 fn remove_stale_temporaries(path: &Path) {
@@ -128,12 +136,68 @@ impl Drop for PendingTemp {
     }
 }
 
-/// Removes every temporary file that is being written: for a signal handler that is about to
-/// end the process, so that an interrupted run leaves nothing behind.
+/// Removes every temporary file that is being written, and the lock files of
+/// [`OutputLock`]s: for a signal handler that is about to end the process, so that an
+/// interrupted run leaves nothing behind.
 pub fn remove_pending_temporaries() {
     for p in pending().drain(..) {
         let _ = std::fs::remove_file(p);
     }
+}
+
+/// An exclusive claim on an output that takes many steps to write (a reference render with
+/// its checkpoint, a study folder): a second cvtrace process asking for the same claim fails
+/// at once instead of repeating the work and racing over the same files. The claim is an
+/// advisory lock (`flock`) on a hidden lock file, which the operating system releases when the
+/// process ends however it ends; the file itself is removed when the claim is dropped.
+pub struct OutputLock {
+    _file: std::fs::File,
+    _registered: PendingTemp,
+}
+
+impl OutputLock {
+    /// Claims `lock_path` for writing `what` (named in the error).
+    pub fn acquire(lock_path: &Path, what: &Path) -> Result<OutputLock, StreamError> {
+        let io = |e| StreamError::Io { path: lock_path.to_path_buf(), error: e };
+        loop {
+            let file = std::fs::OpenOptions::new().create(true).truncate(false).write(true).open(lock_path).map_err(io)?;
+            match file.try_lock() {
+                Ok(()) => {}
+                Err(std::fs::TryLockError::WouldBlock) => {
+                    return Err(StreamError::invalid(
+                        what,
+                        format!("is being written by another cvtrace process (it holds {})", lock_path.display()),
+                    ))
+                }
+                // A file system without locks: go on unguarded, as before locks existed.
+                Err(std::fs::TryLockError::Error(e)) if e.kind() == std::io::ErrorKind::Unsupported => {}
+                Err(std::fs::TryLockError::Error(e)) => return Err(io(e)),
+            }
+            // The previous holder removes the file on release: if that happened between our
+            // open and our lock, we hold a lock on a file nobody else can see. Try again.
+            if still_at(&file, lock_path) {
+                return Ok(OutputLock { _file: file, _registered: PendingTemp::new(lock_path.to_path_buf()) });
+            }
+        }
+    }
+}
+
+impl Drop for OutputLock {
+    fn drop(&mut self) {
+        // Removed while still locked, so no one can take the old file for a live claim.
+        let _ = std::fs::remove_file(&self._registered.0);
+    }
+}
+
+#[cfg(unix)]
+fn still_at(file: &std::fs::File, path: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    matches!((file.metadata(), std::fs::metadata(path)), (Ok(a), Ok(b)) if a.ino() == b.ino() && a.dev() == b.dev())
+}
+
+#[cfg(not(unix))]
+fn still_at(_file: &std::fs::File, path: &Path) -> bool {
+    path.exists()
 }
 
 /// Moves the finished temporary file onto `path`. Without `overwrite` the move fails if `path`
@@ -298,6 +362,20 @@ mod tests {
         .unwrap();
         assert!(!pending().contains(&seen));
         // `remove_pending_temporaries` itself: tests/interrupted_write.rs (its own process).
+    }
+
+    #[test]
+    fn a_second_claim_on_the_same_output_fails_until_the_first_ends() {
+        let dir = tempfile::tempdir().unwrap();
+        let (lock, what) = (dir.path().join(".x.lock"), dir.path().join("x.exr"));
+        let first = OutputLock::acquire(&lock, &what).unwrap();
+        let e = OutputLock::acquire(&lock, &what).err().unwrap().to_string();
+        assert!(e.contains("x.exr") && e.contains("another cvtrace process") && e.contains(".x.lock"), "{e}");
+        drop(first);
+        assert!(!lock.exists(), "the lock file goes with the claim");
+        let again = OutputLock::acquire(&lock, &what).unwrap();
+        assert!(lock.exists());
+        drop(again);
     }
 
     #[test]
