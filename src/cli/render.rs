@@ -310,6 +310,15 @@ fn render_reference(
     // An interrupted extension left a checkpoint, which is exact: it comes first.
     let mut accum = match load_checkpoint(checkpoint, &identity)? {
         Some(a) => {
+            if a.samples_done > s.spp {
+                bail!(
+                    "{}: the checkpoint already holds {} spp, more than --spp {}; render with --spp {} or delete it to start the reference over",
+                    checkpoint.display(),
+                    a.samples_done,
+                    s.spp,
+                    a.samples_done
+                );
+            }
             tracing::info!("resuming from {} at {} of {} spp", checkpoint.display(), a.samples_done, s.spp);
             a
         }
@@ -320,15 +329,6 @@ fn render_reference(
         }
         None => ReferenceAccum::new(s),
     };
-    if accum.samples_done > s.spp {
-        bail!(
-            "{}: the checkpoint already holds {} spp, more than --spp {}; render with --spp {} or delete it",
-            checkpoint.display(),
-            accum.samples_done,
-            s.spp,
-            accum.samples_done
-        );
-    }
     let pixels = s.width as u64 * s.height as u64;
     tracing::info!(
         "rendering a reference {}x{}, {} spp in passes of {}, max depth {}, seed {} on {} threads",
