@@ -61,6 +61,11 @@ fn main() -> std::process::ExitCode {
         Command::Compare(a) => cli::compare::run(a),
         Command::Report(a) => cli::report::run(a),
     };
+    // Interrupted: the signal handler is ending the process with its own code; an error that
+    // came from its removing a file under a write is not this run's result.
+    while cvtrace_streams::atomic::interrupted() {
+        std::thread::park();
+    }
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {

@@ -6,6 +6,7 @@
 //! by the binary's signal handler ([`remove_pending_temporaries`]).
 use crate::StreamError;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Mutex;
 
 /// The longest file name the usual file systems (ext4, XFS, btrfs, tmpfs) take, in bytes.
@@ -129,20 +130,39 @@ impl PendingTemp {
 
 impl Drop for PendingTemp {
     fn drop(&mut self) {
-        let mut list = pending();
+        // After `remove_pending_temporaries` the list stays locked for good: nothing to do.
+        let mut list = match PENDING.try_lock() {
+            Ok(list) => list,
+            Err(std::sync::TryLockError::Poisoned(p)) => p.into_inner(),
+            Err(std::sync::TryLockError::WouldBlock) if INTERRUPTED.load(Ordering::SeqCst) => return,
+            Err(std::sync::TryLockError::WouldBlock) => pending(),
+        };
         if let Some(i) = list.iter().position(|p| *p == self.0) {
             list.swap_remove(i);
         }
     }
 }
 
+/// Set once [`remove_pending_temporaries`] has run: the process is about to end.
+static INTERRUPTED: AtomicBool = AtomicBool::new(false);
+
+/// True once [`remove_pending_temporaries`] has been called: work that fails afterwards
+/// (its temporary file removed under it) should not report an error of its own.
+pub fn interrupted() -> bool {
+    INTERRUPTED.load(Ordering::SeqCst)
+}
+
 /// Removes every temporary file that is being written, and the lock files of
 /// [`OutputLock`]s: for a signal handler that is about to end the process, so that an
-/// interrupted run leaves nothing behind.
+/// interrupted run leaves nothing behind. The list stays locked afterwards, so no new
+/// temporary file can start (a writer that tries waits for the exit).
 pub fn remove_pending_temporaries() {
-    for p in pending().drain(..) {
+    INTERRUPTED.store(true, Ordering::SeqCst);
+    let mut list = pending();
+    for p in list.drain(..) {
         let _ = std::fs::remove_file(p);
     }
+    std::mem::forget(list);
 }
 
 /// An exclusive claim on an output that takes many steps to write (a reference render with
