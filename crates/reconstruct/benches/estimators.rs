@@ -1,10 +1,13 @@
 //! Throughput of every estimator on a synthetic 1280×720 stream set with B = 16 batches
 //! (16 spp per stream), generated in memory. Criterion reports elements/s = pixels/s.
+//! A second group times the control-variate pass of `ours` and `cv` on one thread at 640×360
+//! (time per pixel = 1 / throughput; it replaces the ignored `pass_cost` and
+//! `panel_solve_cost` micro-benchmarks that used to live in the unit tests).
 //!
 //! `cargo bench -p cvtrace-reconstruct --bench estimators`
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use cvtrace_reconstruct::synthetic::{RenderSpec, SoftShadowScene};
-use cvtrace_reconstruct::{build, Input, Method, Options};
+use cvtrace_reconstruct::{build, ErrorEstimate, Input, Method, Options};
 use std::time::Duration;
 
 fn estimators(c: &mut Criterion) {
@@ -24,5 +27,29 @@ fn estimators(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, estimators);
+/// One thread, 640×360, B = 16: the per-pixel cost of selection, gathering and the three
+/// channels' solves. `ours` with the raw batch variance as errors and no floor, so that almost
+/// all of the time is the pass itself.
+fn pass_one_thread(c: &mut Criterion) {
+    let (w, h) = (640, 360);
+    let set =
+        SoftShadowScene::default().render(&RenderSpec { width: w, height: h, spp: 16, batches: 16, seed: 1 }).expect("synthetic streams");
+    let input = Input::new(&set);
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("thread pool");
+    let mut options = Options::default();
+    options.ours.errors = ErrorEstimate::Variance;
+    options.ours.crn_floor = 0.0;
+    let mut group = c.benchmark_group("pass_640x360_b16_one_thread");
+    group.throughput(Throughput::Elements((w * h) as u64));
+    group.sample_size(10);
+    group.warm_up_time(Duration::from_secs(2));
+    group.measurement_time(Duration::from_secs(10));
+    for m in [Method::Ours, Method::Cv] {
+        let est = build(m, &options).expect("options");
+        group.bench_function(m.name(), |b| b.iter(|| pool.install(|| est.reconstruct(&input).expect("reconstruct"))));
+    }
+    group.finish();
+}
+
+criterion_group!(benches, estimators, pass_one_thread);
 criterion_main!(benches);

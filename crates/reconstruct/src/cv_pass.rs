@@ -177,7 +177,7 @@ impl CvPass<'_> {
         let mut rows = vec![PassStats::default(); h];
         image.pixels.par_chunks_mut(w).zip(rows.par_iter_mut()).enumerate().for_each_init(Scratch::<P>::new, |sc, (y, (row, st))| {
             #[cfg(target_arch = "x86_64")]
-            if std::is_x86_feature_detected!("avx2") {
+            if crate::simd::use_avx2() {
                 // SAFETY: the CPU supports AVX2 (checked just above).
                 unsafe { self.row_avx2::<P>(halves, y, row, sc, st) };
                 return;
@@ -335,52 +335,5 @@ impl CvPass<'_> {
             }
         }
         acc.map(|v| (v / nh as f64) as f32)
-    }
-}
-
-#[cfg(test)]
-mod timing {
-    use super::*;
-    use crate::selection::Selection;
-    use crate::synthetic::{RenderSpec, SoftShadowScene};
-
-    /// `cargo test --release -p cvtrace-reconstruct --lib pass_cost -- --ignored --nocapture`
-    #[test]
-    #[ignore]
-    fn pass_cost() {
-        let set = SoftShadowScene::default().render(&RenderSpec { width: 640, height: 360, spp: 16, batches: 16, seed: 1 }).unwrap();
-        let errors = crate::batch_stats::variance_of_mean(&set.pt);
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-        pool.install(|| {
-            let pass = CvPass {
-                set: &set,
-                selector: Selector::new(Selection::Knn, 25, 11, true, 0, &set),
-                k: 25,
-                errors: Some(&errors),
-                penalty: Penalty::Avg,
-                ridge: 1e-3,
-                shared: false,
-                include_centre: true,
-                floor: None,
-                cross_fit: false,
-            };
-            let n = (set.width * set.height) as f64;
-            let t = std::time::Instant::now();
-            let mut sc = SelectScratch::new();
-            let mut idx = [0u32; MAX_K];
-            let mut acc = 0u64;
-            for y in 0..set.height {
-                for x in 0..set.width {
-                    acc += pass.selector.select(x, y, &mut sc, &mut idx) as u64;
-                }
-            }
-            eprintln!("selection: {:.0} ns/pixel ({acc})", t.elapsed().as_nanos() as f64 / n);
-            let t = std::time::Instant::now();
-            let cube = BatchCube::deviations(&set.crn, 16);
-            eprintln!("cube: {:.0} ns/pixel", t.elapsed().as_nanos() as f64 / n);
-            let t = std::time::Instant::now();
-            let (_img, st) = pass.run_width::<16>(&[Half { cube, mean: &set.crn.mean.pixels }]);
-            eprintln!("pass: {:.0} ns/pixel ({} solves)", t.elapsed().as_nanos() as f64 / n, st.solves);
-        });
     }
 }

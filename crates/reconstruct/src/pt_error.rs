@@ -114,7 +114,7 @@ pub fn cross_bilateral(values: &[[f32; 3]], set: &StreamSet, o: &CbfOptions) -> 
     let mut out = vec![[0.0f32; 3]; w * h];
     out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
         #[cfg(target_arch = "x86_64")]
-        if std::is_x86_feature_detected!("avx2") {
+        if crate::simd::use_avx2() {
             // SAFETY: AVX2 support was just checked.
             unsafe { cbf_row_avx2(&planes, &k, &spatial, r, o.exclude_centre, y, row) };
             return;

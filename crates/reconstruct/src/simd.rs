@@ -8,6 +8,40 @@ use crate::fast_exp::exp_neg;
 #[cfg(target_arch = "x86_64")]
 use crate::fast_exp::exp_neg8_avx2;
 
+/// Whether the image passes run the AVX2 build: on CPUs that have it, unless a unit test has
+/// forced the portable build (see [`force_portable`]; outside `cfg(test)` this is just the CPU
+/// check).
+#[cfg(target_arch = "x86_64")]
+#[inline]
+pub(crate) fn use_avx2() -> bool {
+    #[cfg(test)]
+    if FORCE_PORTABLE.load(std::sync::atomic::Ordering::SeqCst) {
+        return false;
+    }
+    std::is_x86_feature_detected!("avx2")
+}
+
+#[cfg(test)]
+static FORCE_PORTABLE: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Runs `f` with the portable build forced on every thread (tests only). Both builds are
+/// bit-identical, so other tests running meanwhile are unaffected; calls are serialised.
+#[cfg(test)]
+pub(crate) fn force_portable<T>(f: impl FnOnce() -> T) -> T {
+    use std::sync::atomic::Ordering;
+    static LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _guard = LOCK.lock().unwrap_or_else(|e| e.into_inner());
+    FORCE_PORTABLE.store(true, Ordering::SeqCst);
+    struct Reset;
+    impl Drop for Reset {
+        fn drop(&mut self) {
+            FORCE_PORTABLE.store(false, Ordering::SeqCst);
+        }
+    }
+    let _reset = Reset;
+    f()
+}
+
 /// Vector kernels over fixed-width rows (`P` a multiple of 8).
 pub(crate) trait Simd {
     /// For `q < 4`, `l < 8`: `Σ_j e_j[a0+q] · d_j[b0+l]` over the rows, summed in `j` order,
@@ -240,5 +274,57 @@ mod tests {
         let pw = Portable::exp_weighted(&t, &dd, 0.7);
         assert_eq!((ew.0.to_bits(), ew.1.to_bits()), (pw.0.to_bits(), pw.1.to_bits()));
         assert!(tt.iter_mut().zip(&pt).all(|(a, b)| a.to_bits() == b.to_bits()));
+    }
+}
+
+/// The image passes give the same bits whichever build the dispatch picks: every estimator
+/// that uses the kernels (the CBF error filter, every panel width and the general solve of the
+/// control-variate pass, IDUW's criterion and output), run once dispatched (AVX2 here) and once
+/// with the portable build forced.
+#[cfg(all(test, target_arch = "x86_64"))]
+mod dispatch_tests {
+    use crate::synthetic::{RenderSpec, SoftShadowScene};
+    use crate::{build, FloorMode, Input, Method, Options, Penalty};
+    use cvtrace_streams::Image;
+
+    fn images(runs: &[(Method, Options, usize)]) -> Vec<Image> {
+        let scene = SoftShadowScene::default();
+        runs.iter()
+            .map(|(m, o, b)| {
+                let spec = RenderSpec { width: 23, height: 19, spp: 2 * *b as u32, batches: *b, seed: 40 + *b as u64 };
+                let set = scene.render(&spec).unwrap();
+                build(*m, o).unwrap().reconstruct(&Input::new(&set)).unwrap().image
+            })
+            .collect()
+    }
+
+    #[test]
+    fn ours_cv_and_iduw_images_are_bit_identical_with_the_portable_build_forced() {
+        if !std::is_x86_feature_detected!("avx2") {
+            eprintln!("no AVX2 on this CPU: both runs would be portable");
+            return;
+        }
+        let with = |f: &dyn Fn(&mut Options)| {
+            let mut o = Options::default();
+            f(&mut o);
+            o
+        };
+        let runs = vec![
+            (Method::Ours, Options::default(), 16), // panel width 16, CBF errors, common floor
+            (Method::Ours, with(&|o| (o.ours.crn_floor_mode, o.ours.penalty) = (FloorMode::Independent, Penalty::Residual)), 8), // width 8
+            (Method::Ours, Options::default(), 24), // width 32
+            (Method::Ours, with(&|o| o.ours.k = 40), 36), // width 64
+            (Method::Ours, Options::default(), 32), // B ≥ k: the general f64 solve
+            (Method::Ours, with(&|o| o.ours.shared_coefficients = true), 16), // general, 3·B columns
+            (Method::Ours, with(&|o| o.ours.cross_fit = true), 16), // two halves, width 8
+            (Method::Cv, Options::default(), 16),
+            (Method::Iduw, Options::default(), 16), // γ criterion and output
+        ];
+        let dispatched = images(&runs);
+        let portable = super::force_portable(|| images(&runs));
+        for ((m, o, b), (a, p)) in runs.iter().zip(dispatched.iter().zip(&portable)) {
+            let differ = a.pixels.iter().zip(&p.pixels).filter(|(x, y)| x.map(f32::to_bits) != y.map(f32::to_bits)).count();
+            assert_eq!(differ, 0, "{m} B = {b} {o:?}: {differ} pixels differ between the AVX2 and the portable build");
+        }
     }
 }

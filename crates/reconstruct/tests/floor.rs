@@ -2,9 +2,10 @@
 //! Exact expectations on hand-made stream sets where the CRN batches are degenerate.
 mod common;
 
-use common::{normal, stream_set};
+use common::dense::{batch_mean, set_of, variance_of_mean, Fit, Rule};
+use common::{normal, stream_set, stream_set_rgb};
 use cvtrace_reconstruct::estimators::Ours;
-use cvtrace_reconstruct::{Estimator, FloorMode, FloorSource, Input, OursOptions, ReconError, StreamSet};
+use cvtrace_reconstruct::{Estimator, ErrorEstimate, FloorMode, FloorSource, Input, OursOptions, Penalty, ReconError, Selection, StreamSet};
 
 const W: usize = 21;
 const M: f64 = 0.8;
@@ -78,15 +79,18 @@ fn floor_leaves_pixels_with_enough_batch_variance_alone() {
     );
     let base = ours(|o| o.crn_floor = 0.0).reconstruct(&Input::new(&set)).unwrap().image;
     for mode in FloorMode::ALL {
-        let est = ours(|o| {
-            o.crn_floor = 0.2;
-            o.crn_floor_mode = *mode;
-            o.crn_floor_source = FloorSource::Pt;
-        });
-        let got = est.reconstruct(&Input::new(&set)).unwrap().image;
-        let worst = got.pixels.iter().zip(&base.pixels).map(|(a, b)| (a[0] - b[0]).abs()).fold(0.0f32, f32::max);
-        // The common floor rotates the batch deviations (same Gram matrix, other rounding).
-        assert!(worst < 1e-5, "{mode}: {worst}");
+        for source in FloorSource::ALL {
+            let est = ours(|o| {
+                o.crn_floor = 0.2;
+                o.crn_floor_mode = *mode;
+                o.crn_floor_source = *source;
+            });
+            let got = est.reconstruct(&Input::new(&set)).unwrap().image;
+            let worst =
+                got.pixels.iter().zip(&base.pixels).flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).abs())).fold(0.0f32, f32::max);
+            // The common floor rotates the batch deviations (same Gram matrix, other rounding).
+            assert!(worst < 1e-5, "{mode}, source {source}: {worst}");
+        }
     }
 }
 
@@ -102,7 +106,7 @@ fn crn_source_floors_from_the_filtered_crn_variance() {
 }
 
 #[test]
-fn cross_fit_applies_each_half_s_coefficients_to_the_other_half() {
+fn cross_fit_end_points_are_pt_and_crn() {
     // PT exact (zero batch variance, so the error estimates are 0 and only the ridge keeps the
     // system positive definite) and CRN noisy and independent per pixel: with k = 5 control
     // variates and 8 batches per half the half covariances have full rank, β = e_c in both
@@ -131,6 +135,72 @@ fn cross_fit_applies_each_half_s_coefficients_to_the_other_half() {
     );
     let out = est.reconstruct(&Input::new(&noisy_pt)).unwrap().image;
     assert!((out.pixels[c][0] - noisy_pt.crn.mean.pixels[c][0]).abs() < 1e-3, "{:?} vs CRN {:?}", out.pixels[c], noisy_pt.crn.mean.pixels[c]);
+}
+
+#[test]
+fn cross_fit_applies_each_half_s_coefficients_to_the_other_half() {
+    // B = 8 on a non-degenerate set (CRN noise half shared, half independent; PT noise). The
+    // definition (cv_pass.rs): half A = batches 0..4, half B = 4..8; β_A solves the system of
+    // ours from half A's deviations with s = 1/(2·4·3) (a half's covariance halved: the
+    // covariance of the full mean) and the PT errors of all 8 batches; then
+    // out = ½[(ḡ^B_c − Σ β_A,i (ḡ^B_i − h̄_i)) + (ḡ^A_c − Σ β_B,i (ḡ^A_i − h̄_i))],
+    // ḡ^A, ḡ^B the half means. Checked against the dense f64 model to 1e-5 (f32 solve and
+    // inputs), with window selection, raw-variance errors, no penalty and no floor.
+    let (w, h, b) = (W, 15, 8);
+    let n = (w * h * 3) as u64;
+    let truth = |i: usize, ch: usize| 0.6 + 0.2 * ch as f64 + 0.4 * (i % w) as f64 / w as f64;
+    let set = stream_set_rgb(
+        w,
+        h,
+        b,
+        32,
+        |bb, i, ch| truth(i, ch) + 0.2 * (normal(31, (bb * 3 + ch) as u64) + normal(32, bb as u64 * n + (i * 3 + ch) as u64)),
+        |bb, i, ch| truth(i, ch) + 0.15 * normal(33, bb as u64 * n + (i * 3 + ch) as u64),
+    );
+    let est = |cross_fit: bool| {
+        ours(|o| {
+            (o.select, o.errors, o.penalty, o.crn_floor, o.cross_fit) =
+                (Selection::Window, ErrorEstimate::Variance, Penalty::None, 0.0, cross_fit);
+        })
+    };
+    let fitted = est(true).reconstruct(&Input::new(&set)).unwrap().image;
+    let plain = est(false).reconstruct(&Input::new(&set)).unwrap().image;
+    let halves = [0..4, 4..8];
+    let (mut gap_plain, mut gap_swapped) = (0.0f64, 0.0f64);
+    for (x, y) in [(10, 7), (3, 4), (0, 0), (20, 14), (15, 1)] {
+        let c = y * w + x;
+        let omega = set_of(Rule::Window, &set.crn.mean, x, y, 25, 11, true);
+        for ch in 0..3 {
+            let w_h: Vec<f64> = omega.iter().map(|&i| variance_of_mean(&set.pt.batches, i, ch)).collect();
+            let batches = &set.crn.batches;
+            let half_mean = |k: usize| {
+                let r = halves[k].clone();
+                move |i: usize| batch_mean(&batches[r.clone()], i, ch)
+            };
+            let fit = |k: usize| Fit {
+                set: &set,
+                centre: c,
+                omega: &omega,
+                ch,
+                fit: halves[k].clone(),
+                s: 1.0 / 24.0,
+                w: w_h.clone(),
+                ridge: 1e-3,
+            };
+            let (beta_a, beta_b) = (fit(0).beta(), fit(1).beta());
+            let want = 0.5 * (fit(0).apply(&beta_a, half_mean(1)) + fit(1).apply(&beta_b, half_mean(0)));
+            // The same coefficients applied to their own half's means (no cross-fitting of the
+            // values): what a swap of the halves would compute.
+            let swapped = 0.5 * (fit(0).apply(&beta_a, half_mean(0)) + fit(1).apply(&beta_b, half_mean(1)));
+            let got = fitted.pixels[c][ch] as f64;
+            assert!((got - want).abs() < 1e-5 * want.abs().max(1.0), "pixel ({x}, {y}) ch {ch}: cross-fit {got} vs dense {want}");
+            gap_plain = gap_plain.max((plain.pixels[c][ch] as f64 - want).abs());
+            gap_swapped = gap_swapped.max((swapped - want).abs());
+        }
+    }
+    // The check discriminates: without cross-fitting, or with the halves swapped, the output
+    // would be off by far more than the tolerance.
+    assert!(gap_plain > 1e-3 && gap_swapped > 1e-3, "largest gaps: plain {gap_plain}, swapped {gap_swapped}");
 }
 
 #[test]

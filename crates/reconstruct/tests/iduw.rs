@@ -103,8 +103,9 @@ fn gamma_is_the_grid_minimiser_of_the_half_buffer_criterion() {
 fn sub_lattice_criterion_tracks_the_full_image() {
     // On large images γ is selected on every `stride`-th pixel. What matters is the shape of
     // the criterion over the grid, not its level (which shifts with the lattice's phase
-    // against the texture: by 11% here). Measured when written on 128×128 at stride 2: the
-    // same minimiser and normalised curves within 0.5% of each other.
+    // against the texture: by 11% here). On 128×128 at stride 2 (4096 lattice pixels): the
+    // same minimiser, and the curves normalised by their minima within 1% of each other
+    // (measured: 0.56% at the smallest γ, shrinking to 0 at the minimiser).
     let scene = SoftShadowScene::default();
     let set = scene.render(&RenderSpec { width: 128, height: 128, spp: 16, batches: 4, seed: 8 }).unwrap();
     let full = Iduw::new(IduwOptions { selection_stride: 1, ..Default::default() }).unwrap();
@@ -117,6 +118,6 @@ fn sub_lattice_criterion_tracks_the_full_image() {
     assert_eq!(argmin(&a), argmin(&b));
     let (ma, mb) = (a.iter().map(|c| c.1).fold(f64::MAX, f64::min), b.iter().map(|c| c.1).fold(f64::MAX, f64::min));
     for ((g, x), (_, y)) in a.iter().zip(&b) {
-        assert!((x / ma - y / mb).abs() < 0.03, "γ {g}: full {x}, stride 2 {y}");
+        assert!((x / ma - y / mb).abs() < 0.01, "γ {g}: full {x}, stride 2 {y}");
     }
 }

@@ -311,7 +311,7 @@ impl Iduw {
                     |sc, &y| {
                         let mut crit = vec![0.0f64; gammas.len()];
                         #[cfg(target_arch = "x86_64")]
-                        if std::is_x86_feature_detected!("avx2") {
+                        if crate::simd::use_avx2() {
                             // SAFETY: AVX2 support was just checked.
                             unsafe { criterion_row_avx2(&halves, &pl.pt, geo, gammas, y, &xs, &mut crit, sc) };
                             return crit;
@@ -380,7 +380,7 @@ impl Estimator for Iduw {
                 || Scratch::new(n),
                 |sc, (y, (row, ws))| {
                     #[cfg(target_arch = "x86_64")]
-                    if std::is_x86_feature_detected!("avx2") {
+                    if crate::simd::use_avx2() {
                         // SAFETY: AVX2 support was just checked.
                         *ws += unsafe { final_row_avx2(&full, geo, gamma, y, row, ch, sc) };
                         return;
