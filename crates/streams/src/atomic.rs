@@ -171,8 +171,10 @@ pub fn remove_pending_temporaries() {
 /// advisory lock (`flock`) on a hidden lock file, which the operating system releases when the
 /// process ends however it ends; the file itself is removed when the claim is dropped.
 pub struct OutputLock {
+    /// Holds the lock while open.
     _file: std::fs::File,
-    _registered: PendingTemp,
+    /// The lock file's path, registered so that the signal handler removes it too.
+    path: PendingTemp,
 }
 
 impl OutputLock {
@@ -196,7 +198,7 @@ impl OutputLock {
             // The previous holder removes the file on release: if that happened between our
             // open and our lock, we hold a lock on a file nobody else can see. Try again.
             if still_at(&file, lock_path) {
-                return Ok(OutputLock { _file: file, _registered: PendingTemp::new(lock_path.to_path_buf()) });
+                return Ok(OutputLock { _file: file, path: PendingTemp::new(lock_path.to_path_buf()) });
             }
         }
     }
@@ -205,7 +207,7 @@ impl OutputLock {
 impl Drop for OutputLock {
     fn drop(&mut self) {
         // Removed while still locked, so no one can take the old file for a live claim.
-        let _ = std::fs::remove_file(&self._registered.0);
+        let _ = std::fs::remove_file(&self.path.0);
     }
 }
 
