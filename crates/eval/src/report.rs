@@ -122,9 +122,12 @@ fn earlier_report_files(out_dir: &Path) -> BTreeSet<String> {
 /// Removes what the earlier report wrote and this one no longer uses (a report redone with
 /// --force would otherwise carry old scenes' images), then the folders that became empty.
 fn remove_stale_images(out_dir: &Path, earlier: &BTreeSet<String>, keep: &BTreeSet<String>) {
+    let Ok(root) = out_dir.canonicalize() else { return };
     for rel in earlier.difference(keep) {
         let path = out_dir.join(rel);
-        if std::fs::symlink_metadata(&path).is_ok_and(|m| m.is_file()) {
+        // Never through a link to somewhere else: the folder holding the file must be inside.
+        let inside = path.parent().and_then(|d| d.canonicalize().ok()).is_some_and(|d| d.starts_with(&root));
+        if inside && std::fs::symlink_metadata(&path).is_ok_and(|m| m.is_file()) {
             let _ = std::fs::remove_file(&path);
         }
         // Deepest first; only empty ones go, and never the report folder itself.
@@ -413,6 +416,11 @@ mod tests {
         std::fs::write(out.join("images/photos/me.jpg"), b"the user's").unwrap();
         std::fs::write(out.join("plots/mine.svg"), b"the user's").unwrap();
         std::fs::write(dir.path().join("escape.png"), b"the user's").unwrap();
+        // A folder under images/ that links elsewhere: the manifest's entry through it is not removed.
+        std::fs::create_dir_all(dir.path().join("elsewhere")).unwrap();
+        std::fs::write(dir.path().join("elsewhere/x.png"), b"the user's").unwrap();
+        std::os::unix::fs::symlink(dir.path().join("elsewhere"), out.join("images/linked")).unwrap();
+        std::fs::write(out.join(MANIFEST), std::fs::read_to_string(out.join(MANIFEST)).unwrap() + "images/linked/x.png\n").unwrap();
         // Without --force a folder with files in it is refused, with or without an index.html.
         let e = write_report(&results, &dir.path().join("study"), &out, &ReportOptions::default()).unwrap_err().to_string();
         assert!(e.contains("index.html") && e.contains("already exists"), "{e}");
@@ -426,6 +434,7 @@ mod tests {
             assert!(out.join(f).is_file(), "{f}: the user's file was removed");
         }
         assert!(!std::fs::read_to_string(out.join(MANIFEST)).unwrap().contains("old-scene"));
+        assert!(dir.path().join("elsewhere/x.png").is_file(), "a file outside the report was removed through a link");
         let slug = slug(&results.scenes[0].name);
         assert!(std::fs::read_dir(out.join("images").join(&slug)).unwrap().count() >= 4, "this report's images stay");
     }
