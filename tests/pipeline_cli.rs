@@ -43,6 +43,8 @@ fn reconstruct_all_then_compare_ranks_against_the_reference() {
     // image to score), the JSON it writes is a valid results file naming the reference absolutely.
     let mut images: Vec<String> = ["pt", "average", "ours"].iter().map(|m| format!("out/{m}.exr")).collect();
     images.push("./out/../ref.exr".into());
+    std::fs::hard_link(d.join("ref.exr"), d.join("hard-link.exr")).unwrap();
+    images.push("hard-link.exr".into());
     let mut args = vec!["--log", "warn", "compare", "--reference", "ref.exr", "--json", "cmp.json", "--csv", "cmp.csv"];
     args.extend(images.iter().map(String::as_str));
     ok(&cvtrace(d, &args));

@@ -9,10 +9,11 @@ pub mod throughput;
 use anyhow::{bail, Result};
 use std::path::Path;
 
-/// True if both paths exist and name the same file (links and `./` resolved); a path that does
-/// not exist yet is no other file.
+/// True if both paths exist and are the same file: the same device and inode, so links, hard
+/// links and `./` spellings all count; a path that does not exist yet is no other file.
 pub fn same_file(a: &Path, b: &Path) -> bool {
-    matches!((a.canonicalize(), b.canonicalize()), (Ok(a), Ok(b)) if a == b)
+    use std::os::unix::fs::MetadataExt;
+    matches!((std::fs::metadata(a), std::fs::metadata(b)), (Ok(a), Ok(b)) if a.dev() == b.dev() && a.ino() == b.ino())
 }
 
 /// Refuses an output path that names one of the command's inputs: with `--force` the input

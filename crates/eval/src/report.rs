@@ -85,6 +85,10 @@ pub fn write_report(
             return Err(EvalError::invalid(out_dir.display().to_string(), "exists and is not empty; pass --force to write the report into it"));
         }
     }
+    let manifest = out_dir.join(MANIFEST);
+    if manifest.symlink_metadata().is_ok_and(|m| !m.is_file()) {
+        return Err(EvalError::invalid(manifest.display().to_string(), "is not a regular file; remove it (it is the list of a report's images)"));
+    }
     let earlier = earlier_report_files(out_dir);
     let created = !out_dir.exists();
     std::fs::create_dir_all(out_dir).map_err(|e| EvalError::io(out_dir, e))?;
@@ -112,7 +116,12 @@ const MANIFEST: &str = ".cvtrace-report";
 /// The images and plots an earlier report in `out_dir` wrote, from its [`MANIFEST`]; only
 /// plain relative paths under `images/` and `plots/` are taken.
 fn earlier_report_files(out_dir: &Path) -> BTreeSet<String> {
-    let text = std::fs::read_to_string(out_dir.join(MANIFEST)).unwrap_or_default();
+    use std::io::Read;
+    // A report lists a few files per method and scene; anything beyond 16 MB is not a manifest.
+    let mut text = String::new();
+    if let Ok(f) = std::fs::File::open(out_dir.join(MANIFEST)) {
+        let _ = f.take(16 << 20).read_to_string(&mut text);
+    }
     text.lines()
         .filter(|l| (l.starts_with("images/") || l.starts_with("plots/")) && !l.split('/').any(|c| c.is_empty() || c == "." || c == ".."))
         .map(str::to_string)
@@ -130,9 +139,12 @@ fn remove_stale_images(out_dir: &Path, earlier: &BTreeSet<String>, keep: &BTreeS
         if inside && std::fs::symlink_metadata(&path).is_ok_and(|m| m.is_file()) {
             let _ = std::fs::remove_file(&path);
         }
-        // Deepest first; only empty ones go, and never the report folder itself.
+        // Deepest first; only empty ones inside the report go, never the report folder itself.
         for dir in Path::new(rel).ancestors().skip(1).filter(|d| !d.as_os_str().is_empty()) {
-            let _ = std::fs::remove_dir(out_dir.join(dir));
+            let dir = out_dir.join(dir);
+            if std::fs::symlink_metadata(&dir).is_ok_and(|m| m.is_dir()) {
+                let _ = std::fs::remove_dir(dir);
+            }
         }
     }
 }

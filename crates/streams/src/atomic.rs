@@ -65,17 +65,25 @@ fn parent_dir(path: &Path) -> PathBuf {
 }
 
 /// `(prefix, extension)` of the temporary siblings of `path`: `.{name}.tmp-{pid}{extension}`.
-/// The name is shortened (at a character boundary) so that the temporary name fits in
-/// [`NAME_MAX`] bytes whenever the output's own name does.
+/// A name too long for that to fit in [`NAME_MAX`] bytes is shortened (at a character
+/// boundary) and ends in a hash of the whole name, so two long names that share a beginning
+/// still get different temporaries. The extension is kept for format libraries that look at
+/// it, unless it is itself absurdly long.
 fn temp_name_parts(path: &Path) -> (String, String) {
-    let mut name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
-    let ext = path.extension().map(|e| format!(".{}", e.to_string_lossy())).unwrap_or_default();
+    let full = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "out".into());
+    let ext = path.extension().map(|e| format!(".{}", e.to_string_lossy())).filter(|e| e.len() <= 16).unwrap_or_default();
     // "." + name + ".tmp-" + a pid of up to 10 digits + ext
-    let room = NAME_MAX.saturating_sub(1 + 5 + 10 + ext.len());
-    while name.len() > room {
+    let room = NAME_MAX - (1 + 5 + 10 + ext.len());
+    if full.len() <= room {
+        return (format!(".{full}.tmp-"), ext);
+    }
+    // FNV-1a: stable across builds, so a later run recognises the temporaries of a killed one.
+    let hash = full.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| (h ^ b as u64).wrapping_mul(0x0100_0000_01b3));
+    let mut name = full;
+    while name.len() > room - 17 {
         name.pop();
     }
-    (format!(".{name}.tmp-"), ext)
+    (format!(".{name}~{hash:016x}.tmp-"), ext)
 }
 
 /// The temporary sibling used while `path` is being written. It keeps the extension so
@@ -181,8 +189,16 @@ impl OutputLock {
     /// Claims `lock_path` for writing `what` (named in the error).
     pub fn acquire(lock_path: &Path, what: &Path) -> Result<OutputLock, StreamError> {
         let io = |e| StreamError::Io { path: lock_path.to_path_buf(), error: e };
+        let not_regular = || StreamError::invalid(lock_path, "is not a regular file; remove it (it is cvtrace's lock file)");
         loop {
+            // Not through a link or onto a FIFO (opening one would wait for a reader).
+            if lock_path.symlink_metadata().is_ok_and(|m| !m.is_file()) {
+                return Err(not_regular());
+            }
             let file = std::fs::OpenOptions::new().create(true).truncate(false).write(true).open(lock_path).map_err(io)?;
+            if !file.metadata().map_err(io)?.is_file() {
+                return Err(not_regular());
+            }
             match file.try_lock() {
                 Ok(()) => {}
                 Err(std::fs::TryLockError::WouldBlock) => {
@@ -198,6 +214,13 @@ impl OutputLock {
             // The previous holder removes the file on release: if that happened between our
             // open and our lock, we hold a lock on a file nobody else can see. Try again.
             if still_at(&file, lock_path) {
+                if interrupted() {
+                    // The signal handler has cleaned up already and is ending the process.
+                    let _ = std::fs::remove_file(lock_path);
+                    loop {
+                        std::thread::park();
+                    }
+                }
                 return Ok(OutputLock { _file: file, path: PendingTemp::new(lock_path.to_path_buf()) });
             }
         }
@@ -226,7 +249,18 @@ fn still_at(_file: &std::fs::File, path: &Path) -> bool {
 /// exists by then, atomically (a hard link cannot replace a file), so two runs that finish
 /// together cannot replace each other's output.
 fn publish(tmp: &Path, path: &Path, overwrite: bool) -> Result<(), StreamError> {
+    move_into_place(tmp, path, overwrite)?;
+    // The move itself durable too (a directory entry is data of the directory).
+    let _ = std::fs::File::open(parent_dir(path)).and_then(|d| d.sync_all());
+    Ok(())
+}
+
+fn move_into_place(tmp: &Path, path: &Path, overwrite: bool) -> Result<(), StreamError> {
     if overwrite {
+        // A replaced file keeps its permissions (a private output stays private).
+        if let Ok(old) = std::fs::metadata(path) {
+            let _ = std::fs::set_permissions(tmp, old.permissions());
+        }
         return std::fs::rename(tmp, path).map_err(|e| StreamError::Io { path: path.to_path_buf(), error: e });
     }
     match std::fs::hard_link(tmp, path) {
@@ -245,6 +279,20 @@ fn publish(tmp: &Path, path: &Path, overwrite: bool) -> Result<(), StreamError> 
     }
 }
 
+/// Creates `tmp` as a new, empty regular file. Whatever was at that name (a leftover of an
+/// earlier process with this PID, or a link planted to make us write elsewhere) is removed
+/// first, never written through: `create_new` does not follow links.
+fn create_temp(tmp: &Path) -> std::io::Result<()> {
+    let create = || std::fs::OpenOptions::new().write(true).create_new(true).open(tmp).map(drop);
+    match create() {
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+            std::fs::remove_file(tmp)?;
+            create()
+        }
+        other => other,
+    }
+}
+
 /// Runs `write` on a temporary path, flushes it to disk and moves the result onto `path`.
 /// On any error the temporary file is removed and `path` is untouched.
 pub fn write_atomically<E>(
@@ -259,6 +307,7 @@ where
     remove_stale_temporaries(path);
     let tmp = temp_path_for(path);
     let _pending = PendingTemp::new(tmp.clone());
+    create_temp(&tmp).map_err(|e| StreamError::invalid(path, format!("could not create {}: {e}", tmp.display())))?;
     let written = write(&tmp).map_err(|e| e.to_string()).and_then(|()| {
         // Durable before it is visible: a crash after the rename must not leave an empty file.
         std::fs::File::open(&tmp).and_then(|f| f.sync_all()).map_err(|e| e.to_string())
@@ -340,6 +389,41 @@ mod tests {
     }
 
     #[test]
+    fn long_names_sharing_a_beginning_get_different_temporaries() {
+        let (a, b) = (format!("{}.exr", "a".repeat(251)), format!("{}b.exr", "a".repeat(250)));
+        let (ta, tb) = (temp_path_for(Path::new(&a)), temp_path_for(Path::new(&b)));
+        assert_ne!(temp_name_parts(Path::new(&a)).0, temp_name_parts(Path::new(&b)).0);
+        assert!(ta.file_name().unwrap().len() <= NAME_MAX && tb.file_name().unwrap().len() <= NAME_MAX);
+        // An absurd extension is not kept.
+        let long_ext = format!("s.{}", "c".repeat(250));
+        assert!(temp_path_for(Path::new(&long_ext)).file_name().unwrap().len() <= NAME_MAX);
+    }
+
+    #[test]
+    fn a_link_at_the_temporary_name_is_not_written_through() {
+        let dir = tempfile::tempdir().unwrap();
+        let victim = dir.path().join("victim");
+        std::fs::write(&victim, b"precious").unwrap();
+        let p = dir.path().join("x.txt");
+        std::os::unix::fs::symlink(&victim, temp_path_for(&p)).unwrap();
+        write_atomically(&p, false, |tmp| std::fs::write(tmp, b"ours")).unwrap();
+        assert_eq!(std::fs::read(&victim).unwrap(), b"precious");
+        assert!(std::fs::symlink_metadata(&p).unwrap().is_file(), "the output is a file, not the planted link");
+        assert_eq!(std::fs::read(&p).unwrap(), b"ours");
+    }
+
+    #[test]
+    fn a_replaced_file_keeps_its_permissions() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("x.txt");
+        std::fs::write(&p, b"old").unwrap();
+        std::fs::set_permissions(&p, std::fs::Permissions::from_mode(0o600)).unwrap();
+        write_atomically(&p, true, |tmp| std::fs::write(tmp, b"new")).unwrap();
+        assert_eq!(std::fs::metadata(&p).unwrap().permissions().mode() & 0o777, 0o600);
+    }
+
+    #[test]
     fn temporaries_of_dead_runs_are_removed_and_live_ones_kept() {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("x.exr");
@@ -398,6 +482,10 @@ mod tests {
         let again = OutputLock::acquire(&lock, &what).unwrap();
         assert!(lock.exists());
         drop(again);
+        // A lock path that is a link or a FIFO is refused, not followed or waited on.
+        std::os::unix::fs::symlink(dir.path().join("elsewhere"), &lock).unwrap();
+        let e = OutputLock::acquire(&lock, &what).err().unwrap().to_string();
+        assert!(e.contains("not a regular file") && !dir.path().join("elsewhere").exists(), "{e}");
     }
 
     #[test]
