@@ -459,8 +459,11 @@
   if ((D.geomean_ratios || []).length && D.results.scenes.length > 1) {
     const box = el("div", { class: "ratios row" });
     for (const r of D.geomean_ratios) {
+      const key = "geomean/" + r.numerator + "/" + r.denominator;
       box.appendChild(el("div", { class: "ratio" }, el("span", { class: "k", text: "geomean " + short(r.numerator) + " / " + short(r.denominator) }),
-        el("span", { class: "v", text: fmt(r.value), "data-key": "geomean/" + r.numerator + "/" + r.denominator })));
+        el("span", { class: "v" },
+          el("span", { text: fmt(r.value), "data-key": key }),
+          r.se !== null && r.se !== undefined ? el("small", {}, " ± ", el("span", { text: fmt(r.se), "data-key": key + "/se" })) : null)));
     }
     main.appendChild(el("section", { class: "scene" }, el("h2", { text: "All scenes (geometric mean)" }), box));
   }

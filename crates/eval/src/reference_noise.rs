@@ -96,6 +96,16 @@ pub fn from_variance_image(reference: &Reference, variance: &Image, label: &str)
     Ok(ReferenceNoise { relmse: sum / (3 * w.len()).max(1) as f64, source: NoiseSource::VarianceImage })
 }
 
+/// How many times more samples the reference needs for the warning below to go away. The best
+/// method's measured relMSE `B` holds the reference's noise `N` too: with `k` times the samples
+/// the noise is `N/k` and the best `B − N + N/k`, so `N/k ≤ f·(B − N + N/k)` needs
+/// `k ≥ (1 − f)·N / (f·(B − N))` (9N/(B − N) for f = 1/10). `None` when `B ≤ N`.
+pub fn more_reference_samples(noise_relmse: f64, best_method_relmse: f64) -> Option<u64> {
+    let f = TOO_NOISY_FRACTION;
+    let truth = best_method_relmse - noise_relmse;
+    (truth > 0.0).then(|| ((1.0 - f) * noise_relmse / (f * truth)).ceil().max(2.0) as u64)
+}
+
 /// The warning to show when the reference noise is over [`TOO_NOISY_FRACTION`] of the best
 /// (smallest) method relMSE, with how many times more samples the reference needs.
 pub fn too_noisy_warning(noise_relmse: f64, best_method_relmse: f64) -> Option<String> {
@@ -103,10 +113,13 @@ pub fn too_noisy_warning(noise_relmse: f64, best_method_relmse: f64) -> Option<S
     if noise_relmse.is_nan() || noise_relmse <= limit {
         return None;
     }
-    let factor = (noise_relmse / limit).ceil().max(2.0);
     Some(format!(
         "reference too noisy to rank the methods: its own noise adds relMSE {noise_relmse:.3e} to every method, \
-         more than 1/10 of the best method's {best_method_relmse:.3e}; render the reference with about {factor:.0}x more samples"
+         more than 1/10 of the best method's {best_method_relmse:.3e}; render the reference with {}",
+        match more_reference_samples(noise_relmse, best_method_relmse) {
+            Some(k) => format!("{k}x more samples"),
+            None => "far more samples (its noise is about all of the best method's error)".into(),
+        }
     ))
 }
 
@@ -197,7 +210,15 @@ mod tests {
     fn warning_only_above_a_tenth_of_the_best_method() {
         assert!(too_noisy_warning(0.9e-4, 1e-3).is_none());
         let w = too_noisy_warning(3e-4, 1e-3).unwrap();
-        assert!(w.contains("too noisy to rank") && w.contains("3x"), "{w}");
+        assert!(w.contains("too noisy to rank") && w.contains("4x more samples"), "{w}");
+        // The advice is just enough: with k times the samples the warning goes, with k − 1 not.
+        let after = |n: f64, b: f64, k: f64| too_noisy_warning(n / k, b - n + n / k);
+        for (n, b) in [(3e-4, 1e-3), (1.1e-4, 1e-3), (5e-4, 1e-3), (0.16, 1.0), (0.83, 1.0)] {
+            let k = more_reference_samples(n, b).unwrap() as f64;
+            assert!(after(n, b, k).is_none(), "{n} {b}: {k}x is not enough");
+            assert!(k == 2.0 || after(n, b, k - 1.0).is_some(), "{n} {b}: {}x would do", k - 1.0);
+        }
+        assert!(too_noisy_warning(1e-3, 1e-3).unwrap().contains("far more samples"));
         assert!(too_noisy_warning(f64::NAN, 1e-3).is_none());
     }
 

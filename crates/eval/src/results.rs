@@ -182,8 +182,10 @@ pub struct Ratio {
     pub numerator: String,
     pub denominator: String,
     pub value: f64,
-    /// Delta-method standard error; uses the per-seed pairing when both methods have
-    /// per-seed values for the same seeds (they share the input streams).
+    /// Delta-method standard error (seed noise, first order: not a confidence interval, and
+    /// the ratio of means carries an O(1/S) bias where the denominator is noisy). Uses the
+    /// per-seed pairing when both methods have per-seed values for the same seeds and share
+    /// the input streams; PT(2n) is a render of its own, so ratios with it are unpaired.
     pub se: Option<f64>,
 }
 
@@ -208,7 +210,9 @@ impl SceneResult {
         }
         let value = a.relmse_mean / b.relmse_mean;
         let (pa, pb) = (&a.relmse_per_seed, &b.relmse_per_seed);
-        let se = if pa.len() == pb.len() && pa.len() >= 2 {
+        // Independent renders have no covariance; estimating one from a few seeds only adds noise.
+        let shared_inputs = numerator != keys::PT_2N && denominator != keys::PT_2N;
+        let se = if shared_inputs && pa.len() == pb.len() && pa.len() >= 2 {
             let n = pa.len() as f64;
             let (ma, mb) = (pa.iter().sum::<f64>() / n, pb.iter().sum::<f64>() / n);
             let cov = |x: &[f64], mx: f64, y: &[f64], my: f64| {
@@ -251,17 +255,22 @@ impl StudyResults {
     }
 
     /// Geometric mean over scenes of each headline ratio (scenes lacking a method are skipped),
-    /// as the paper summarises its ten scenes.
+    /// as the paper summarises its ten scenes. Its standard error is the seed noise of the
+    /// scenes' ratios carried through the logarithm (delta method, scenes fixed and
+    /// independent): `G·√(Σ (seᵢ/Rᵢ)²)/K`; none unless every scene's ratio has one.
     pub fn geomean_ratios(&self) -> Vec<Ratio> {
         HEADLINE_RATIOS
             .iter()
             .filter_map(|(a, b)| {
-                let logs: Vec<f64> = self.scenes.iter().filter_map(|s| s.ratio(a, b)).map(|r| r.value.ln()).collect();
-                (!logs.is_empty()).then(|| Ratio {
+                let ratios: Vec<Ratio> = self.scenes.iter().filter_map(|s| s.ratio(a, b)).collect();
+                let k = ratios.len() as f64;
+                let value = (ratios.iter().map(|r| r.value.ln()).sum::<f64>() / k).exp();
+                let rel_var: Option<f64> = ratios.iter().map(|r| r.se.map(|se| (se / r.value).powi(2))).sum();
+                (!ratios.is_empty()).then(|| Ratio {
                     numerator: a.to_string(),
                     denominator: b.to_string(),
-                    value: (logs.iter().sum::<f64>() / logs.len() as f64).exp(),
-                    se: None,
+                    value,
+                    se: rel_var.map(|v| value * v.sqrt() / k),
                 })
             })
             .collect()

@@ -169,7 +169,7 @@ pub fn terminal_report(results: &StudyResults) -> String {
             out += &format!(
                 "\ngeometric mean over {}: {}\n",
                 geomean_scenes(results),
-                g.iter().map(|r| format!("{} = {}", ratio_name(r), fmt_num(r.value))).collect::<Vec<_>>().join("   ")
+                g.iter().map(|r| format!("{} = {}", ratio_name(r), fmt_ratio(r))).collect::<Vec<_>>().join("   ")
             );
         }
     }
@@ -237,7 +237,7 @@ pub fn markdown_summary(results: &StudyResults) -> String {
         row.extend(methods.iter().map(|_| String::new()));
         let g = results.geomean_ratios();
         row.extend(HEADLINE_RATIOS.iter().map(|(a, b)| {
-            g.iter().find(|r| r.numerator == *a && r.denominator == *b).map(|r| format!("**{}**", fmt_num(r.value))).unwrap_or_default()
+            g.iter().find(|r| r.numerator == *a && r.denominator == *b).map(|r| format!("**{}**", fmt_ratio(r))).unwrap_or_default()
         }));
         row.push(if paper_logs.is_empty() {
             String::new()
@@ -425,6 +425,42 @@ mod tests {
         }
         assert_eq!(csv_num(0.5), "0.5");
         assert_eq!(csv_num(2.5e-9), "2.5e-9");
+    }
+
+    /// A scene whose methods have per-seed relMSE values (mean and se filled in from them).
+    fn seeded_scene(name: &str, per_seed: &[(&str, [f64; 4])]) -> SceneResult {
+        let mut sc = scene(name, &per_seed.iter().map(|(k, _)| (*k, 0.0, false)).collect::<Vec<_>>());
+        for (m, (_, v)) in sc.methods.iter_mut().zip(per_seed) {
+            let mean = v.iter().sum::<f64>() / 4.0;
+            let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / 3.0;
+            (m.relmse_mean, m.relmse_se, m.relmse_per_seed) = (mean, Some((var / 4.0).sqrt()), v.to_vec());
+        }
+        sc.seeds = 4;
+        sc
+    }
+
+    #[test]
+    fn ratio_errors_pair_shared_inputs_only_and_carry_into_the_geometric_mean() {
+        // ours and IDUW move together over the seeds (they read the same streams); PT(2n) is
+        // a render of its own.
+        let a = seeded_scene("a", &[("ours", [0.10, 0.12, 0.11, 0.13]), ("iduw", [0.20, 0.25, 0.21, 0.26]), ("pt2n", [0.30, 0.28, 0.33, 0.29])]);
+        let b = seeded_scene("b", &[("ours", [0.05, 0.04, 0.06, 0.05]), ("iduw", [0.09, 0.10, 0.08, 0.11]), ("pt2n", [0.20, 0.21, 0.19, 0.22])]);
+        let unpaired = |s: &SceneResult, x: &str, y: &str| {
+            let (p, q) = (s.method(x).unwrap(), s.method(y).unwrap());
+            p.relmse_mean / q.relmse_mean * ((p.relmse_se.unwrap() / p.relmse_mean).powi(2) + (q.relmse_se.unwrap() / q.relmse_mean).powi(2)).sqrt()
+        };
+        let r = a.ratio("ours", "iduw").unwrap();
+        assert!(r.se.unwrap() < 0.6 * unpaired(&a, "ours", "iduw"), "pairing must remove the shared seed noise: {r:?}");
+        let r = a.ratio("ours", "pt2n").unwrap();
+        assert!((r.se.unwrap() - unpaired(&a, "ours", "pt2n")).abs() < 1e-15, "PT(2n) is independent: {r:?}");
+        let results = StudyResults::new(vec![a.clone(), b.clone()]);
+        for g in results.geomean_ratios() {
+            let (ra, rb) = (a.ratio(&g.numerator, &g.denominator).unwrap(), b.ratio(&g.numerator, &g.denominator).unwrap());
+            assert!((g.value - (ra.value * rb.value).sqrt()).abs() < 1e-12);
+            let expect = g.value * ((ra.se.unwrap() / ra.value).powi(2) + (rb.se.unwrap() / rb.value).powi(2)).sqrt() / 2.0;
+            assert!((g.se.unwrap() - expect).abs() < 1e-12, "{g:?} vs {expect}");
+        }
+        assert!(terminal_report(&results).contains("geometric mean over 2 scenes: ours/IDUW = ") && terminal_report(&results).contains(" ± "));
     }
 
     fn scene(name: &str, relmse: &[(&str, f64, bool)]) -> SceneResult {

@@ -268,7 +268,9 @@ fn viewer_loads_every_image_and_shows_the_json_numbers() {
         assert_shows(&dom, &format!("{sl}/error_map/min"), Some(10f64.powf(scale.log10_min)));
     }
     for r in results.geomean_ratios() {
-        assert_shows(&dom, &format!("geomean/{}/{}", r.numerator, r.denominator), Some(r.value));
+        let key = format!("geomean/{}/{}", r.numerator, r.denominator);
+        assert_shows(&dom, &key, Some(r.value));
+        assert_shows(&dom, &format!("{key}/se"), r.se);
     }
 }
 
