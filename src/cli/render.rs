@@ -11,7 +11,8 @@
 use anyhow::{bail, Context, Result};
 use cvtrace::{set_flush_denormals, BuildOptions, Device, EmbreeScene};
 use cvtrace_render::{render_reference_pass, render_streams, Camera, ReferenceAccum, RenderDefaults, RenderSettings, Scene};
-use cvtrace_streams::atomic::{check_extension, check_writable, lock_path_for, OutputLock};
+use cvtrace_streams::atomic::{check_extension, check_writable};
+use cvtrace_streams::output_lock::{lock_path_for, OutputLock};
 use cvtrace_streams::exr_io::{take_rgb, write_rgb, AttrValue, ExrChannels};
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};

@@ -185,7 +185,7 @@ pub fn run(args: StudyArgs) -> Result<()> {
     }
     std::fs::create_dir_all(&args.output).with_context(|| format!("{}: cannot create the study folder", args.output.display()))?;
     // Two studies in one folder would render the same files twice and race over them.
-    let _claim = cvtrace_streams::atomic::OutputLock::acquire(&args.output.join(".cvtrace-study.lock"), &args.output)?;
+    let _claim = cvtrace_streams::output_lock::OutputLock::acquire(&args.output.join(".cvtrace-study.lock"), &args.output)?;
 
     // The reference: reuse the file, or render it (resumable through render's checkpoint).
     if !args.reference.exists() {

@@ -13,6 +13,7 @@ pub mod error;
 pub mod exr_io;
 pub mod image;
 pub mod iduw_layout;
+pub mod output_lock;
 pub mod preview;
 pub mod stream_set;
 
