@@ -93,19 +93,24 @@ pub fn temp_path_for(path: &Path) -> PathBuf {
     parent_dir(path).join(format!("{prefix}{}{ext}", std::process::id()))
 }
 
-/// Removes temporary siblings of `path` left by runs that were killed (their process is gone).
-/// Only on Linux, where `/proc` tells which processes are alive.
+/// Removes temporary siblings of `path` left by runs that were killed. A temporary is stale
+/// when no process holds its lock (a writer locks its temporary while it writes, see
+/// [`create_temp`]; the lock goes when the process ends, however it ends) and, on Linux, when
+/// no process here has the PID in its name either. The lock is what protects a live writer in
+/// another PID namespace or on another machine sharing the folder.
 fn remove_stale_temporaries(path: &Path) {
-    if !cfg!(target_os = "linux") {
-        return;
-    }
     let (prefix, ext) = temp_name_parts(path);
     let Ok(entries) = std::fs::read_dir(parent_dir(path)) else { return };
     for entry in entries.flatten() {
         let name = entry.file_name().to_string_lossy().into_owned();
         let Some(pid) = name.strip_prefix(&prefix).and_then(|rest| rest.strip_suffix(&ext)) else { continue };
-        let dead = pid.parse::<u32>().is_ok_and(|pid| pid != std::process::id() && !Path::new("/proc").join(pid.to_string()).exists());
-        if dead && entry.file_type().is_ok_and(|t| t.is_file()) {
+        let Ok(pid) = pid.parse::<u32>() else { continue };
+        if pid == std::process::id() || !entry.file_type().is_ok_and(|t| t.is_file()) {
+            continue;
+        }
+        let pid_gone = !cfg!(target_os = "linux") || !Path::new("/proc").join(pid.to_string()).exists();
+        let unlocked = std::fs::File::open(entry.path()).is_ok_and(|f| f.try_lock().is_ok());
+        if pid_gone && unlocked {
             let _ = std::fs::remove_file(entry.path());
         }
     }
@@ -199,18 +204,22 @@ fn move_into_place(tmp: &Path, path: &Path, overwrite: bool) -> Result<(), Strea
     }
 }
 
-/// Creates `tmp` as a new, empty regular file. Whatever was at that name (a leftover of an
-/// earlier process with this PID, or a link planted to make us write elsewhere) is removed
-/// first, never written through: `create_new` does not follow links.
-fn create_temp(tmp: &Path) -> std::io::Result<()> {
-    let create = || std::fs::OpenOptions::new().write(true).create_new(true).open(tmp).map(drop);
-    match create() {
+/// Creates `tmp` as a new, empty regular file and locks it for as long as the returned file is
+/// open, which marks it as being written (see [`remove_stale_temporaries`]). Whatever was at
+/// that name (a leftover of an earlier process with this PID, or a link planted to make us
+/// write elsewhere) is removed first, never written through: `create_new` does not follow links.
+fn create_temp(tmp: &Path) -> std::io::Result<std::fs::File> {
+    let create = || std::fs::OpenOptions::new().write(true).create_new(true).open(tmp);
+    let file = match create() {
         Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
             std::fs::remove_file(tmp)?;
             create()
         }
         other => other,
-    }
+    }?;
+    // A file system without locks only loses the protection of live writers elsewhere.
+    let _ = file.try_lock();
+    Ok(file)
 }
 
 /// Runs `write` on a temporary path, flushes it to disk and moves the result onto `path`.
@@ -227,7 +236,7 @@ where
     remove_stale_temporaries(path);
     let tmp = temp_path_for(path);
     let _pending = PendingTemp::new(tmp.clone());
-    create_temp(&tmp).map_err(|e| StreamError::invalid(path, format!("could not create {}: {e}", tmp.display())))?;
+    let _writing = create_temp(&tmp).map_err(|e| StreamError::invalid(path, format!("could not create {}: {e}", tmp.display())))?;
     let written = write(&tmp).map_err(|e| e.to_string()).and_then(|()| {
         // Durable before it is visible: a crash after the rename must not leave an empty file.
         std::fs::File::open(&tmp).and_then(|f| f.sync_all()).map_err(|e| e.to_string())
@@ -352,14 +361,18 @@ mod tests {
         let dead = dir.path().join(format!("{prefix}4194305{ext}"));
         let alive = dir.path().join(format!("{prefix}1{ext}"));
         let other = dir.path().join(".y.exr.tmp-4194305.exr");
-        for f in [&dead, &alive, &other] {
+        // A writer whose PID means nothing here (another PID namespace, another machine)
+        // but which holds its temporary's lock.
+        let elsewhere = dir.path().join(format!("{prefix}4194306{ext}"));
+        for f in [&dead, &alive, &other, &elsewhere] {
             std::fs::write(f, b"half").unwrap();
         }
+        let held = std::fs::File::open(&elsewhere).unwrap();
+        held.try_lock().unwrap();
         write_atomically(&p, false, |tmp| std::fs::write(tmp, b"x")).unwrap();
-        if cfg!(target_os = "linux") {
-            assert!(!dead.exists());
-        }
+        assert!(!dead.exists());
         assert!(alive.exists() && other.exists(), "a live run's and another output's temporaries stay");
+        assert!(elsewhere.exists(), "a locked temporary is being written");
     }
 
     #[test]
