@@ -289,6 +289,8 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
     if new_directory {
         std::fs::create_dir_all(&args.output).with_context(|| format!("{}: cannot create directory", args.output.display()))?;
     }
+    // Interrupted while writing into a folder it made, the run takes the folder away again.
+    let _partial = new_directory.then(|| cvtrace_streams::atomic::remove_folder_on_interrupt(&args.output));
     let mut rows = Vec::new();
     for ((target, estimator), out) in estimators.iter().zip(outputs) {
         write_output(&target.exr, &args, estimator.as_ref(), &out)?;

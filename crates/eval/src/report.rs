@@ -92,6 +92,8 @@ pub fn write_report(
     let earlier = earlier_report_files(out_dir);
     let created = !out_dir.exists();
     std::fs::create_dir_all(out_dir).map_err(|e| EvalError::io(out_dir, e))?;
+    // Interrupted while filling a folder it made, the report takes the folder away again.
+    let _partial = created.then(|| cvtrace_streams::atomic::remove_folder_on_interrupt(out_dir));
     let written = write_viewer(results, source_dir, out_dir, options, &index);
     match written {
         // A folder this call made is removed again: a failed report leaves nothing behind.

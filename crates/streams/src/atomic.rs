@@ -165,9 +165,26 @@ pub fn remove_pending_temporaries() {
     INTERRUPTED.store(true, Ordering::SeqCst);
     let mut list = pending();
     for p in list.drain(..) {
-        let _ = std::fs::remove_file(p);
+        // Folders are registered only by [`remove_folder_on_interrupt`], for folders this run made.
+        if std::fs::symlink_metadata(&p).is_ok_and(|m| m.is_dir()) {
+            let _ = std::fs::remove_dir_all(p);
+        } else {
+            let _ = std::fs::remove_file(p);
+        }
     }
     std::mem::forget(list);
+}
+
+/// While the returned guard lives, an interrupt removes `folder` with everything in it. For a
+/// folder the command has just made and fills in several steps (a report, the images of
+/// `reconstruct --method all`), so that an interrupted run does not leave half of it behind;
+/// drop the guard once the folder is complete. Never for a folder the user had.
+pub struct FolderOnInterrupt {
+    _registered: PendingTemp,
+}
+
+pub fn remove_folder_on_interrupt(folder: &Path) -> FolderOnInterrupt {
+    FolderOnInterrupt { _registered: PendingTemp::new(folder.to_path_buf()) }
 }
 
 /// Moves the finished temporary file onto `path`. Without `overwrite` the move fails if `path`
