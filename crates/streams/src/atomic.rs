@@ -116,14 +116,16 @@ fn remove_stale_temporaries(path: &Path) {
     }
 }
 
-/// Temporary files being written right now, for [`remove_pending_temporaries`].
+/// What an interrupt must remove, for [`remove_pending_temporaries`]: the temporaries being
+/// written, the lock files held, the folders being filled.
 static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
 fn pending() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
     PENDING.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
 }
 
-/// Registers a file to remove on interrupt (a temporary, a lock) while it exists.
+/// Registers a path to remove on interrupt (a temporary, a lock file, a folder being filled)
+/// while it lives.
 pub(crate) struct PendingTemp(pub(crate) PathBuf);
 
 impl PendingTemp {
