@@ -94,7 +94,7 @@ pub fn write_report(
     std::fs::create_dir_all(out_dir).map_err(|e| EvalError::io(out_dir, e))?;
     // Interrupted while filling a folder it made, the report takes the folder away again.
     let _partial = created.then(|| cvtrace_streams::atomic::remove_folder_on_interrupt(out_dir));
-    let written = write_viewer(results, source_dir, out_dir, options, &index);
+    let written = write_viewer(results, source_dir, out_dir, options, &index, &earlier);
     match written {
         // A folder this call made is removed again: a failed report leaves nothing behind.
         Err(e) if created => {
@@ -104,8 +104,7 @@ pub fn write_report(
         Err(e) => Err(e),
         Ok(files) => {
             remove_stale_images(out_dir, &earlier, &files);
-            let list: String = files.iter().map(|f| format!("{f}\n")).collect();
-            write_text(&out_dir.join(MANIFEST), &list)?;
+            write_text(&out_dir.join(MANIFEST), &manifest_text(&files))?;
             Ok(index)
         }
     }
@@ -114,6 +113,10 @@ pub fn write_report(
 /// The list of images and plots a report keeps in its folder, so that the next report there
 /// removes only files a report wrote, never the user's.
 const MANIFEST: &str = ".cvtrace-report";
+
+fn manifest_text<'a>(files: impl IntoIterator<Item = &'a String>) -> String {
+    files.into_iter().map(|f| format!("{f}\n")).collect()
+}
 
 /// The images and plots an earlier report in `out_dir` wrote, from its [`MANIFEST`]; only
 /// plain relative paths under `images/` and `plots/` are taken.
@@ -151,37 +154,59 @@ fn remove_stale_images(out_dir: &Path, earlier: &BTreeSet<String>, keep: &BTreeS
     }
 }
 
-/// The report's files; returns the images and plots it wrote, relative to `out_dir`.
+/// The report's files; returns the images and plots it wrote, relative to `out_dir`. Every
+/// source image is checked before anything is written, and the images and plots about to be
+/// written are added to the [`MANIFEST`] first: a report that fails or is interrupted half-way
+/// leaves only files a manifest lists, which the next report in the folder removes.
 fn write_viewer(
     results: &StudyResults,
     source_dir: &Path,
     out_dir: &Path,
     options: &ReportOptions,
     index: &Path,
+    earlier: &BTreeSet<String>,
 ) -> Result<BTreeSet<String>, EvalError> {
     let mut files = BTreeSet::new();
     let mut out = results.clone();
-    let mut scenes = Vec::new();
+    let mut copies = Vec::new();
     let mut slugs = BTreeSet::new();
+    let mut plots = Vec::new();
     for scene in out.scenes.iter_mut() {
         let slug = unique_slug(&scene.name, &mut slugs);
-        let mut copier = ImageCopier::new(source_dir, out_dir, &slug, scene);
+        let mut copier = ImageCopier::new(source_dir, &slug, scene);
         if let Some(p) = scene.reference.image.as_mut() {
-            *p = copier.copy(p, &format!("scene `{}`, reference image", scene.name))?;
+            *p = copier.plan(p, &format!("scene `{}`, reference image", scene.name))?;
         }
         let name = scene.name.clone();
         for m in scene.methods.iter_mut() {
             for (field, what) in [(&mut m.image, "image"), (&mut m.error_map, "error_map")] {
                 if let Some(p) = field.as_mut() {
-                    *p = copier.copy(p, &format!("scene `{name}`, method `{}`, {what}", m.name))?;
+                    *p = copier.plan(p, &format!("scene `{name}`, method `{}`, {what}", m.name))?;
                 }
             }
         }
+        files.extend(copier.copies.iter().map(|(_, dst)| dst.clone()));
+        copies.extend(copier.copies);
         let plot_rel = format!("plots/{slug}.svg");
+        files.insert(plot_rel.clone());
+        plots.push((slug, plot_rel));
+    }
+    write_text(&out_dir.join(MANIFEST), &manifest_text(earlier.union(&files)))?;
+
+    for (src, dst) in &copies {
+        let dst = out_dir.join(dst);
+        if let Some(dir) = dst.parent() {
+            std::fs::create_dir_all(dir).map_err(|e| EvalError::io(dir, e))?;
+        }
+        write_atomically(&dst, true, |tmp| std::fs::copy(src, tmp).map(|_| ()))?;
+    }
+    let mut scenes = Vec::new();
+    for (scene, (slug, plot_rel)) in out.scenes.iter().zip(plots) {
         std::fs::create_dir_all(out_dir.join("plots")).map_err(|e| EvalError::io(out_dir.join("plots"), e))?;
         let plot = write_convergence_svg(scene, &out_dir.join(&plot_rel), true)?.then_some(plot_rel);
-        files.extend(plot.iter().cloned());
-        files.extend(copier.done.into_values());
+        if plot.is_none() {
+            files.remove(&format!("plots/{slug}.svg"));
+        }
         let colors = scene
             .ordered_methods()
             .iter()
@@ -255,32 +280,34 @@ fn unique_slug(name: &str, taken: &mut BTreeSet<String>) -> String {
     s
 }
 
-/// Copies one scene's images into `images/<slug>/`, checking each is a PNG of the scene's size.
+/// Plans the copies of one scene's images into `images/<slug>/`, checking each is a PNG of the
+/// scene's size.
 struct ImageCopier<'a> {
     source_dir: &'a Path,
-    out_dir: &'a Path,
     folder: String,
     width: usize,
     height: usize,
     done: HashMap<String, String>,
     names: BTreeSet<String>,
+    /// Source file and the copy's path relative to the report folder.
+    copies: Vec<(PathBuf, String)>,
 }
 
 impl<'a> ImageCopier<'a> {
-    fn new(source_dir: &'a Path, out_dir: &'a Path, slug: &str, scene: &SceneResult) -> Self {
+    fn new(source_dir: &'a Path, slug: &str, scene: &SceneResult) -> Self {
         ImageCopier {
             source_dir,
-            out_dir,
             folder: format!("images/{slug}"),
             width: scene.width,
             height: scene.height,
             done: HashMap::new(),
             names: BTreeSet::new(),
+            copies: Vec::new(),
         }
     }
 
     /// Returns the copy's path relative to the report folder.
-    fn copy(&mut self, rel: &str, ctx: &str) -> Result<String, EvalError> {
+    fn plan(&mut self, rel: &str, ctx: &str) -> Result<String, EvalError> {
         if let Some(d) = self.done.get(rel) {
             return Ok(d.clone());
         }
@@ -304,10 +331,8 @@ impl<'a> ImageCopier<'a> {
             name = format!("{k}-{file}");
             k += 1;
         }
-        let dir = self.out_dir.join(&self.folder);
-        std::fs::create_dir_all(&dir).map_err(|e| EvalError::io(&dir, e))?;
-        write_atomically(&dir.join(&name), true, |tmp| std::fs::copy(&src, tmp).map(|_| ()))?;
         let dst = format!("{}/{name}", self.folder);
+        self.copies.push((src, dst.clone()));
         self.done.insert(rel.to_string(), dst.clone());
         Ok(dst)
     }
@@ -451,6 +476,50 @@ mod tests {
         assert!(dir.path().join("elsewhere/x.png").is_file(), "a file outside the report was removed through a link");
         let slug = slug(&results.scenes[0].name);
         assert!(std::fs::read_dir(out.join("images").join(&slug)).unwrap().count() >= 4, "this report's images stay");
+    }
+
+    /// Files under `dir`, relative to it.
+    fn files_under(dir: &Path) -> BTreeSet<String> {
+        let mut out = BTreeSet::new();
+        let mut stack = vec![dir.to_path_buf()];
+        while let Some(d) = stack.pop() {
+            for e in std::fs::read_dir(&d).unwrap() {
+                let p = e.unwrap().path();
+                if p.is_dir() {
+                    stack.push(p);
+                } else {
+                    out.insert(p.strip_prefix(dir).unwrap().to_string_lossy().into_owned());
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn a_report_that_fails_half_way_leaves_only_listed_images() {
+        let (dir, mut results) = study();
+        let src = dir.path().join("study");
+        let out = dir.path().join("report");
+        // The user's folder, with a file where the report's plots folder would go: the report
+        // fails after copying its images.
+        std::fs::create_dir_all(&out).unwrap();
+        std::fs::write(out.join("plots"), b"the user's").unwrap();
+        let opts = ReportOptions { overwrite: true, ..Default::default() };
+        let e = write_report(&results, &src, &out, &opts).unwrap_err().to_string();
+        assert!(e.contains("plots"), "{e}");
+        let left = files_under(&out.join("images"));
+        assert!(left.len() >= 4, "the failure should come after the images: {left:?}");
+        let listed = earlier_report_files(&out);
+        for f in &left {
+            assert!(listed.contains(&format!("images/{f}")), "images/{f} was left behind unlisted");
+        }
+        // The next report, without one of the methods, cleans up what the failed one left.
+        std::fs::remove_file(out.join("plots")).unwrap();
+        let dropped = results.scenes[0].methods.pop().unwrap();
+        write_report(&results, &src, &out, &opts).unwrap();
+        let copy = listed.iter().find(|f| f.ends_with(Path::new(dropped.image.as_ref().unwrap()).file_name().unwrap().to_str().unwrap())).unwrap();
+        assert!(!out.join(copy).exists(), "{copy}: the failed report's image stayed");
+        assert!(out.join("plots").is_dir());
     }
 
     #[test]
