@@ -55,11 +55,14 @@ pub fn run(args: CompareArgs) -> Result<()> {
     let scene = compare_files(&args.reference, &images)?;
     let results = StudyResults::new(vec![scene]);
     print!("{}", table::terminal_report(&results));
+    // The CSV and the JSON are one set: if the second cannot be written, the first is taken back.
+    let mut written = cvtrace_streams::atomic::OutputSet::new();
     if let Some(p) = &args.csv {
-        table::write_csv(&results, p, args.force)?;
+        written.write(p, || table::write_csv(&results, p, args.force))?;
     }
     if let Some(p) = &args.json {
-        results.write_json(p, args.force)?;
+        written.write(p, || results.write_json(p, args.force))?;
     }
+    written.keep();
     Ok(())
 }

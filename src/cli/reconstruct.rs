@@ -286,20 +286,22 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
         }
         outputs.push(out);
     }
+    // The images are one set: a run that fails or is interrupted half-way takes back what it
+    // wrote, and the folder it made.
+    let mut written = atomic::OutputSet::new();
     if new_directory {
-        std::fs::create_dir_all(&args.output).with_context(|| format!("{}: cannot create directory", args.output.display()))?;
+        written.create_dir_all(&args.output).with_context(|| format!("{}: cannot create directory", args.output.display()))?;
     }
-    // Interrupted while writing into a folder it made, the run takes the folder away again.
-    let _partial = new_directory.then(|| cvtrace_streams::atomic::remove_folder_on_interrupt(&args.output));
     let mut rows = Vec::new();
     for ((target, estimator), out) in estimators.iter().zip(outputs) {
-        write_output(&target.exr, &args, estimator.as_ref(), &out)?;
+        written.write(&target.exr, || write_output(&target.exr, &args, estimator.as_ref(), &out))?;
         if let Some(png) = &target.png {
-            write_png(png, &out.image, args.exposure, args.force)?;
+            written.write(png, || write_png(png, &out.image, args.exposure, args.force))?;
         }
         let rel = reference.as_ref().map(|r| cvtrace_eval::metrics::rel_mse(&out.image, r)).transpose()?;
         rows.push((estimator.name(), rel, out.diagnostics));
     }
+    written.keep();
     print_summary(&rows);
     Ok(())
 }

@@ -189,6 +189,63 @@ pub fn remove_folder_on_interrupt(folder: &Path) -> FolderOnInterrupt {
     FolderOnInterrupt { _registered: PendingTemp::new(folder.to_path_buf()) }
 }
 
+/// The outputs of one command that belong together (`compare --csv --json`, the images of
+/// `reconstruct`): each is written atomically on its own, and the set is undone if the command
+/// fails or is interrupted before [`OutputSet::keep`], so a failure half-way does not leave a
+/// CSV without its JSON. Undoing removes only what the set created: a file that existed
+/// before (replaced with `--force`) stays, since its old content is gone already.
+#[derive(Default)]
+pub struct OutputSet {
+    created: Vec<PendingTemp>,
+    folders: Vec<PendingTemp>,
+}
+
+impl OutputSet {
+    pub fn new() -> OutputSet {
+        OutputSet::default()
+    }
+
+    /// Runs `write`, which writes `path`; if `path` did not exist before and the write
+    /// succeeds, the set will remove it again unless kept.
+    pub fn write<T, E>(&mut self, path: &Path, write: impl FnOnce() -> Result<T, E>) -> Result<T, E> {
+        let existed = path.symlink_metadata().is_ok();
+        let written = write()?;
+        if !existed {
+            self.created.push(PendingTemp::new(path.to_path_buf()));
+        }
+        Ok(written)
+    }
+
+    /// Creates the folder `dir` (and its parents) for the set's files; a folder the set made
+    /// is removed with them, if nothing else was put into it meanwhile.
+    pub fn create_dir_all(&mut self, dir: &Path) -> Result<(), StreamError> {
+        let mut missing: Vec<PathBuf> = dir.ancestors().take_while(|d| !d.as_os_str().is_empty() && d.symlink_metadata().is_err()).map(Path::to_path_buf).collect();
+        std::fs::create_dir_all(dir).map_err(|e| StreamError::Io { path: dir.to_path_buf(), error: e })?;
+        // Outermost first, so that undoing (in reverse) removes the deepest first.
+        missing.reverse();
+        self.folders.extend(missing.into_iter().map(PendingTemp::new));
+        Ok(())
+    }
+
+    /// The set is complete: nothing is removed any more.
+    pub fn keep(mut self) {
+        self.created.clear();
+        self.folders.clear();
+    }
+}
+
+impl Drop for OutputSet {
+    fn drop(&mut self) {
+        for f in self.created.drain(..).rev() {
+            let _ = std::fs::remove_file(&f.0);
+        }
+        for d in self.folders.drain(..).rev() {
+            // Only if empty: the set never removes anything it did not write.
+            let _ = std::fs::remove_dir(&d.0);
+        }
+    }
+}
+
 /// Moves the finished temporary file onto `path`. Without `overwrite` the move fails if `path`
 /// exists by then, atomically (a hard link cannot replace a file), so two runs that finish
 /// together cannot replace each other's output.
@@ -284,6 +341,38 @@ mod tests {
         assert!(r.is_err());
         assert!(!p.exists());
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    }
+
+    #[test]
+    fn an_output_set_not_kept_takes_back_only_what_it_created() {
+        let dir = tempfile::tempdir().unwrap();
+        let old = dir.path().join("old.csv");
+        std::fs::write(&old, b"the user's").unwrap();
+        let folder = dir.path().join("a/b");
+        let write = |p: &Path, text: &'static str| write_atomically(p, true, |tmp| std::fs::write(tmp, text));
+        let mut set = OutputSet::new();
+        set.create_dir_all(&folder).unwrap();
+        set.write(&old, || write(&old, "replaced")).unwrap();
+        set.write(&folder.join("x.json"), || write(&folder.join("x.json"), "new")).unwrap();
+        // A failed write is not the set's to remove (there is nothing), and the error comes back.
+        assert!(set.write(&dir.path().join("missing/y.json"), || write(&dir.path().join("missing/y.json"), "")).is_err());
+        drop(set);
+        assert!(!dir.path().join("a").exists(), "the folders and file the set made stay");
+        assert_eq!(std::fs::read(&old).unwrap(), b"replaced", "a file that existed before is not removed");
+        // A folder the set made that holds someone else's file stays, with that file.
+        let mut set = OutputSet::new();
+        set.create_dir_all(&folder).unwrap();
+        set.write(&folder.join("x.json"), || write(&folder.join("x.json"), "new")).unwrap();
+        std::fs::write(folder.join("other"), b"not the set's").unwrap();
+        drop(set);
+        assert!(!folder.join("x.json").exists() && folder.join("other").is_file());
+        // Kept, everything stays.
+        let mut set = OutputSet::new();
+        let z = dir.path().join("z.csv");
+        set.write(&z, || write(&z, "new")).unwrap();
+        set.keep();
+        assert!(z.is_file());
+        assert!(!pending().iter().any(|p| p.starts_with(dir.path())), "a set leaves nothing registered for an interrupt");
     }
 
     #[test]
