@@ -103,3 +103,44 @@ fn a_bad_sidecar_fails_naming_the_file_and_writes_nothing() {
         assert_eq!(files_in(dir.path()), before, "a failed render left files behind");
     }
 }
+
+#[test]
+fn a_sidecar_that_is_not_a_regular_file_fails_at_once() {
+    // Found by fuzzing the scene input: a FIFO sidecar blocked `render` forever, and one linked
+    // to /dev/zero was read until 2 GiB of memory were used. Both must fail at once, naming
+    // the sidecar, without a panic and without writing anything.
+    for kind in ["fifo", "/dev/zero"] {
+        let dir = tempfile::tempdir().unwrap();
+        scene_folder(dir.path(), "");
+        let sidecar = dir.path().join("scene.cvtrace.toml");
+        std::fs::remove_file(&sidecar).unwrap();
+        if kind == "fifo" {
+            assert!(std::process::Command::new("mkfifo").arg(&sidecar).status().unwrap().success());
+        } else {
+            std::os::unix::fs::symlink(kind, &sidecar).unwrap();
+        }
+        let before = files_in(dir.path());
+        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_cvtrace"))
+            .args(["render", "scene.gltf", "--spp", "1", "--batches", "1", "-o", "x.streams.exr"])
+            .current_dir(dir.path())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let start = std::time::Instant::now();
+        let status = loop {
+            if let Some(s) = child.try_wait().unwrap() {
+                break s;
+            }
+            if start.elapsed() > std::time::Duration::from_secs(30) {
+                child.kill().unwrap();
+                panic!("{kind}: cvtrace render did not finish in 30 s");
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        };
+        let mut err = String::new();
+        std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut err).unwrap();
+        assert_eq!(status.code(), Some(1), "{kind}: {err}");
+        assert!(err.contains("scene.cvtrace.toml") && err.contains("not a regular file") && !err.contains("panicked"), "{kind}: {err}");
+        assert_eq!(files_in(dir.path()), before, "{kind}: a failed render left files behind");
+    }
+}

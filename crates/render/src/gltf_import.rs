@@ -43,6 +43,7 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     let bytes = std::fs::read(path).map_err(|e| SceneError::Io { path: path.to_path_buf(), error: e })?;
     let malformed = |e: gltf::Error| SceneError::Malformed { path: path.to_path_buf(), message: e.to_string() };
     let gltf::Gltf { document, blob } = gltf::Gltf::from_slice_without_validation(&bytes).map_err(malformed)?;
+    check_index_widths(&bytes, path)?;
     let mut json = document.into_json();
     for ext in &json.extensions_required {
         if !SUPPORTED_EXTENSIONS.contains(&ext.as_str()) {
@@ -65,20 +66,20 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
         _ => PathBuf::from("."),
     };
     check_external_files(&document, &base, path)?;
-    let buffers = gltf::import_buffers(&document, Some(&base), blob).map_err(malformed)?;
+    let buffers = import_buffers(&document, &base, blob, path)?;
     check_accessors(&document, &buffers, path)?;
-    let images = gltf::import_images(&document, Some(&base), &buffers)
-        .map_err(|e| SceneError::Invalid { path: path.to_path_buf(), message: format!("cannot decode an image: {e}") })?;
+    let images = import_images(&document, &base, &buffers, path)?;
 
-    // The accessor readers index buffers directly; turn any inconsistency they trip on into an
-    // error instead of a crash.
+    // The accessor readers index buffers and unwrap directly; the checks above are meant to
+    // leave them nothing to trip on, and this turns anything they missed into an error instead
+    // of a crash (the panic message is still printed).
     let built = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| Builder::new(path, &document, &buffers, &images).build()));
     let parts = match built {
         Ok(r) => r?,
         Err(_) => {
             return Err(SceneError::Malformed {
                 path: path.to_path_buf(),
-                message: "an accessor or buffer view points outside its buffer".into(),
+                message: "the glTF reader failed on an inconsistency cvtrace does not check (see the panic above)".into(),
             })
         }
     };
@@ -99,8 +100,9 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
 }
 
 /// What the `gltf` crate does not check before it indexes or unwraps (it would panic):
-/// the major version, accessor references of mesh attributes, a MIME type for images stored in
-/// buffer views, and accessors of at least one element (the specification's minimum).
+/// the major version, accessor references of mesh attributes, images with exactly one source
+/// (and a MIME type when stored in a buffer view), cameras whose `type` has its projection
+/// object, and accessors of at least one element (the specification's minimum).
 fn check_json(json: &gltf::json::Root, path: &Path) -> Result<(), SceneError> {
     let err = |m: String| Err(SceneError::Malformed { path: path.to_path_buf(), message: m });
     if json.asset.version.split('.').next() != Some("2") {
@@ -121,8 +123,25 @@ fn check_json(json: &gltf::json::Root, path: &Path) -> Result<(), SceneError> {
         }
     }
     for (i, image) in json.images.iter().enumerate() {
-        if image.buffer_view.is_some() && image.mime_type.is_none() {
-            return err(format!("image {i} is stored in a buffer view and needs a mimeType"));
+        match (&image.uri, &image.buffer_view) {
+            (None, None) => return err(format!("image {i} has neither a uri nor a bufferView; glTF requires one")),
+            (Some(_), Some(_)) => return err(format!("image {i} has both a uri and a bufferView; glTF allows only one")),
+            (None, Some(_)) if image.mime_type.is_none() => {
+                return err(format!("image {i} is stored in a buffer view and needs a mimeType"))
+            }
+            _ => {}
+        }
+    }
+    for (i, c) in json.cameras.iter().enumerate() {
+        use gltf::json::camera::Type;
+        use gltf::json::validation::Checked;
+        let (matching, key) = match c.type_ {
+            Checked::Valid(Type::Perspective) => (c.perspective.is_some(), "perspective"),
+            Checked::Valid(Type::Orthographic) => (c.orthographic.is_some(), "orthographic"),
+            Checked::Invalid => (true, ""),
+        };
+        if !matching {
+            return err(format!("camera {i} is of type {key} but has no `{key}` object"));
         }
     }
     for (i, a) in json.accessors.iter().enumerate() {
@@ -131,6 +150,59 @@ fn check_json(json: &gltf::json::Root, path: &Path) -> Result<(), SceneError> {
         }
     }
     Ok(())
+}
+
+/// Object keys whose values (or array elements) are indices into the document's arrays.
+const INDEX_KEYS: &[&str] = &[
+    "buffer", "bufferView", "camera", "children", "index", "indices", "input", "inverseBindMatrices", "joints", "light",
+    "material", "mesh", "node", "nodes", "output", "sampler", "scene", "skeleton", "skin", "source",
+];
+
+/// The `gltf` crate reads every index as a u64 and keeps its low 32 bits, so that index 2^32
+/// would silently refer to element 0: an index that does not fit in 32 bits is an error.
+/// `bytes` is the whole .gltf or .glb file (already parsed once, so it is well-formed).
+fn check_index_widths(bytes: &[u8], path: &Path) -> Result<(), SceneError> {
+    use gltf::json::Value;
+    let glb;
+    let text: &[u8] = if bytes.starts_with(b"glTF") {
+        glb = gltf::binary::Glb::from_slice(bytes).map_err(|e| SceneError::Malformed { path: path.to_path_buf(), message: e.to_string() })?;
+        &glb.json
+    } else {
+        bytes
+    };
+    let Ok(root) = gltf::json::deserialize::from_slice::<Value>(text) else { return Ok(()) };
+    // `holds` = the values here are indices: under an index key, in `attributes`, or in a
+    // morph target. `extras` is the application's own and is not looked into.
+    fn find(v: &Value, key: &str, holds: bool, at: &mut Vec<String>) -> Option<u64> {
+        match v {
+            Value::Number(n) if holds => n.as_u64().filter(|&i| i > u32::MAX as u64),
+            Value::Array(items) => items.iter().enumerate().find_map(|(i, x)| {
+                at.push(i.to_string());
+                let r = find(x, key, holds, at);
+                if r.is_none() {
+                    at.pop();
+                }
+                r
+            }),
+            Value::Object(map) if key != "extras" => map.iter().find_map(|(k, x)| {
+                at.push(k.clone());
+                let r = find(x, k, INDEX_KEYS.contains(&k.as_str()) || key == "attributes" || key == "targets", at);
+                if r.is_none() {
+                    at.pop();
+                }
+                r
+            }),
+            _ => None,
+        }
+    }
+    let mut at = Vec::new();
+    match find(&root, "", false, &mut at) {
+        Some(i) => Err(SceneError::Malformed {
+            path: path.to_path_buf(),
+            message: format!("/{}: index {i} does not fit in 32 bits", at.join("/")),
+        }),
+        None => Ok(()),
+    }
 }
 
 /// `asset.extras.defaultResolution: [width, height]`, cvtrace's own hint for the render size
@@ -148,8 +220,9 @@ fn default_resolution(json: &gltf::json::Root, path: &Path) -> Option<(u32, u32)
     size
 }
 
-/// Percent-decodes a relative URI (glTF URIs are RFC 3986 encoded).
-fn decode_uri(uri: &str) -> String {
+/// Percent-decodes a relative URI (glTF URIs are RFC 3986 encoded) as the `gltf` crate does;
+/// `None` if the bytes it stands for are not UTF-8 (the crate would panic on them).
+fn decode_uri(uri: &str) -> Option<String> {
     let bytes = uri.as_bytes();
     let mut out = Vec::with_capacity(bytes.len());
     let mut i = 0;
@@ -165,39 +238,136 @@ fn decode_uri(uri: &str) -> String {
         out.push(bytes[i]);
         i += 1;
     }
-    String::from_utf8_lossy(&out).into_owned()
+    String::from_utf8(out).ok()
 }
 
-fn external_path(base: &Path, uri: &str) -> Option<PathBuf> {
+/// The file a buffer or image URI refers to, resolved as the `gltf` crate's importer resolves
+/// it (it reads the images): `None` for a `data:` URI; `file:` URIs are taken as they are (the
+/// crate does not percent-decode them), relative ones are decoded and joined to `base`; any
+/// other scheme is an error.
+fn external_path(base: &Path, uri: &str) -> Result<Option<PathBuf>, String> {
+    if uri.contains(':') {
+        if uri.starts_with("data:") {
+            return Ok(None);
+        }
+        if let Some(rest) = uri.strip_prefix("file://").or_else(|| uri.strip_prefix("file:")) {
+            return Ok(Some(PathBuf::from(rest)));
+        }
+        return Err(format!("the URI {} has a scheme cvtrace does not read (only relative paths, file: and data:)", short_uri(uri)));
+    }
+    match decode_uri(uri) {
+        Some(decoded) => Ok(Some(base.join(decoded))),
+        None => Err(format!("the URI {} does not percent-decode to UTF-8", short_uri(uri))),
+    }
+}
+
+/// A URI for a message: `data:` URIs are cut after their media type.
+fn short_uri(uri: &str) -> String {
     if uri.starts_with("data:") {
-        return None;
+        let head: String = uri.chars().take_while(|&c| c != ',').take(60).collect();
+        format!("`{head},…`")
+    } else if uri.chars().count() > 200 {
+        format!("`{}…`", uri.chars().take(200).collect::<String>())
+    } else {
+        format!("`{uri}`")
     }
-    if let Some(rest) = uri.strip_prefix("file://").or_else(|| uri.strip_prefix("file:")) {
-        return Some(PathBuf::from(decode_uri(rest)));
-    }
-    Some(base.join(decode_uri(uri)))
 }
 
-/// Names the first missing buffer or image file, which the importer would only report as
-/// a bare "No such file" without the name.
+/// Largest image file read (the importer reads a file whole before decoding it; its decoder
+/// allocates at most 512 MiB, so no usable image is larger).
+const MAX_IMAGE_FILE_BYTES: u64 = 1 << 30;
+
+/// Checks every buffer and image URI before anything is read: names the first missing or
+/// unreadable file (the importer would only report a bare "No such file"), refuses devices,
+/// FIFOs and directories (reading them would never end), URIs the importer cannot resolve, and
+/// image files too large to be images.
 fn check_external_files(doc: &gltf::Document, base: &Path, path: &Path) -> Result<(), SceneError> {
     let mut uris = Vec::new();
     for b in doc.buffers() {
         if let gltf::buffer::Source::Uri(uri) = b.source() {
-            uris.push(uri);
+            uris.push((format!("buffer {}", b.index()), uri, false));
         }
     }
     for im in doc.images() {
         if let gltf::image::Source::Uri { uri, .. } = im.source() {
-            uris.push(uri);
+            uris.push((format!("image {}", im.index()), uri, true));
         }
     }
-    for uri in uris {
-        if let Some(file) = external_path(base, uri) {
+    for (what, uri, image) in uris {
+        let file = external_path(base, uri).map_err(|m| SceneError::invalid(path, format!("{what}: {m}")))?;
+        if let Some(file) = file {
             require_regular_file(&file, path)?;
+            let size = std::fs::metadata(&file).map(|m| m.len()).unwrap_or(0);
+            if image && size > MAX_IMAGE_FILE_BYTES {
+                return Err(SceneError::MissingFile {
+                    path: path.to_path_buf(),
+                    file,
+                    message: format!("{what} is {size} bytes; images larger than {MAX_IMAGE_FILE_BYTES} bytes are not read"),
+                });
+            }
         }
     }
     Ok(())
+}
+
+/// The buffers' bytes. External files are read only up to the buffer's `byteLength` (the
+/// importer reads whole files, so a huge file behind a small buffer would be read entirely),
+/// into memory reserved fallibly; a file shorter than `byteLength` is an error naming it.
+fn import_buffers(doc: &gltf::Document, base: &Path, mut blob: Option<Vec<u8>>, path: &Path) -> Result<Vec<gltf::buffer::Data>, SceneError> {
+    use std::io::Read;
+    let malformed = |m: String| SceneError::Malformed { path: path.to_path_buf(), message: m };
+    let mut buffers = Vec::with_capacity(doc.buffers().len());
+    for b in doc.buffers() {
+        let (i, len) = (b.index(), b.length());
+        let mut data = match b.source() {
+            gltf::buffer::Source::Bin => {
+                blob.take().ok_or_else(|| malformed(format!("buffer {i} has no uri and there is no GLB binary chunk for it")))?
+            }
+            gltf::buffer::Source::Uri(uri) => match external_path(base, uri).map_err(|m| malformed(format!("buffer {i}: {m}")))? {
+                None => gltf::buffer::Data::from_source(b.source(), Some(base)).map_err(|e| malformed(format!("buffer {i}: {e}")))?.0,
+                Some(file) => {
+                    let missing = |message: String| SceneError::MissingFile { path: path.to_path_buf(), file: file.clone(), message };
+                    let f = std::fs::File::open(&file).map_err(|e| missing(e.to_string()))?;
+                    let size = f.metadata().map_err(|e| missing(e.to_string()))?.len();
+                    if size < len as u64 {
+                        return Err(missing(format!("it has {size} bytes but buffer {i} has byteLength {len}")));
+                    }
+                    let mut data = Vec::new();
+                    data.try_reserve_exact(len.saturating_add(3))
+                        .map_err(|_| missing(format!("cannot allocate the {len} bytes of buffer {i}")))?;
+                    f.take(len as u64).read_to_end(&mut data).map_err(|e| missing(e.to_string()))?;
+                    data
+                }
+            },
+        };
+        if data.len() < len {
+            return Err(malformed(format!("buffer {i} has byteLength {len} but holds {} bytes", data.len())));
+        }
+        while !data.len().is_multiple_of(4) {
+            data.push(0);
+        }
+        buffers.push(gltf::buffer::Data(data));
+    }
+    Ok(buffers)
+}
+
+/// Decodes the images one by one, so that an error names the image and its file.
+fn import_images(doc: &gltf::Document, base: &Path, buffers: &[gltf::buffer::Data], path: &Path) -> Result<Vec<gltf::image::Data>, SceneError> {
+    let mut images = Vec::with_capacity(doc.images().len());
+    for im in doc.images() {
+        let data = gltf::image::Data::from_source(im.source(), Some(base), buffers).map_err(|e| {
+            let source = match im.source() {
+                gltf::image::Source::Uri { uri, .. } => match external_path(base, uri) {
+                    Ok(Some(file)) => file.display().to_string(),
+                    _ => short_uri(uri),
+                },
+                gltf::image::Source::View { view, .. } => format!("buffer view {}", view.index()),
+            };
+            SceneError::invalid(path, format!("cannot decode image {} ({source}): {e}", im.index()))
+        })?;
+        images.push(data);
+    }
+    Ok(images)
 }
 
 /// `file` (the scene `path` itself or a file it references) must be a readable regular file:
@@ -244,12 +414,25 @@ fn check_accessors(doc: &gltf::Document, buffers: &[gltf::buffer::Data], path: &
     };
     for a in doc.accessors() {
         if let Some(v) = a.view() {
-            let stride = v.stride().unwrap_or(a.size()).max(a.size());
+            // The readers step by the stride and assert that an element fits in it.
+            if let Some(stride) = v.stride().filter(|&s| s < a.size()) {
+                return err(format!(
+                    "accessor {} has elements of {} bytes but its buffer view {} has byteStride {stride}",
+                    a.index(),
+                    a.size(),
+                    v.index()
+                ));
+            }
+            let stride = v.stride().unwrap_or(a.size());
             if span(a.offset(), a.count(), a.size(), stride).is_none_or(|end| end > v.length()) {
                 return err(format!("accessor {} reads past the end of buffer view {}", a.index(), v.index()));
             }
         }
         if let Some(sp) = a.sparse() {
+            // The checks below (and the readers' element size) assume tightly packed views.
+            if sp.indices().view().stride().is_some() || sp.values().view().stride().is_some() {
+                return err(format!("sparse accessor {}: its buffer views must not have a byteStride", a.index()));
+            }
             let isz = match sp.indices().index_type() {
                 gltf::accessor::sparse::IndexType::U8 => 1,
                 gltf::accessor::sparse::IndexType::U16 => 2,
@@ -627,7 +810,7 @@ impl<'a> Builder<'a> {
             return Ok(Some(id));
         }
         let data = self.images.get(image).ok_or_else(|| self.err(format!("texture refers to missing image {image}")))?;
-        let tex = convert_image(data, srgb).ok_or_else(|| self.err(format!("image {image} has an unexpected pixel layout")))?;
+        let tex = convert_image(data, srgb).map_err(|m| self.err(format!("image {image}: {m}")))?;
         let id = self.parts.textures.len() as u32;
         self.parts.textures.push(tex);
         self.texture_ids.insert((image, srgb), id);
@@ -647,8 +830,13 @@ fn triangulate(mode: gltf::mesh::Mode, idx: &[u32]) -> Vec<[u32; 3]> {
     }
 }
 
+/// Most texels a texture may have: 2^27 (a 16384 × 8192 image), what the decoder's 512 MiB
+/// allows an RGBA image. A texel takes 12 bytes once converted, so this bounds a texture at
+/// 1.5 GiB; a larger grey image is an error instead of a multi-GiB allocation.
+const MAX_TEXELS: usize = 1 << 27;
+
 /// Decodes glTF's image data to linear RGB (sRGB-decoding colour textures).
-fn convert_image(data: &gltf::image::Data, srgb: bool) -> Option<Texture> {
+fn convert_image(data: &gltf::image::Data, srgb: bool) -> Result<Texture, String> {
     use gltf::image::Format;
     let (channels, bytes_per) = match data.format {
         Format::R8 => (1, 1),
@@ -663,8 +851,11 @@ fn convert_image(data: &gltf::image::Data, srgb: bool) -> Option<Texture> {
         Format::R32G32B32A32FLOAT => (4, 4),
     };
     let n = data.width as usize * data.height as usize;
+    if n > MAX_TEXELS {
+        return Err(format!("{}×{} texels is more than cvtrace's limit of {MAX_TEXELS}", data.width, data.height));
+    }
     if data.pixels.len() < n * channels * bytes_per {
-        return None;
+        return Err("the decoded pixels are fewer than its size says".into());
     }
     let value = |i: usize| -> f32 {
         let b = &data.pixels[i * bytes_per..(i + 1) * bytes_per];
@@ -675,16 +866,16 @@ fn convert_image(data: &gltf::image::Data, srgb: bool) -> Option<Texture> {
         }
     };
     let decode = |v: f32| if srgb && bytes_per < 4 { srgb_to_linear(v) } else { v };
-    let texels = (0..n)
-        .map(|p| {
-            let c = |k: usize| decode(value(p * channels + k));
-            match channels {
-                1 | 2 => Vec3::splat(c(0)),
-                _ => Vec3::new(c(0), c(1), c(2)),
-            }
-        })
-        .collect();
-    Texture::new(data.width, data.height, texels)
+    let mut texels = Vec::new();
+    texels.try_reserve_exact(n).map_err(|_| format!("cannot allocate {n} texels"))?;
+    texels.extend((0..n).map(|p| {
+        let c = |k: usize| decode(value(p * channels + k));
+        match channels {
+            1 | 2 => Vec3::splat(c(0)),
+            _ => Vec3::new(c(0), c(1), c(2)),
+        }
+    }));
+    Texture::new(data.width, data.height, texels).ok_or_else(|| format!("{}×{} is not a usable size", data.width, data.height))
 }
 
 #[cfg(test)]
@@ -831,13 +1022,26 @@ mod tests {
             (&[("/cameras", r#"[{"type": "perspective", "perspective": {"yfov": 0, "znear": 0.1}}]"#), ("/nodes/3/camera", "0")], "camera 0"),
             (&[("/materials", r#"[{"pbrMetallicRoughness": {"baseColorFactor": [2, 1, 1, 1]}}]"#), ("/meshes/0/primitives/0/material", "0")], "baseColorFactor is outside"),
             (&[("/materials", r#"[{"emissiveFactor": [-1, 0, 0]}]"#), ("/meshes/0/primitives/0/material", "0")], "emissiveFactor is outside"),
+            // Found by fuzzing the scene input: the first panicked in the gltf crate (image.rs),
+            // the next two tripped its assertions inside the loader's catch_unwind (which
+            // printed a panic and blamed "an accessor or buffer view"), the last two silently
+            // referred to node 1 and accessor 0 (the crate keeps an index's low 32 bits).
+            (&[("/images", r#"[{"name": "no source"}]"#)], "image 0 has neither a uri nor a bufferView"),
+            (&[("/bufferViews/0/byteStride", "4")], "accessor 0 has elements of 12 bytes but its buffer view 0 has byteStride 4"),
+            (&[("/cameras", r#"[{"type": "orthographic", "perspective": {"yfov": 0.5, "znear": 0.1}}]"#), ("/nodes/3/camera", "0")],
+                "camera 0 is of type orthographic but has no `orthographic` object"),
+            (&[("/scenes/0/nodes/1", "4294967297")], "/scenes/0/nodes/1: index 4294967297 does not fit in 32 bits"),
+            (&[("/meshes/0/primitives/0/attributes/POSITION", "4294967296")], "index 4294967296 does not fit in 32 bits"),
         ];
         for (edits, needle) in cases {
             let mut json = valid.clone();
             for (pointer, value) in *edits {
                 let (parent, key) = pointer.rsplit_once('/').unwrap();
                 let target = json.pointer_mut(parent).unwrap_or_else(|| panic!("{parent}"));
-                target.as_object_mut().unwrap().insert(key.to_string(), v(value));
+                match target {
+                    gltf::json::Value::Array(items) => items[key.parse::<usize>().unwrap()] = v(value),
+                    _ => _ = target.as_object_mut().unwrap().insert(key.to_string(), v(value)),
+                }
             }
             std::fs::write(&path, json.to_string()).unwrap();
             let e = Scene::load(&path).expect_err(needle).to_string();
@@ -883,9 +1087,24 @@ colour = [1, 1, 1]
     }
 
     #[test]
+    fn textures_beyond_the_texel_limit_are_errors() {
+        // A 20000² grey PNG (400 MB decoded, within the decoder's limit) became a 4.8 GB texel
+        // array and aborted on allocation failure.
+        let data = gltf::image::Data { pixels: vec![], format: gltf::image::Format::R8, width: 16384, height: 8193 };
+        let e = convert_image(&data, true).unwrap_err();
+        assert!(e.contains("16384×8193") && e.contains("limit"), "{e}");
+        let data = gltf::image::Data { pixels: vec![0, 128, 255, 7], format: gltf::image::Format::R8G8, width: 2, height: 1 };
+        assert_eq!(convert_image(&data, false).unwrap().texels, vec![Vec3::ZERO, Vec3::splat(1.0)]);
+        let short = gltf::image::Data { pixels: vec![0; 3], format: gltf::image::Format::R8G8, width: 2, height: 1 };
+        assert!(convert_image(&short, false).is_err());
+    }
+
+    #[test]
     fn uri_decoding_and_triangulation() {
-        assert_eq!(decode_uri("my%20mesh.bin"), "my mesh.bin");
-        assert_eq!(decode_uri("100%"), "100%");
+        assert_eq!(decode_uri("my%20mesh.bin").as_deref(), Some("my mesh.bin"));
+        assert_eq!(decode_uri("100%").as_deref(), Some("100%"));
+        assert_eq!(decode_uri("%C3%A9%4G%").as_deref(), Some("é%4G%"));
+        assert_eq!(decode_uri("scene%FF.bin"), None);
         assert_eq!(triangulate(gltf::mesh::Mode::TriangleStrip, &[0, 1, 2, 3]), vec![[0, 1, 2], [2, 1, 3]]);
         assert_eq!(triangulate(gltf::mesh::Mode::TriangleFan, &[0, 1, 2, 3]), vec![[0, 1, 2], [0, 2, 3]]);
     }

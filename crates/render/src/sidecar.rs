@@ -75,6 +75,9 @@ pub struct Sidecar {
     pub path: PathBuf,
 }
 
+/// Largest sidecar file read.
+pub const MAX_SIDECAR_BYTES: u64 = 1 << 20;
+
 /// `dir/scene.gltf` → `dir/scene.cvtrace.toml`.
 pub fn sidecar_path(scene: &Path) -> PathBuf {
     let stem = scene.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
@@ -110,24 +113,43 @@ impl Sidecar {
                 }
             }
             if let Some(file) = s.map_path() {
-                if let Err(e) = std::fs::metadata(&file) {
-                    return Err(SceneError::MissingFile { path: path.to_path_buf(), file, message: e.to_string() });
+                // A FIFO would block the read forever, a device never end it.
+                let message = match std::fs::metadata(&file) {
+                    Err(e) => Some(e.to_string()),
+                    Ok(md) if md.is_dir() => Some("is a directory".into()),
+                    Ok(md) if !md.is_file() => Some("is not a regular file".into()),
+                    Ok(_) => None,
+                };
+                if let Some(message) = message {
+                    return Err(SceneError::MissingFile { path: path.to_path_buf(), file, message });
                 }
             }
         }
         Ok(s)
     }
 
-    /// Reads and checks the sidecar at `path`.
+    /// Reads and checks the sidecar at `path`, which must be a regular file of at most
+    /// [`MAX_SIDECAR_BYTES`] (a FIFO would block the read forever, a device never end it).
     pub fn load(path: &Path) -> Result<Sidecar, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|e| SceneError::Io { path: path.to_path_buf(), error: e })?;
+        use std::io::Read;
+        let io = |e: std::io::Error| SceneError::Io { path: path.to_path_buf(), error: e };
+        let md = std::fs::metadata(path).map_err(io)?;
+        if !md.is_file() {
+            return Err(SceneError::invalid(path, if md.is_dir() { "is a directory" } else { "is not a regular file" }));
+        }
+        if md.len() > MAX_SIDECAR_BYTES {
+            return Err(SceneError::invalid(path, format!("is {} bytes; a sidecar may have at most {MAX_SIDECAR_BYTES}", md.len())));
+        }
+        let mut text = String::new();
+        std::fs::File::open(path).and_then(|f| f.take(MAX_SIDECAR_BYTES + 1).read_to_string(&mut text)).map_err(io)?;
         Sidecar::parse(&text, path)
     }
 
     /// The sidecar of the scene file `scene`, if there is one.
     pub fn discover(scene: &Path) -> Result<Option<Sidecar>, SceneError> {
         let path = sidecar_path(scene);
-        if !path.exists() {
+        // A dangling symbolic link is a sidecar that cannot be read, not a missing one.
+        if std::fs::symlink_metadata(&path).is_err() {
             return Ok(None);
         }
         tracing::info!("using sidecar {}", path.display());
