@@ -632,25 +632,11 @@ fn load_finished_reference(path: &Path, identity: &RenderIdentity, s: &RenderSet
     Ok(accum)
 }
 
-/// FNV-1a over the scene's debug form: any change in geometry, materials, textures, lights or
-/// camera changes it, without needing a serialisation format. The sidecar's render defaults
-/// are left out: they do not change the image (the resolved settings are compared on their
-/// own), so editing e.g. `reference_spp` does not orphan a checkpoint.
+/// The scene's [`Scene::fingerprint`]: geometry, materials, textures, lights and camera, not the
+/// sidecar's render defaults (the resolved settings are compared on their own), so editing e.g.
+/// `reference_spp` does not orphan a checkpoint.
 fn scene_hash(scene: &Scene) -> u64 {
-    let mut scene = scene.clone();
-    scene.set_render_defaults(RenderDefaults::default());
-    struct Fnv(u64);
-    impl std::fmt::Write for Fnv {
-        fn write_str(&mut self, s: &str) -> std::fmt::Result {
-            for b in s.bytes() {
-                self.0 = (self.0 ^ b as u64).wrapping_mul(0x100_0000_01b3);
-            }
-            Ok(())
-        }
-    }
-    let mut h = Fnv(0xcbf2_9ce4_8422_2325);
-    let _ = std::fmt::Write::write_fmt(&mut h, format_args!("{scene:?}"));
-    h.0
+    scene.fingerprint()
 }
 
 /// Eye, target and vertical field of view from `--camera`.

@@ -314,6 +314,61 @@ impl Scene {
     }
 }
 
+impl Scene {
+    /// A 64-bit fingerprint of everything the scene renders, bit for bit: geometry, materials,
+    /// textures, lights and camera, but not its render defaults (they change no image), so a
+    /// checkpoint, `--extend` or a study can tell a render of the same scene from another. It
+    /// reads the arrays in place: a scene with large textures is not copied or formatted.
+    pub fn fingerprint(&self) -> u64 {
+        let mut h = Fingerprint(0xcbf2_9ce4_8422_2325);
+        h.text("cvtrace scene fingerprint 2");
+        h.floats(self.positions.len(), self.positions.iter().flat_map(|p| p.to_array()));
+        h.words(self.triangles.len(), self.triangles.iter().flatten().copied());
+        h.floats(self.normals.len(), self.normals.iter().flat_map(|n| n.to_array()));
+        h.floats(self.uvs.len(), self.uvs.iter().flat_map(|t| t.to_array()));
+        h.words(self.tri_material.len(), self.tri_material.iter().copied());
+        h.word(self.textures.len() as u64);
+        for t in &self.textures {
+            h.word(((t.width as u64) << 32) | t.height as u64);
+            h.floats(t.texels.len(), t.texels.iter().flat_map(|c| c.to_array()));
+        }
+        // Small, structured parts by their debug form (an environment map's shows a hash of
+        // its texels); emitters are derived from the geometry and materials above.
+        h.text(&format!("{:?}", self.materials));
+        h.text(&format!("{:?}", self.lights.punctual()));
+        h.text(&format!("{:?}", self.lights.environment()));
+        h.text(&format!("{:?}", self.camera));
+        h.0
+    }
+}
+
+/// An order-sensitive 64-bit hash: each step (xor, odd multiply, xorshift) is invertible, so
+/// a changed word always changes the state it leaves.
+struct Fingerprint(u64);
+
+impl Fingerprint {
+    fn word(&mut self, w: u64) {
+        self.0 = (self.0 ^ w).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        self.0 ^= self.0 >> 29;
+    }
+
+    /// `len` first, so that data cannot move between arrays unnoticed.
+    fn words(&mut self, len: usize, words: impl Iterator<Item = u32>) {
+        self.word(len as u64);
+        for w in words {
+            self.word(w as u64);
+        }
+    }
+
+    fn floats(&mut self, len: usize, floats: impl Iterator<Item = f32>) {
+        self.words(len, floats.map(f32::to_bits));
+    }
+
+    fn text(&mut self, s: &str) {
+        self.words(s.len(), s.bytes().map(u32::from));
+    }
+}
+
 /// A camera looking at the bounds' centre from +Z (glTF's "front"), framing the bounding sphere.
 pub fn default_camera(lo: Vec3, hi: Vec3) -> Camera {
     let centre = (lo + hi) * 0.5;
@@ -326,6 +381,38 @@ pub fn default_camera(lo: Vec3, hi: Vec3) -> Camera {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_fingerprint_sees_every_part_of_the_scene_but_not_its_render_defaults() {
+        let parts = || {
+            let mut p = quad();
+            p.textures = vec![Texture::new(2, 1, vec![Vec3::ZERO, Vec3::ONE]).unwrap()];
+            p.materials[0].base_color_texture = Some(0);
+            p.uvs = vec![Vec2::ZERO; 4];
+            p
+        };
+        let base = Scene::from_parts(parts()).unwrap().fingerprint();
+        assert_eq!(base, Scene::from_parts(parts()).unwrap().fingerprint(), "not deterministic");
+        let mut with_defaults = Scene::from_parts(parts()).unwrap();
+        with_defaults.set_render_defaults(RenderDefaults { reference_spp: Some(64), ..Default::default() });
+        assert_eq!(base, with_defaults.fingerprint());
+        let changes: Vec<(&str, Box<dyn Fn(&mut SceneParts)>)> = vec![
+            ("a position", Box::new(|p| p.positions[2].x = f32::from_bits(p.positions[2].x.to_bits() + 1))),
+            ("a triangle's winding", Box::new(|p| p.triangles[0] = [0, 2, 1])),
+            ("a triangle's material", Box::new(|p| p.triangle_materials.swap(0, 1))),
+            ("a texel", Box::new(|p| p.textures[0].texels[1].y = 0.5)),
+            ("a texture's shape", Box::new(|p| (p.textures[0].width, p.textures[0].height) = (1, 2))),
+            ("a uv", Box::new(|p| p.uvs[3] = Vec2::new(0.0, 1.0))),
+            ("a material", Box::new(|p| p.materials[0].roughness = 0.5)),
+            ("the environment", Box::new(|p| p.environment = Some(Environment::constant(Vec3::ONE).unwrap()))),
+            ("the camera", Box::new(|p| p.camera = Some(Camera { vfov_deg: 30.0, ..Camera::default() }))),
+        ];
+        for (what, change) in changes {
+            let mut p = parts();
+            change(&mut p);
+            assert_ne!(Scene::from_parts(p).unwrap().fingerprint(), base, "{what} changed, the fingerprint did not");
+        }
+    }
 
     fn quad() -> SceneParts {
         SceneParts {
