@@ -69,7 +69,7 @@ pub use error::{ParseNameError, ReconError};
 pub use estimator::{Estimator, Output};
 pub use floor::{FloorMode, FloorSource};
 pub use estimators::{CvOptions, IduwOptions, OursOptions, GAMMA_GRID};
-pub use input::{stream_set_from_batches, BatchNeed, Input, Needs};
+pub use input::{stream_set_from_batches, BatchNeed, Input, Needs, MAX_VALUE};
 pub use method::{build, Method, MethodChoice, Options};
 pub use penalty::Penalty;
 pub use pt_error::{CbfOptions, ErrorEstimate};

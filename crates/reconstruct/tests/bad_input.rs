@@ -165,3 +165,48 @@ fn buffers_from_another_renderer() {
     assert!(e.contains("pt has 1") && e.contains("crn has 2"), "{e}");
     assert!(stream_set_from_batches(vec![], vec![], 8, None).is_err());
 }
+
+#[test]
+fn values_too_large_for_f32_squares_are_refused_by_the_methods_that_square_them() {
+    // Found by fuzzing: the Cornell box streams multiplied by 1e19 (values up to 1.7e20, all
+    // finite, every stream mean the mean of its batches) gave `cv` and `ours` images 39% and
+    // 17% away from the rescaled image, with no error.
+    let scaled = |k: f32| {
+        let mut s = set(4);
+        for stream in [&mut s.pt, &mut s.crn] {
+            for im in std::iter::once(&mut stream.mean).chain(stream.batches.iter_mut()) {
+                im.pixels.iter_mut().flatten().for_each(|v| *v *= k);
+            }
+        }
+        s
+    };
+    let big = scaled(1e19);
+    let input = Input::new(&big).named("huge.streams.exr", "-");
+    for m in [Method::Cv, Method::Ours] {
+        let e = err(m, &Options::default(), &input);
+        assert!(e.contains("huge.streams.exr") && e.contains("beyond ±1e18") && e.contains("scale the image down") && e.contains(m.name()), "{e}");
+    }
+    // The methods that do not square values take them.
+    for m in [Method::Pt, Method::Crn, Method::Average, Method::Iduw] {
+        assert!(build(m, &Options::default()).unwrap().reconstruct(&input).is_ok(), "{m}");
+    }
+    // Below the limit the images are the rescaled ones.
+    let (one, k) = (set(4), 1e12f32);
+    let large = scaled(k);
+    for m in [Method::Cv, Method::Ours] {
+        let a = build(m, &Options::default()).unwrap().reconstruct(&Input::new(&one)).unwrap().image;
+        let b = build(m, &Options::default()).unwrap().reconstruct(&Input::new(&large)).unwrap().image;
+        let top = a.pixels.iter().flatten().fold(0.0f32, |t, v| t.max(v.abs()));
+        for (p, q) in a.pixels.iter().flatten().zip(b.pixels.iter().flatten()) {
+            assert!((q / k - p).abs() <= 1e-4 * top, "{m}: {p} vs {}", q / k);
+        }
+    }
+    // An oracle reference is held to the same limit.
+    let mut reference = Image::from_fn(12, 8, |_, _| [1.0; 3]);
+    reference.pixels[13][2] = -3e18;
+    let mut o = Options::default();
+    o.ours.errors = ErrorEstimate::Oracle;
+    let s = set(4);
+    let e = err(Method::Ours, &o, &Input::new(&s).with_reference(&reference).named("s.exr", "ref.exr"));
+    assert!(e.starts_with("ref.exr") && e.contains("pixel (1, 1)") && e.contains("-3e18"), "{e}");
+}

@@ -2,7 +2,7 @@
 use crate::atomic::write_atomically;
 use crate::StreamError;
 use exr::prelude::{read, AnyChannel, AnyChannels, AttributeValue, Blocks, Compression, Encoding, FlatSamples, Layer, LayerAttributes, LineOrder, ReadChannels, ReadLayers, SmallVec, Text, WritableImage};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
 /// A header attribute value. Integers that fit are stored as EXR `int`, the rest as `string`.
@@ -30,6 +30,13 @@ pub struct ExrChannels {
     pub height: usize,
     pub channels: BTreeMap<String, Vec<f32>>,
     pub attributes: BTreeMap<String, AttrValue>,
+    /// Custom attributes of other EXR types than `int`, `float` and `string`, as name → type
+    /// name (`v2f`, `box2i`, …): not read, but a reader can tell a mistyped attribute from a
+    /// missing one.
+    pub other_attributes: BTreeMap<String, String>,
+    /// Channels stored as 32-bit unsigned integers (converted to f32 in `channels`): ids or
+    /// masks, never radiance; [`ExrChannels::take`] refuses them.
+    pub integer_channels: BTreeSet<String>,
 }
 
 impl ExrChannels {
@@ -39,11 +46,20 @@ impl ExrChannels {
 
     pub fn insert(&mut self, name: impl Into<String>, plane: Vec<f32>) {
         assert_eq!(plane.len(), self.width * self.height, "channel plane has the wrong length");
-        self.channels.insert(name.into(), plane);
+        let name = name.into();
+        self.integer_channels.remove(&name);
+        self.channels.insert(name, plane);
     }
 
-    /// The plane of `name`, or an error naming the file and the channel.
+    /// The plane of `name`, or an error naming the file and the channel (also when the file
+    /// stores it as integers: converted, they would pass for radiance or features).
     pub fn take(&mut self, path: &Path, name: &str) -> Result<Vec<f32>, StreamError> {
+        if self.integer_channels.contains(name) {
+            return Err(StreamError::invalid(
+                path,
+                format!("channel `{name}` holds 32-bit unsigned integers, not floating-point values; write it as float (or half)"),
+            ));
+        }
         self.channels
             .remove(name)
             .ok_or_else(|| StreamError::MissingChannel { path: path.to_path_buf(), channel: name.to_string() })
@@ -53,7 +69,9 @@ impl ExrChannels {
         self.attributes.get(name)
     }
 
-    /// Reads every channel of `path` (f16 and u32 samples are converted to f32).
+    /// Reads every channel of `path` (f16 and u32 samples are converted to f32; u32 channels
+    /// are listed in `integer_channels`). The header is checked first ([`check_header`]), so
+    /// that a corrupt or absurd one is an error before any pixel memory is allocated.
     pub fn read(path: &Path) -> Result<Self, StreamError> {
         if !path.exists() {
             return Err(StreamError::Io {
@@ -61,6 +79,7 @@ impl ExrChannels {
                 error: std::io::Error::new(std::io::ErrorKind::NotFound, "no such file"),
             });
         }
+        check_header(path)?;
         let image = read()
             .no_deep_data()
             .largest_resolution_level()
@@ -89,10 +108,18 @@ impl ExrChannels {
                     name = format!("{p}{name}");
                 }
             }
+            if matches!(ch.sample_data, FlatSamples::U32(_)) {
+                out.integer_channels.insert(name.clone());
+            }
             let plane: Vec<f32> = ch.sample_data.values_as_f32().collect();
             out.channels.insert(name, plane);
         }
-        out.attributes = custom_attributes(image.attributes.other.iter().chain(layer.attributes.other.iter()));
+        let attrs = || image.attributes.other.iter().chain(layer.attributes.other.iter());
+        out.attributes = custom_attributes(attrs());
+        out.other_attributes = attrs()
+            .filter(|(k, _)| !out.attributes.contains_key(&k.to_string()))
+            .map(|(k, v)| (k.to_string(), String::from_utf8_lossy(v.kind_name()).into_owned()))
+            .collect();
         Ok(out)
     }
 
@@ -107,6 +134,93 @@ impl ExrChannels {
         let attributes = custom_attributes(header.shared_attributes.other.iter().chain(header.own_attributes.other.iter()));
         Ok((header.layer_size.width(), header.layer_size.height(), attributes))
     }
+}
+
+/// Largest ratio of decoded pixel bytes to file bytes that `compression` can reach: deflate
+/// (ZIP, and the other codecs that end in it) cannot expand more than 1032:1, PXR24 stores 3
+/// of an f32's 4 bytes before deflating, RLE turns 2 bytes into at most 128, and DWA's DCT can
+/// describe an 8×8 block by its deflated DC value alone.
+fn max_expansion(compression: exr::compression::Compression) -> u128 {
+    use exr::compression::Compression::*;
+    match compression {
+        Uncompressed => 1,
+        RLE => 64,
+        PXR24 => 1400,
+        DWAA(_) | DWAB(_) | HTJ2K32 | HTJ2K256 => 1100 * 64,
+        _ => 1100,
+    }
+}
+
+/// Checks what the header of `path` promises before any pixel is read: one flat part, a pixel
+/// count that the file's bytes can hold, a data window that is the display window at the
+/// origin (cvtrace pairs pixels by index, so an offset or cropped image would be compared with
+/// the wrong pixels of another file), and memory this process can allocate for the read. A
+/// corrupt header claiming billions of pixels would otherwise have the `exr` crate allocate
+/// them all, which aborts the process instead of failing.
+pub fn check_header(path: &Path) -> Result<(), StreamError> {
+    let exr_error = |e: exr::error::Error| StreamError::Exr { path: path.to_path_buf(), message: e.to_string() };
+    let file_len = std::fs::metadata(path).map_err(|error| StreamError::Io { path: path.to_path_buf(), error })?.len();
+    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(exr_error)?;
+    if let Some(h) = meta.headers.iter().find(|h| h.deep) {
+        let name = h.own_attributes.layer_name.as_ref().map(|n| format!(" (part `{n}`)")).unwrap_or_default();
+        return Err(StreamError::invalid(path, format!("holds deep data{name}: cvtrace reads flat images with one value per pixel and channel")));
+    }
+    exr::meta::MetaData::validate(&meta.headers, false).map_err(exr_error)?;
+    let [header] = meta.headers.as_slice() else {
+        return Err(StreamError::invalid(path, format!("expected a single-part EXR, found {} parts", meta.headers.len())));
+    };
+    let (w, h) = (header.layer_size.width() as u128, header.layer_size.height() as u128);
+    let channels = header.channels.list.len() as u128;
+    let decoded: u128 = header.channels.list.iter().map(|c| w * h * c.sample_type.bytes_per_sample() as u128).sum();
+    const GIB: f64 = (1u64 << 30) as f64;
+    if decoded > file_len as u128 * max_expansion(header.compression) {
+        return Err(StreamError::invalid(
+            path,
+            format!(
+                "its header claims {w}x{h} pixels in {channels} channels ({:.2} GiB of samples), more than its {file_len} bytes can hold with {}: the file is truncated or its header is corrupt",
+                decoded as f64 / GIB,
+                header.compression
+            ),
+        ));
+    }
+    let data = header.data_window();
+    let display = header.shared_attributes.display_window;
+    let corners = |b: exr::meta::attribute::IntegerBounds| {
+        let max = b.max();
+        format!("({}, {})–({}, {})", b.position.x(), b.position.y(), max.x(), max.y())
+    };
+    if data != display {
+        return Err(StreamError::invalid(
+            path,
+            format!(
+                "its data window {} is not its display window {}: cvtrace reads whole images only (oiiotool {} --origin +0+0 --fullpixels -o whole.exr makes the data the whole image)",
+                corners(data),
+                corners(display),
+                path.display()
+            ),
+        ));
+    }
+    if data.position.x() != 0 || data.position.y() != 0 {
+        return Err(StreamError::invalid(
+            path,
+            format!(
+                "its image window {} does not start at (0, 0): pixels are paired with other files by position (oiiotool {} --origin +0+0 --fullpixels -o moved.exr moves it)",
+                corners(data),
+                path.display()
+            ),
+        ));
+    }
+    // Reading holds the decoded samples and their f32 copies at once. Ask for that much first,
+    // so that an image too large for this machine (or for `ulimit -v`) is an error, not an abort.
+    let needed = decoded + w * h * channels * 4;
+    let fits = usize::try_from(needed).ok().is_some_and(|n| Vec::<u8>::new().try_reserve_exact(n).is_ok());
+    if !fits {
+        return Err(StreamError::invalid(
+            path,
+            format!("reading its {w}x{h} pixels in {channels} channels needs {:.2} GiB of memory, which cannot be allocated here", needed as f64 / GIB),
+        ));
+    }
+    Ok(())
 }
 
 /// The integer, float and text attributes among `attrs` (other kinds are not used by cvtrace).

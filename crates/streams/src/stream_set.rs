@@ -198,6 +198,10 @@ impl StreamSet {
     pub fn read(path: &Path) -> Result<StreamSet, StreamError> {
         let mut ch = ExrChannels::read(path)?;
         let (w, h) = (ch.width, ch.height);
+        // An attribute of another EXR type (a `v2f` spp) must not read as an absent one.
+        if let Some((k, kind)) = ch.other_attributes.iter().find(|(k, _)| KNOWN_ATTRS.contains(&k.as_str())) {
+            return Err(StreamError::invalid(path, format!("attribute {k} has EXR type {kind}, not int or string (docs/stream-format.md)")));
+        }
         let batches = match ch.attr(ATTR_BATCHES) {
             Some(AttrValue::Int(b)) if *b > 0 => *b as usize,
             Some(other) => {
@@ -213,6 +217,14 @@ impl StreamSet {
         }
         if batches == 0 {
             return Err(StreamError::MissingChannel { path: path.to_path_buf(), channel: "pt.b00.R".into() });
+        }
+        // The header's count is only a claim: a corrupt one (2³¹ − 1) must not size allocations.
+        let found = count_batches(&ch);
+        if batches > found {
+            return Err(StreamError::invalid(
+                path,
+                format!("attribute {ATTR_BATCHES} = {batches}, but channel {}R is missing: the file holds {found} batches", batch_prefix("pt", found)),
+            ));
         }
         let mut streams = Vec::with_capacity(2);
         for name in ["pt", "crn"] {
@@ -266,13 +278,20 @@ impl StreamSet {
             Some(AttrValue::Int(i)) if *i == -1 || *i >= 1 => *i,
             Some(v) => return Err(bad(ATTR_MAX_DEPTH, v, "-1 or a positive integer")),
         };
+        // A count the reader cannot parse must not read as "no sample was replaced".
+        let non_finite_samples = match ch.attr(ATTR_NON_FINITE) {
+            None => 0,
+            Some(AttrValue::Int(i)) if *i >= 0 => *i as u64,
+            Some(v @ AttrValue::Text(t)) => t.parse().map_err(|_| bad(ATTR_NON_FINITE, v, "an unsigned 64-bit integer"))?,
+            Some(v) => return Err(bad(ATTR_NON_FINITE, v, "an unsigned 64-bit integer")),
+        };
         let meta = StreamMeta {
             spp,
             seed,
             max_depth,
             scene: text(ATTR_SCENE),
             version: text(ATTR_VERSION),
-            non_finite_samples: text(ATTR_NON_FINITE).parse().unwrap_or(0),
+            non_finite_samples,
             settings: ch
                 .attributes
                 .iter()
@@ -407,5 +426,42 @@ mod tests {
             ch.attributes.insert(ATTR_SEED.into(), AttrValue::Text("seven".into()));
         });
         assert!(e.contains("cvtrace.seed = seven"), "{e}");
+    }
+
+    #[test]
+    fn an_absurd_batch_count_in_the_header_is_an_error_not_an_allocation() {
+        // Found by fuzzing: `cvtrace.batches` = 2³¹ − 1 sized a Vec of 2³¹ images, and the
+        // process aborted ("memory allocation of 85899345880 bytes failed").
+        for b in [i32::MAX, 1_000_000_000, 5] {
+            let e = read_error_after(|ch| {
+                ch.attributes.insert(ATTR_BATCHES.into(), AttrValue::Int(b));
+                ch.attributes.remove(ATTR_SPP);
+            });
+            assert!(e.contains("edited.exr") && e.contains(&format!("cvtrace.batches = {b}")) && e.contains("pt.b04.R is missing"), "{e}");
+        }
+    }
+
+    #[test]
+    fn an_unreadable_count_of_replaced_samples_is_refused() {
+        // Found by fuzzing: "abc", "-1" or a count beyond u64 read as 0 replaced samples.
+        for bad in ["abc", "-1", "18446744073709551616", " 16", "4.5"] {
+            let e = read_error_after(|ch| {
+                ch.attributes.insert(ATTR_NON_FINITE.into(), AttrValue::Text(bad.into()));
+            });
+            assert!(e.contains("edited.exr") && e.contains(&format!("cvtrace.nonFiniteSamples = {bad} is not")), "{e}");
+        }
+        let e = read_error_after(|ch| {
+            ch.attributes.insert(ATTR_NON_FINITE.into(), AttrValue::Int(-3));
+        });
+        assert!(e.contains("cvtrace.nonFiniteSamples = -3"), "{e}");
+        // Written as an int by another renderer: read.
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("s.exr");
+        synthetic(4, 3, 4).write(&p, false).unwrap();
+        let mut ch = ExrChannels::read(&p).unwrap();
+        ch.attributes.insert(ATTR_NON_FINITE.into(), AttrValue::Int(12));
+        let q = dir.path().join("int.exr");
+        ch.write(&q, false).unwrap();
+        assert_eq!(StreamSet::read(&q).unwrap().meta.non_finite_samples, 12);
     }
 }

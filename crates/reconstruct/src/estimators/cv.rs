@@ -65,6 +65,7 @@ impl Estimator for Cv {
             features: (self.options.select == Selection::Gbuffer).then_some("with --select gbuffer"),
             reference: false,
             spp: false,
+            bounded_values: true,
         }
     }
 

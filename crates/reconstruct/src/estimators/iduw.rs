@@ -338,7 +338,7 @@ impl Estimator for Iduw {
     }
 
     fn needs(&self) -> Needs {
-        Needs { batches: BatchNeed::MultipleOf(4), features: None, reference: false, spp: true }
+        Needs { batches: BatchNeed::MultipleOf(4), features: None, reference: false, spp: true, bounded_values: false }
     }
 
     fn settings(&self) -> Vec<(&'static str, String)> {

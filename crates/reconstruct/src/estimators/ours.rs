@@ -129,6 +129,7 @@ impl Estimator for Ours {
             features: (self.options.select == Selection::Gbuffer).then_some("with --select gbuffer"),
             reference: self.options.errors == ErrorEstimate::Oracle,
             spp: false,
+            bounded_values: true,
         }
     }
 
