@@ -4,6 +4,9 @@ use cvtrace_render::{Scene, SceneError};
 use glam::Vec3;
 use std::path::Path;
 
+mod common;
+use common::quad_buffer;
+
 fn base64(data: &[u8]) -> String {
     const T: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
     let mut out = String::new();
@@ -18,20 +21,6 @@ fn base64(data: &[u8]) -> String {
         }
     }
     out
-}
-
-/// A unit quad in z = 0 (two triangles): 4 positions then 6 u16 indices, 60 bytes.
-fn quad_buffer() -> Vec<u8> {
-    let mut b = Vec::new();
-    for p in [[0f32, 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]] {
-        for c in p {
-            b.extend_from_slice(&c.to_le_bytes());
-        }
-    }
-    for i in [0u16, 1, 2, 0, 2, 3] {
-        b.extend_from_slice(&i.to_le_bytes());
-    }
-    b
 }
 
 /// The document: the quad instanced twice under a scaled parent, a camera node, one material.

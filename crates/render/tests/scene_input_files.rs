@@ -6,6 +6,9 @@ use cvtrace_render::Scene;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
+mod common;
+use common::quad_buffer;
+
 /// A unit quad (4 positions, 6 u16 indices: 60 bytes) with a camera; `buffer_uri` names its buffer.
 fn quad_gltf(buffer_uri: &str, extra: &str) -> String {
     format!(
@@ -24,19 +27,6 @@ fn quad_gltf(buffer_uri: &str, extra: &str) -> String {
   ]
 }}"#
     )
-}
-
-fn quad_bin() -> Vec<u8> {
-    let mut b = Vec::new();
-    for p in [[0f32, 0., 0.], [1., 0., 0.], [1., 1., 0.], [0., 1., 0.]] {
-        for c in p {
-            b.extend_from_slice(&c.to_le_bytes());
-        }
-    }
-    for i in [0u16, 1, 2, 0, 2, 3] {
-        b.extend_from_slice(&i.to_le_bytes());
-    }
-    b
 }
 
 /// Loads `path` on another thread and fails the test (instead of hanging it) after 20 s.
@@ -61,7 +51,7 @@ fn a_buffer_file_is_read_only_up_to_its_byte_length() {
     let dir = tempfile::tempdir().unwrap();
     let f = std::fs::File::create(dir.path().join("quad.bin")).unwrap();
     use std::io::Write;
-    (&f).write_all(&quad_bin()).unwrap();
+    (&f).write_all(&quad_buffer()).unwrap();
     if f.set_len(1 << 40).is_err() {
         eprintln!("skipped: this file system has no 1 TiB sparse files");
         return;
@@ -83,13 +73,13 @@ fn a_uri_that_does_not_decode_to_utf8_is_an_error() {
     // `%FF` decodes to a byte that is not UTF-8: the gltf importer unwrapped the decoding and
     // panicked when a file with the lossily decoded name (U+FFFD) existed.
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("quad\u{FFFD}.bin"), quad_bin()).unwrap();
+    std::fs::write(dir.path().join("quad\u{FFFD}.bin"), quad_buffer()).unwrap();
     let p = dir.path().join("utf.gltf");
     std::fs::write(&p, quad_gltf("quad%FF.bin", "")).unwrap();
     let e = load_within_20s(&p).unwrap_err();
     assert!(e.contains("utf.gltf") && e.contains("buffer 0") && e.contains("does not percent-decode to UTF-8"), "{e}");
     // The same for an image.
-    std::fs::write(dir.path().join("quad.bin"), quad_bin()).unwrap();
+    std::fs::write(dir.path().join("quad.bin"), quad_buffer()).unwrap();
     std::fs::write(dir.path().join("t\u{FFFD}.png"), b"not read").unwrap();
     let images = r#""images": [{"uri": "t%FF.png"}],"#;
     std::fs::write(&p, quad_gltf("quad.bin", images)).unwrap();
@@ -102,7 +92,7 @@ fn a_sidecar_that_is_not_a_regular_file_is_an_error() {
     // A FIFO sidecar blocked the load forever; one linked to /dev/zero was read until memory
     // ran out (2 GiB before the TOML parser gave up).
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("quad.bin"), quad_bin()).unwrap();
+    std::fs::write(dir.path().join("quad.bin"), quad_buffer()).unwrap();
     let p = dir.path().join("scene.gltf");
     std::fs::write(&p, quad_gltf("quad.bin", "")).unwrap();
     let sidecar = dir.path().join("scene.cvtrace.toml");
@@ -138,7 +128,7 @@ fn a_sidecar_that_is_not_a_regular_file_is_an_error() {
 fn an_undecodable_image_is_named() {
     // The error used to say only "cannot decode an image".
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("quad.bin"), quad_bin()).unwrap();
+    std::fs::write(dir.path().join("quad.bin"), quad_buffer()).unwrap();
     std::fs::write(dir.path().join("wood.png"), b"\x89PNG\r\n\x1a\n truncated").unwrap();
     let p = dir.path().join("img.gltf");
     std::fs::write(&p, quad_gltf("quad.bin", r#""images": [{"uri": "wood.png"}],"#)).unwrap();
