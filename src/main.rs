@@ -32,10 +32,28 @@ enum Command {
 
 const MAX_THREADS: usize = 1024;
 
+/// Address space that `threads` worker threads take: each one's stack (Rust's default of 2 MiB,
+/// or RUST_MIN_STACK) with its guard page and signal stack, glibc's malloc arenas (64 MiB each,
+/// up to 8 per core), and 128 MiB for the rest of the process.
+fn threads_bytes(threads: u64) -> u64 {
+    let stack = std::env::var("RUST_MIN_STACK").ok().and_then(|s| s.parse::<u64>().ok()).unwrap_or(2 << 20);
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get()) as u64;
+    threads * (stack + (64 << 10)) + threads.min(8 * cores) * (64 << 20) + (128 << 20)
+}
+
 fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
-    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(&cli.log));
+    let filter = match tracing_subscriber::EnvFilter::try_from_default_env() {
+        Ok(f) => f,
+        // A directive that does not parse would be dropped with a note, and the run go on silent.
+        Err(_) => match tracing_subscriber::EnvFilter::try_new(&cli.log) {
+            Ok(f) => f,
+            Err(e) => {
+                eprintln!("error: --log {:?}: {e} (expected a level such as warn or info, or directives such as cvtrace=debug)", cli.log);
+                return std::process::ExitCode::from(2);
+            }
+        },
+    };
     tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).with_target(false).init();
     if let Some(n) = cli.threads {
         // Far more threads than cores only costs memory (and at 10⁵ the pool never starts).
@@ -43,7 +61,23 @@ fn main() -> std::process::ExitCode {
             eprintln!("error: --threads {n}: must be between 1 and {MAX_THREADS}");
             return std::process::ExitCode::from(2);
         }
-        rayon::ThreadPoolBuilder::new().num_threads(n).build_global().expect("thread pool is built once");
+        // `render` and `study` start as many render threads again (cli::render). A thread that
+        // gets its stack but not its signal stack aborts the process: so all the stacks must
+        // fit in the address space (`ulimit -v`) before any thread starts.
+        let threads = if matches!(cli.command, Command::Render(_) | Command::Study(_)) { 2 * n } else { n };
+        let bytes = threads_bytes(threads as u64);
+        if !usize::try_from(bytes).is_ok_and(|b| Vec::<u8>::new().try_reserve_exact(b).is_ok()) {
+            eprintln!(
+                "error: --threads {n}: cannot start {threads} worker threads: with their stacks the process needs about {:.1} GiB of address space, which cannot be reserved here (`ulimit -v`)",
+                bytes as f64 / (1u64 << 30) as f64
+            );
+            return std::process::ExitCode::from(2);
+        }
+        // Under a process limit they may still not all start.
+        if let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(n).build_global() {
+            eprintln!("error: --threads {n}: cannot start {n} worker threads: {e}");
+            return std::process::ExitCode::from(2);
+        }
     }
     // Ctrl-C, SIGTERM, SIGHUP: remove the temporary files of the outputs being written, so an
     // interrupted run leaves no half files (finished outputs and checkpoints stay).

@@ -26,8 +26,9 @@ pub struct CompareArgs {
 
 pub fn run(args: CompareArgs) -> Result<()> {
     if let (Some(c), Some(j)) = (&args.csv, &args.json) {
-        if c == j {
-            bail!("{}: given as both --csv and --json", c.display());
+        // Any two spellings of one file: the JSON would replace the CSV.
+        if crate::cli::same_output(c, j) {
+            bail!("{} and {}: --csv and --json name the same file", c.display(), j.display());
         }
     }
     let inputs: Vec<&std::path::Path> = std::iter::once(args.reference.as_path()).chain(args.images.iter().map(PathBuf::as_path)).collect();
@@ -43,6 +44,9 @@ pub fn run(args: CompareArgs) -> Result<()> {
     }
     if images.is_empty() {
         bail!("no EXR images to compare among the {} paths given", args.images.len());
+    }
+    for p in std::iter::once(&args.reference).chain(&images) {
+        crate::cli::check_input_file(p)?;
     }
     // `compare --reference ref.exr out/*.exr` with the reference inside `out/`: it is no estimate.
     let (references, images): (Vec<PathBuf>, Vec<PathBuf>) = images.into_iter().partition(|p| crate::cli::same_file(p, &args.reference));

@@ -7,7 +7,7 @@ pub mod study;
 pub mod throughput;
 
 use anyhow::{bail, Result};
-use std::path::Path;
+use std::path::{Component, Path, PathBuf};
 
 /// True if both paths exist and are the same file: the same device and inode, so links, hard
 /// links and `./` spellings all count; a path that does not exist yet is no other file.
@@ -25,4 +25,54 @@ pub fn refuse_overwriting_inputs(output: &Path, inputs: &[&Path]) -> Result<()> 
         }
     }
     Ok(())
+}
+
+/// `path` made absolute, `.` and `..` taken out, and the links of the part that exists resolved:
+/// two spellings of one output (`t.csv`, `./t.csv`, `sub/../t.csv`, a linked folder) give the
+/// same path even before the file exists.
+pub fn resolved(path: &Path) -> PathBuf {
+    let absolute = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let mut lexical = PathBuf::new();
+    for c in absolute.components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir => {
+                lexical.pop();
+            }
+            c => lexical.push(c),
+        }
+    }
+    // The deepest existing ancestor with its links resolved, then the rest as written.
+    let mut rest = Vec::new();
+    let mut base = lexical.as_path();
+    loop {
+        if let Ok(real) = base.canonicalize() {
+            return rest.iter().rev().fold(real, |p, name| p.join(name));
+        }
+        match (base.parent(), base.file_name()) {
+            (Some(parent), Some(name)) => {
+                rest.push(name.to_os_string());
+                base = parent;
+            }
+            _ => return lexical,
+        }
+    }
+}
+
+/// True if `a` and `b` name the same output: the same file, or the same [`resolved`] path.
+pub fn same_output(a: &Path, b: &Path) -> bool {
+    same_file(a, b) || resolved(a) == resolved(b)
+}
+
+/// Fails unless `path` is a regular file (links followed): a directory or a missing file gets a
+/// clear error, and a FIFO or device is not opened (reading a FIFO waits for a writer forever,
+/// `/dev/zero` never ends).
+pub fn check_input_file(path: &Path) -> Result<()> {
+    match std::fs::metadata(path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => bail!("{}: no such file", path.display()),
+        Err(e) => bail!("{}: cannot read: {e}", path.display()),
+        Ok(m) if m.is_dir() => bail!("{}: is a directory, expected a file", path.display()),
+        Ok(m) if !m.is_file() => bail!("{}: is not a regular file (a device, FIFO or socket)", path.display()),
+        Ok(_) => Ok(()),
+    }
 }

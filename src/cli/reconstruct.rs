@@ -215,6 +215,12 @@ fn targets(args: &ReconstructArgs) -> Result<Vec<Target>> {
 pub fn run(args: ReconstructArgs) -> Result<()> {
     check_exposure(args.exposure)?;
     let options = args.options.to_options();
+    // Every option given is checked, also those of methods not run: `--method pt --k 0` is as
+    // much a mistake as `--method ours --k 0`. `ours` first: it names `--k` as given (`cv`
+    // counts the neighbours, k − 1).
+    for m in [Method::Ours, Method::Cv, Method::Iduw] {
+        build(m, &options)?;
+    }
     // Build every estimator first: absurd options fail before any file is read.
     let estimators: Vec<(Target, Box<dyn Estimator>)> = targets(&args)?
         .into_iter()
@@ -227,6 +233,9 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
         atomic::check_writable(&args.output, false)?;
     }
     let inputs: Vec<&Path> = std::iter::once(args.input.as_path()).chain(args.reference.as_deref()).collect();
+    for p in &inputs {
+        crate::cli::check_input_file(p)?;
+    }
     for (t, _) in &estimators {
         for out in std::iter::once(&t.exr).chain(&t.png) {
             crate::cli::refuse_overwriting_inputs(out, &inputs)?;

@@ -54,7 +54,7 @@ pub struct RenderArgs {
     #[arg(long)]
     pub reference: bool,
     /// With --reference: samples per pixel per pass; a checkpoint is saved after every pass.
-    #[arg(long, default_value_t = 64)]
+    #[arg(long, default_value_t = 64, requires = "reference")]
     pub pass_spp: u32,
     /// Replace an existing output file.
     #[arg(long)]
@@ -65,7 +65,7 @@ pub struct RenderArgs {
     #[arg(long, requires = "reference")]
     pub extend: bool,
     /// Testing aid: with --reference, stop (keeping the checkpoint) after this many passes.
-    #[arg(long, hide = true)]
+    #[arg(long, hide = true, requires = "reference")]
     pub stop_after_passes: Option<u32>,
 }
 
@@ -181,6 +181,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
     if args.reference && args.pass_spp == 0 {
         bail!("--pass-spp must be at least 1");
     }
+    if args.stop_after_passes == Some(0) {
+        bail!("--stop-after-passes 0: must be at least 1 (a reference stops after its last pass anyway)");
+    }
     // The flags alone (scene defaults filled in after loading); a flag given is checked now.
     let flag_size = (args.view.width.unwrap_or(DEFAULT_WIDTH), args.view.height.unwrap_or(DEFAULT_WIDTH));
     let mut provisional = resolve_settings(&args, batches, &RenderDefaults::default(), flag_size);
@@ -221,7 +224,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         .thread_name(|i| format!("cvtrace-render-{i}"))
         .start_handler(|_| set_flush_denormals())
         .build()
-        .context("starting the render threads")?;
+        .map_err(|e| anyhow::anyhow!("cannot start {} render threads (ask for fewer with --threads): {e}", rayon::current_num_threads()))?;
 
     if args.reference {
         render_reference(&args, &scene, &tracer, &settings, &checkpoint, &pool)
@@ -251,7 +254,35 @@ fn prepare(args: &RenderArgs, batches: u32, camera_override: Option<CameraView>)
     let size = image_size(&args.view, scene.render_defaults(), scene.camera());
     let settings = resolve_settings(args, batches, scene.render_defaults(), size);
     settings.validate().with_context(|| format!("{}: settings from the command line and the scene", args.scene.display()))?;
+    check_memory(args, &settings)?;
     Ok((scene, settings))
+}
+
+/// Fails if the render's images cannot be held in memory here (physical memory, or the address
+/// space `ulimit -v` leaves): a 16384×16384 stream file takes more than 100 GiB, and running out
+/// half-way aborts the process after all the rendering.
+fn check_memory(args: &RenderArgs, s: &RenderSettings) -> Result<()> {
+    let (needed, what) = if args.reference {
+        (s.reference_memory_estimate(args.extend || s.spp > args.pass_spp), String::new())
+    } else {
+        (s.stream_memory_estimate(), format!(" --batches {}", s.batches))
+    };
+    if !can_allocate(needed) {
+        bail!(
+            "--width {} --height {}{what}: the render needs about {:.1} GiB of memory, which cannot be allocated here \
+             (physical memory, or the `ulimit -v` limit); render a smaller image{}",
+            s.width,
+            s.height,
+            needed as f64 / (1u64 << 30) as f64,
+            if args.reference { "" } else { " or with fewer --batches" }
+        );
+    }
+    Ok(())
+}
+
+/// Whether `bytes` can be reserved now (the reservation is given back at once; nothing is touched).
+fn can_allocate(bytes: u64) -> bool {
+    usize::try_from(bytes).is_ok_and(|n| Vec::<u8>::new().try_reserve_exact(n).is_ok())
 }
 
 /// What a render with `args` would record about itself (scene hash, camera, size, depths, seed,

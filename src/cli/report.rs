@@ -26,6 +26,34 @@ pub struct ReportArgs {
     pub force: bool,
 }
 
+/// What a report writes into its folder (crates/eval/src/report.rs): these files, and the
+/// folders of its images and plots.
+const REPORT_FILES: &[&str] = &["index.html", "viewer.css", "viewer.js", "data.js", "colorbar.png", "results.json", "results.csv", ".cvtrace-report"];
+const REPORT_FOLDERS: &[&str] = &["images", "plots"];
+
+/// Refuses a `--markdown` path that the report itself writes (`-o rep --markdown
+/// rep/index.html` would replace the page), or that is a file of one of the studies.
+fn check_markdown_path(md: &Path, output: &Path, studies: &[PathBuf]) -> Result<()> {
+    let md_abs = crate::cli::resolved(md);
+    if let Ok(inside) = md_abs.strip_prefix(crate::cli::resolved(output)) {
+        let first = inside.components().next().map(|c| c.as_os_str().to_string_lossy().into_owned()).unwrap_or_default();
+        let own = inside.as_os_str().is_empty()
+            || (inside.components().count() == 1 && REPORT_FILES.contains(&first.as_str()))
+            || REPORT_FOLDERS.contains(&first.as_str());
+        if own {
+            bail!("--markdown {}: the report writes this path itself (in {}); write the summary elsewhere", md.display(), output.display());
+        }
+        // Its other files are the user's, also where the report folder sits in a study's.
+        return Ok(());
+    }
+    for d in studies {
+        if md.exists() && md_abs.starts_with(crate::cli::resolved(d)) {
+            bail!("--markdown {}: is a file of the study {}; write the summary elsewhere", md.display(), d.display());
+        }
+    }
+    Ok(())
+}
+
 /// The folders holding results.json among `paths` and their immediate sub-folders.
 fn find_studies(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
     let mut found = Vec::new();
@@ -48,6 +76,12 @@ fn find_studies(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
         }
         subs.sort();
         found.extend(subs);
+    }
+    // One folder named twice (`study study/`, or a folder and its parent) would be one scene twice.
+    for (i, d) in found.iter().enumerate() {
+        if let Some(other) = found[..i].iter().find(|o| crate::cli::same_output(o, d)) {
+            bail!("{} and {}: the same study folder is given twice", other.display(), d.display());
+        }
     }
     Ok(found)
 }
@@ -97,6 +131,7 @@ pub fn run(args: ReportArgs) -> Result<()> {
     crate::cli::refuse_overwriting_inputs(&args.output, &inputs)?;
     if let Some(md) = &args.markdown {
         crate::cli::refuse_overwriting_inputs(md, &inputs)?;
+        check_markdown_path(md, &args.output, &dirs)?;
         cvtrace_streams::atomic::check_writable(md, args.force)?;
     }
     let index = write_report(&results, &root, &args.output, &ReportOptions { title: args.title.clone(), overwrite: args.force })?;

@@ -13,6 +13,7 @@ use cvtrace_eval::falsecolor::{scale_for_maps, write_false_color_png};
 use cvtrace_eval::reference_noise::{from_variance_image, too_noisy_warning};
 use cvtrace_eval::results::{keys, ConvergencePoint, MethodResult, ReferenceInfo, SceneResult, StageTimes, StudyResults};
 use cvtrace_eval::{table, Reference, SeedAccumulator};
+use cvtrace_render::render::MAX_SPP;
 use cvtrace_render::Sidecar;
 use cvtrace_reconstruct::{build, ErrorEstimate, Estimator, Input, Method, Options, Penalty, Selection};
 use cvtrace_streams::exr_io::{read_rgb, take_rgb, AttrValue, ExrChannels};
@@ -161,8 +162,30 @@ pub fn run(args: StudyArgs) -> Result<()> {
     if let Some(bad) = spps.iter().find(|&&n| n % args.batches != 0) {
         bail!("--batches {} does not divide --spp {bad}; every spp value must be a multiple of the batch count", args.batches);
     }
+    // Each spp value n also takes a PT render of 2n spp.
+    if let Some(&n) = spps.iter().find(|&&n| n > MAX_SPP / 2) {
+        bail!("--spp {n}: the study's PT(2n) render would take {} spp, more than {MAX_SPP}", 2 * n as u64);
+    }
+    // Seeds seed .. seed + seeds − 1 for the streams, the same plus 2^32 for the PT(2n) renders.
+    if args.seed.checked_add(args.seeds as u64 - 1).and_then(|s| s.checked_add(PT2N_SEED_OFFSET)).is_none() {
+        bail!(
+            "--seed {} --seeds {}: the PT(2n) renders use seeds up to seed + seeds − 1 + 2^32, which does not fit in 64 bits; give a smaller --seed",
+            args.seed,
+            args.seeds
+        );
+    }
     if !args.scene.is_file() {
         bail!("{}: scene file not found", args.scene.display());
+    }
+    // The results need a scene name: known now, not after the last render.
+    if study_name(&args).trim().is_empty() {
+        match &args.name {
+            Some(name) => bail!("--name {name:?}: the scene's name in tables and the viewer must not be empty"),
+            None => bail!("{}: no scene name can be made from this file name; give one with --name", args.scene.display()),
+        }
+    }
+    if crate::cli::same_output(&args.reference, &args.output) {
+        bail!("{}: given as both --reference and -o; the reference is a file, the study a folder", args.output.display());
     }
     // Loading the scene once tells what every render of this study records about itself (so a
     // finished one is only reused if it matches), and a scene that does not load fails here,
@@ -173,29 +196,50 @@ pub fn run(args: StudyArgs) -> Result<()> {
     check_needs_before_rendering(&list, &spps, args.batches)?;
     // A given reference of another scene, view or path length is the ground truth of another
     // image. Seed, spp and rr depth may differ (the expectation does not), and so may the
-    // traversal. Checked before the study folder is made; one the study renders always matches.
-    if args.reference.exists() {
+    // traversal. A given reference is read and checked, and a missing one's settings, before
+    // the study folder is made; one the study renders always matches.
+    let existing = if args.reference.exists() {
+        crate::cli::check_input_file(&args.reference)?;
         let mismatch = render_cli::reference_mismatches(&args.reference, &planned)?;
         if !mismatch.is_empty() {
             bail!("{}: not a reference of this study's image ({})", args.reference.display(), mismatch.join(", "));
         }
+        Some(read_reference(&args)?)
+    } else {
+        None
+    };
+    let reference_spp = match (&existing, args.reference_spp) {
+        (Some(_), _) => 0,
+        (None, Some(n)) => {
+            if n == 0 || n > MAX_SPP {
+                bail!("--reference-spp {n}: must be between 1 and {MAX_SPP}");
+            }
+            n
+        }
+        (None, None) => Sidecar::discover(&args.scene)?.and_then(|s| s.render.reference_spp).unwrap_or(DEFAULT_REFERENCE_SPP),
+    };
+    if existing.is_none() {
+        cvtrace_streams::atomic::check_extension(&args.reference, "exr")?;
     }
     if args.output.exists() && !args.output.is_dir() {
         bail!("{}: is a file; the study needs a folder (-o)", args.output.display());
     }
+    // The folders this run makes: if it fails before anything is written in them, they go again.
+    let made: Vec<PathBuf> = args.output.ancestors().take_while(|p| !p.as_os_str().is_empty() && !p.exists()).map(Path::to_path_buf).collect();
     std::fs::create_dir_all(&args.output).with_context(|| format!("{}: cannot create the study folder", args.output.display()))?;
-    // Two studies in one folder would render the same files twice and race over them.
-    let _claim = cvtrace_streams::output_lock::OutputLock::acquire(&args.output.join(".cvtrace-study.lock"), &args.output)?;
-
-    // The reference: reuse the file, or render it (resumable through render's checkpoint).
-    if !args.reference.exists() {
-        let reference_spp = match args.reference_spp {
-            Some(n) => n,
-            None => Sidecar::discover(&args.scene)?.and_then(|s| s.render.reference_spp).unwrap_or(DEFAULT_REFERENCE_SPP),
-        };
-        tracing::info!("{} does not exist: rendering a {reference_spp} spp reference first", args.reference.display());
-        render_cli::run(render_args(&args, reference_spp, None, REFERENCE_SEED, &args.reference, true))?;
+    let result = study_in_folder(&args, &planned, &list, &spps, existing, reference_spp);
+    if result.is_err() {
+        // Only empty ones: a finished render or checkpoint stays for the next run.
+        for dir in spps.iter().map(|&n| spp_dir(&args.output, n)).chain(made) {
+            let _ = std::fs::remove_dir(dir);
+        }
     }
+    result
+}
+
+/// The reference at `--reference`: its image, its sample count, and a check that its seed is
+/// none of the study's.
+fn read_reference(args: &StudyArgs) -> Result<(Reference, Option<u32>)> {
     let mut ref_file = ExrChannels::read(&args.reference)?;
     let reference = Reference::new(take_rgb(&mut ref_file, &args.reference, "")?, args.reference.display().to_string())?;
     let reference_spp = match ref_file.attr("cvtrace.spp") {
@@ -211,12 +255,37 @@ pub fn run(args: StudyArgs) -> Result<()> {
             );
         }
     }
+    Ok((reference, reference_spp))
+}
+
+/// The study in its folder, which exists: the reference (`existing`, or rendered with
+/// `reference_spp`), then every spp value and seed, then the tables and images.
+fn study_in_folder(
+    args: &StudyArgs,
+    planned: &RenderIdentity,
+    list: &[Entry],
+    spps: &[u32],
+    existing: Option<(Reference, Option<u32>)>,
+    reference_spp: u32,
+) -> Result<()> {
+    // Two studies in one folder would render the same files twice and race over them.
+    let _claim = cvtrace_streams::output_lock::OutputLock::acquire(&args.output.join(".cvtrace-study.lock"), &args.output)?;
+
+    // The reference: reuse the file, or render it (resumable through render's checkpoint).
+    let (reference, reference_spp) = match existing {
+        Some(r) => r,
+        None => {
+            tracing::info!("{} does not exist: rendering a {reference_spp} spp reference first", args.reference.display());
+            render_cli::run(render_args(args, reference_spp, None, REFERENCE_SEED, &args.reference, true))?;
+            read_reference(args)?
+        }
+    };
 
     let mut convergence = Vec::new();
     let mut main = None;
     for (si, &n) in spps.iter().enumerate() {
         let last = si + 1 == spps.len();
-        let r = run_spp(&args, &planned, &list, &reference, n, last)?;
+        let r = run_spp(args, planned, list, &reference, n, last)?;
         for (e, acc) in list.iter().zip(&r.accs) {
             if e.ablation {
                 continue;
@@ -259,7 +328,7 @@ pub fn run(args: StudyArgs) -> Result<()> {
         }
         _ => None,
     };
-    let name = args.name.clone().unwrap_or_else(|| scene_name(&args.scene));
+    let name = study_name(args);
     let mut scene = SceneResult {
         name,
         width: reference.width(),
@@ -290,6 +359,11 @@ pub fn run(args: StudyArgs) -> Result<()> {
     Ok(())
 }
 
+/// The folder of the renders with `n` spp per stream.
+fn spp_dir(study: &Path, n: u32) -> PathBuf {
+    study.join(format!("spp{n:05}"))
+}
+
 /// PT and CRN alone use `n` samples; everything else uses `2n`.
 fn spp_total(key: &str, n: u32) -> u32 {
     if key == keys::PT || key == keys::CRN {
@@ -315,7 +389,7 @@ fn run_spp<'r>(
     n: u32,
     keep_images: bool,
 ) -> Result<SppRun<'r>> {
-    let dir = args.output.join(format!("spp{n:05}"));
+    let dir = spp_dir(&args.output, n);
     std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
     let mut accs: Vec<SeedAccumulator> = list.iter().map(|e| SeedAccumulator::new(reference, e.key.clone())).collect();
     let mut times = vec![StageTimes::default(); list.len()];
@@ -423,6 +497,11 @@ fn accumulate_variance(acc: &mut Option<Image>, set: &StreamSet, seeds: u32) {
             out[c] += (ss * norm) as f32;
         }
     }
+}
+
+/// The scene's name in the results: `--name`, else from the scene's file.
+fn study_name(args: &StudyArgs) -> String {
+    args.name.clone().unwrap_or_else(|| scene_name(&args.scene))
 }
 
 fn scene_name(scene: &Path) -> String {

@@ -42,6 +42,12 @@ impl Camera {
         if !(self.vfov_deg > 0.0 && self.vfov_deg < 180.0) {
             return Err(format!("vertical field of view {} degrees is outside (0, 180)", self.vfov_deg));
         }
+        // Narrower, and a ray's offset from the viewing direction vanishes next to it in f32:
+        // every pixel would see the same point.
+        if (self.vfov_deg.to_radians() * 0.5).tan() <= f32::EPSILON {
+            let min = (2.0 * f32::EPSILON.atan()).to_degrees();
+            return Err(format!("vertical field of view {} degrees is too narrow: below {min:.2e} degrees every camera ray points the same way", self.vfov_deg));
+        }
         Ok(())
     }
 
@@ -109,5 +115,11 @@ mod tests {
         assert!(Camera { target: Camera::default().eye, ..Default::default() }.validate().is_err());
         assert!(Camera { up: Vec3::Z, ..Default::default() }.validate().is_err());
         assert!(Camera { vfov_deg: 0.0, ..Default::default() }.validate().is_err());
+        // So narrow that every ray is the viewing direction in f32 (1e-30 degrees, a denormal).
+        for vfov in [1e-30, 1e-45, 1e-5] {
+            let e = Camera { vfov_deg: vfov, ..Default::default() }.validate().unwrap_err();
+            assert!(e.contains("too narrow"), "{e}");
+        }
+        assert!(Camera { vfov_deg: 1e-4, ..Default::default() }.validate().is_ok());
     }
 }

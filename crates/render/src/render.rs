@@ -18,6 +18,14 @@ use std::ops::Range;
 
 /// Largest accepted image side.
 pub const MAX_IMAGE_SIDE: u32 = 16384;
+/// Most samples per pixel (per stream, or of a reference): the count is recorded as an EXR
+/// `int` (`cvtrace.spp`, a checkpoint's `cvtrace.samplesDone`), so larger ones would wrap.
+pub const MAX_SPP: u32 = i32::MAX as u32;
+/// Most batches per stream: the stream file numbers them with two digits (`pt.b00.` …
+/// `pt.b99.`, docs/stream-format.md). The estimators that use batches take at most 64.
+pub const MAX_BATCHES: u32 = 100;
+/// Largest Russian-roulette depth: a reference records it as an EXR `int` (`cvtrace.rrDepth`).
+pub const MAX_RR_DEPTH: u32 = i32::MAX as u32;
 
 /// What to render. `spp` is per stream; `max_depth` follows Mitsuba (−1 unlimited, see
 /// [`crate::integrator`]); Russian roulette starts at depth `rr_depth`.
@@ -57,8 +65,14 @@ impl RenderSettings {
         if self.spp == 0 {
             return bad("spp must be at least 1".into());
         }
+        if self.spp > MAX_SPP {
+            return bad(format!("spp {} is more than {MAX_SPP}, the largest sample count a file records", self.spp));
+        }
         if self.batches == 0 {
             return bad("batches must be at least 1".into());
+        }
+        if self.batches > MAX_BATCHES {
+            return bad(format!("batches {} is more than {MAX_BATCHES}, the most a stream file numbers (two digits)", self.batches));
         }
         if !self.spp.is_multiple_of(self.batches) {
             return bad(format!("spp ({}) must be a multiple of batches ({})", self.spp, self.batches));
@@ -75,7 +89,24 @@ impl RenderSettings {
         if self.max_depth < -1 || self.max_depth == 0 {
             return bad(format!("max_depth {} must be -1 (unlimited) or at least 1", self.max_depth));
         }
+        if self.rr_depth > MAX_RR_DEPTH {
+            return bad(format!("rr_depth {} is more than {MAX_RR_DEPTH}, the largest a file records", self.rr_depth));
+        }
         Ok(())
+    }
+
+    /// About the peak memory in bytes of a stream render of these settings: per pixel and RGB
+    /// image (2 × (batches + 1) of them plus the features), the tiles' results, the assembled
+    /// images and the EXR planes written from them; measured at 45–52 bytes.
+    pub fn stream_memory_estimate(&self) -> u64 {
+        self.width as u64 * self.height as u64 * (2 * (self.batches as u64 + 1) + 2) * 54
+    }
+
+    /// About the peak memory in bytes of a reference render: per pixel the f64 sums, the mean
+    /// and the written planes (measured at 63 bytes), and with `checkpoints` (more than one pass)
+    /// the checkpoint's 15 planes as well (161 bytes).
+    pub fn reference_memory_estimate(&self, checkpoints: bool) -> u64 {
+        self.width as u64 * self.height as u64 * if checkpoints { 170 } else { 70 }
     }
 
     fn limits(&self) -> PathLimits {
