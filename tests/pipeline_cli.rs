@@ -34,6 +34,17 @@ fn reconstruct_all_then_compare_ranks_against_the_reference() {
     let table = stdout(&out);
     assert!(table.lines().filter(|l| l.starts_with("ours") || l.starts_with("iduw")).count() == 2, "{table}");
 
+    // Samples the renderer replaced are counted into every output, and a count above zero is
+    // warned about.
+    assert_eq!(ExrChannels::read(&d.join("out/ours.exr")).unwrap().attr("cvtrace.nonFiniteSamples"), Some(&AttrValue::Text("0".into())));
+    let mut replaced = ExrChannels::read(&d.join("s.streams.exr")).unwrap();
+    replaced.attributes.insert("cvtrace.nonFiniteSamples".into(), AttrValue::Text("7".into()));
+    replaced.write(&d.join("nf.streams.exr"), false).unwrap();
+    let nf = cvtrace(d, &["reconstruct", "nf.streams.exr", "--method", "ours", "-o", "nf.exr"]);
+    ok(&nf);
+    assert!(stderr(&nf).contains("nf.streams.exr") && stderr(&nf).contains("replaced 7 NaN or infinite samples"), "{}", stderr(&nf));
+    assert_eq!(ExrChannels::read(&d.join("nf.exr")).unwrap().attr("cvtrace.nonFiniteSamples"), Some(&AttrValue::Text("7".into())));
+
     // `pt` is the PT stream mean, bit for bit.
     let pt = read_rgb(&d.join("out/pt.exr")).unwrap();
     let set = cvtrace_streams::StreamSet::read(&d.join("s.streams.exr")).unwrap();

@@ -253,6 +253,13 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
     }
     let started = std::time::Instant::now();
     let set = read_input(&args.input)?;
+    if set.meta.non_finite_samples > 0 {
+        tracing::warn!(
+            "{}: the renderer replaced {} NaN or infinite samples by zero; every estimate from this file is biased by them",
+            args.input.display(),
+            set.meta.non_finite_samples
+        );
+    }
     let reference = args.reference.as_deref().map(read_rgb).transpose()?;
     tracing::info!(
         "read {} ({}x{}, {} spp per stream, {} batches) in {:.2} s",
@@ -303,7 +310,7 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
     }
     let mut rows = Vec::new();
     for ((target, estimator), out) in estimators.iter().zip(outputs) {
-        written.write(&target.exr, || write_output(&target.exr, &args, estimator.as_ref(), &out))?;
+        written.write(&target.exr, || write_output(&target.exr, &args, estimator.as_ref(), &out, set.meta.non_finite_samples))?;
         if let Some(png) = &target.png {
             written.write(png, || write_png(png, &out.image, args.exposure, args.force))?;
         }
@@ -323,10 +330,12 @@ pub fn check_exposure(stops: f32) -> Result<()> {
     Ok(())
 }
 
-fn write_output(path: &Path, args: &ReconstructArgs, estimator: &dyn Estimator, out: &Output) -> Result<()> {
+/// `non_finite_samples`: the input's count of replaced samples, carried into the output.
+fn write_output(path: &Path, args: &ReconstructArgs, estimator: &dyn Estimator, out: &Output, non_finite_samples: u64) -> Result<()> {
     let mut attrs: Vec<(String, AttrValue)> = vec![
         ("cvtrace.method".into(), AttrValue::Text(estimator.name().into())),
         ("cvtrace.source".into(), AttrValue::Text(args.input.display().to_string())),
+        ("cvtrace.nonFiniteSamples".into(), AttrValue::Text(non_finite_samples.to_string())),
         ("cvtrace.version".into(), AttrValue::Text(env!("CARGO_PKG_VERSION").into())),
         ("cvtrace.seconds".into(), AttrValue::Float(out.diagnostics.seconds as f32)),
     ];

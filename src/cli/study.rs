@@ -403,6 +403,9 @@ fn run_spp<'r>(
         let t_streams = ensure_rendered(render_args(args, n, Some(args.batches), seed, &streams_path, false), planned)?;
         let t_pt2n = ensure_rendered(render_args(args, 2 * n, None, seed + PT2N_SEED_OFFSET, &pt2n_path, true), planned)?;
         let set = read_input(&streams_path)?;
+        if set.meta.non_finite_samples > 0 {
+            tracing::warn!("{}: {} NaN or infinite samples were replaced by zero", streams_path.display(), set.meta.non_finite_samples);
+        }
         if !set.pt.mean.same_size(&reference.image) {
             bail!(
                 "{}: reference is {}x{} but the renders are {}x{}; render the reference at the study's size",
