@@ -1,5 +1,6 @@
 //! `cvtrace report`: the static HTML comparison viewer from one or more study folders.
 use anyhow::{bail, Context, Result};
+use cvtrace_eval::report::{REPORT_FILES, REPORT_FOLDERS};
 use cvtrace_eval::{write_report, ReportOptions, StudyResults};
 use std::path::{Path, PathBuf};
 
@@ -25,11 +26,6 @@ pub struct ReportArgs {
     #[arg(long)]
     pub force: bool,
 }
-
-/// What a report writes into its folder (crates/eval/src/report.rs): these files, and the
-/// folders of its images and plots.
-const REPORT_FILES: &[&str] = &["index.html", "viewer.css", "viewer.js", "data.js", "colorbar.png", "results.json", "results.csv", ".cvtrace-report"];
-const REPORT_FOLDERS: &[&str] = &["images", "plots"];
 
 /// Refuses a `--markdown` path that the report itself writes (`-o rep --markdown
 /// rep/index.html` would replace the page), or that is a file of one of the studies.

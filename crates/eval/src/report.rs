@@ -114,6 +114,11 @@ pub fn write_report(
 /// removes only files a report wrote, never the user's.
 const MANIFEST: &str = ".cvtrace-report";
 
+/// Every file a report writes at the top of its folder, and the folders of its images and
+/// plots: what nothing else may be written over (`report --markdown`).
+pub const REPORT_FILES: &[&str] = &["index.html", "viewer.css", "viewer.js", "data.js", "colorbar.png", "results.json", "results.csv", MANIFEST];
+pub const REPORT_FOLDERS: &[&str] = &["images", "plots"];
+
 fn manifest_text<'a>(files: impl IntoIterator<Item = &'a String>) -> String {
     files.into_iter().map(|f| format!("{f}\n")).collect()
 }
@@ -375,8 +380,13 @@ mod tests {
         let out = dir.path().join("report");
         let index = write_report(&results, &dir.path().join("study"), &out, &ReportOptions::default()).unwrap();
         assert_eq!(index, out.join("index.html"));
-        for f in ["index.html", "viewer.css", "viewer.js", "data.js", "colorbar.png", "results.json", "results.csv"] {
+        for f in REPORT_FILES {
             assert!(out.join(f).is_file(), "{f} missing");
+        }
+        // And nothing else: REPORT_FILES and REPORT_FOLDERS are the whole list.
+        for e in std::fs::read_dir(&out).unwrap() {
+            let name = e.unwrap().file_name().to_string_lossy().into_owned();
+            assert!(REPORT_FILES.contains(&name.as_str()) || REPORT_FOLDERS.contains(&name.as_str()), "{name} is not listed");
         }
         let data = std::fs::read_to_string(out.join("data.js")).unwrap();
         let json = data.trim().strip_prefix("window.CVTRACE_DATA = ").unwrap().strip_suffix(';').unwrap();
