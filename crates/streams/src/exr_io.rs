@@ -126,6 +126,7 @@ impl ExrChannels {
     /// Size and custom attributes of `path` from its header alone, without reading pixels
     /// (to check what a finished file was rendered with before reusing it).
     pub fn read_header(path: &Path) -> Result<(usize, usize, BTreeMap<String, AttrValue>), StreamError> {
+        require_regular_file(path)?;
         let meta = exr::meta::MetaData::read_from_file(path, false)
             .map_err(|e| StreamError::Exr { path: path.to_path_buf(), message: e.to_string() })?;
         let [header] = meta.headers.as_slice() else {
@@ -134,6 +135,19 @@ impl ExrChannels {
         let attributes = custom_attributes(header.shared_attributes.other.iter().chain(header.own_attributes.other.iter()));
         Ok((header.layer_size.width(), header.layer_size.height(), attributes))
     }
+}
+
+/// `path` must be a regular file (a FIFO would block the read forever, a device never end
+/// it); returns its length.
+fn require_regular_file(path: &Path) -> Result<u64, StreamError> {
+    let md = std::fs::metadata(path).map_err(|error| StreamError::Io { path: path.to_path_buf(), error })?;
+    if md.is_dir() {
+        return Err(StreamError::invalid(path, "is a directory, expected an EXR file"));
+    }
+    if !md.is_file() {
+        return Err(StreamError::invalid(path, "is not a regular file (a device, FIFO or socket)"));
+    }
+    Ok(md.len())
 }
 
 /// Largest ratio of decoded pixel bytes to file bytes that `compression` can reach: deflate
@@ -159,7 +173,7 @@ fn max_expansion(compression: exr::compression::Compression) -> u128 {
 /// them all, which aborts the process instead of failing.
 pub fn check_header(path: &Path) -> Result<(), StreamError> {
     let exr_error = |e: exr::error::Error| StreamError::Exr { path: path.to_path_buf(), message: e.to_string() };
-    let file_len = std::fs::metadata(path).map_err(|error| StreamError::Io { path: path.to_path_buf(), error })?.len();
+    let file_len = require_regular_file(path)?;
     let meta = exr::meta::MetaData::read_from_file(path, false).map_err(exr_error)?;
     if let Some(h) = meta.headers.iter().find(|h| h.deep) {
         let name = h.own_attributes.layer_name.as_ref().map(|n| format!(" (part `{n}`)")).unwrap_or_default();

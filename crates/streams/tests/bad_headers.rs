@@ -134,3 +134,18 @@ fn images_that_are_not_whole_frames_at_the_origin_are_refused() {
     let e = read_rgb(&q).unwrap_err().to_string();
     assert!(e.contains("crop.streams.exr") && e.contains("data window (0, 0)–(5, 3) is not its display window (0, 0)–(63, 47)"), "{e}");
 }
+
+#[test]
+fn fifos_devices_and_folders_are_refused_not_read() {
+    // A FIFO would block the reader forever, /dev/zero never end; any caller of the library
+    // gets an error naming the path at once.
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("pipe.exr");
+    assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    for p in [fifo.as_path(), Path::new("/dev/zero"), dir.path()] {
+        for e in [ExrChannels::read(p).map(|_| ()).unwrap_err(), ExrChannels::read_header(p).map(|_| ()).unwrap_err(), read_rgb(p).map(|_| ()).unwrap_err()] {
+            let e = e.to_string();
+            assert!(e.contains(&p.display().to_string()) && (e.contains("not a regular file") || e.contains("is a directory")), "{e}");
+        }
+    }
+}
