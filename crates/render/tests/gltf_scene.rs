@@ -5,7 +5,7 @@ use glam::Vec3;
 use std::path::Path;
 
 mod common;
-use common::quad_buffer;
+use common::{quad_buffer, quad_buffer_json};
 
 fn base64(data: &[u8]) -> String {
     const T: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
@@ -53,13 +53,9 @@ fn gltf_json(buffer_uri: &str, extra: &str, material_extra: &str) -> String {
       "KHR_materials_specular": {{"specularFactor": 0.0}}
     }}
   }}],
-  "buffers": [{{"byteLength": 60, "uri": "{buffer_uri}"}}],
-  "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 48}}, {{"buffer": 0, "byteOffset": 48, "byteLength": 12}}],
-  "accessors": [
-    {{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}},
-    {{"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"}}
-  ]
-}}"#
+  {quad}
+}}"#,
+        quad = quad_buffer_json(buffer_uri)
     )
 }
 

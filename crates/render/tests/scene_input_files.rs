@@ -7,7 +7,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 mod common;
-use common::quad_buffer;
+use common::{quad_buffer, quad_buffer_json};
 
 /// A unit quad (4 positions, 6 u16 indices: 60 bytes) with a camera; `buffer_uri` names its buffer.
 fn quad_gltf(buffer_uri: &str, extra: &str) -> String {
@@ -19,13 +19,9 @@ fn quad_gltf(buffer_uri: &str, extra: &str) -> String {
   "nodes": [{{"mesh": 0}}, {{"camera": 0, "translation": [0.5, 0.5, 3]}}],
   "cameras": [{{"type": "perspective", "perspective": {{"yfov": 0.8, "znear": 0.1}}}}],
   "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}, "indices": 1}}]}}],
-  "buffers": [{{"byteLength": 60, "uri": "{buffer_uri}"}}],
-  "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 48}}, {{"buffer": 0, "byteOffset": 48, "byteLength": 12}}],
-  "accessors": [
-    {{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}},
-    {{"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"}}
-  ]
-}}"#
+  {quad}
+}}"#,
+        quad = quad_buffer_json(buffer_uri)
     )
 }
 

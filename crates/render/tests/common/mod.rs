@@ -13,3 +13,16 @@ pub fn quad_buffer() -> Vec<u8> {
     }
     b
 }
+
+/// The glTF `buffers`, `bufferViews` and `accessors` of [`quad_buffer`] stored at `buffer_uri`
+/// (accessor 0: positions, 1: indices), for the end of a glTF object.
+pub fn quad_buffer_json(buffer_uri: &str) -> String {
+    format!(
+        r#""buffers": [{{"byteLength": 60, "uri": "{buffer_uri}"}}],
+  "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 48}}, {{"buffer": 0, "byteOffset": 48, "byteLength": 12}}],
+  "accessors": [
+    {{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}},
+    {{"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"}}
+  ]"#
+    )
+}
