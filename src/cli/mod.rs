@@ -7,6 +7,7 @@ pub mod study;
 pub mod throughput;
 
 use anyhow::{bail, Result};
+use cvtrace_streams::input_file::{regular_file, NotAFile};
 use std::path::{Component, Path, PathBuf};
 
 /// True if both paths exist and are the same file: the same device and inode, so links, hard
@@ -68,11 +69,10 @@ pub fn same_output(a: &Path, b: &Path) -> bool {
 /// clear error, and a FIFO or device is not opened (reading a FIFO waits for a writer forever,
 /// `/dev/zero` never ends).
 pub fn check_input_file(path: &Path) -> Result<()> {
-    match std::fs::metadata(path) {
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => bail!("{}: no such file", path.display()),
-        Err(e) => bail!("{}: cannot read: {e}", path.display()),
-        Ok(m) if m.is_dir() => bail!("{}: is a directory, expected a file", path.display()),
-        Ok(m) if !m.is_file() => bail!("{}: is not a regular file (a device, FIFO or socket)", path.display()),
+    match regular_file(path) {
         Ok(_) => Ok(()),
+        Err(NotAFile::Io(e)) if e.kind() == std::io::ErrorKind::NotFound => bail!("{}: no such file", path.display()),
+        Err(NotAFile::Io(e)) => bail!("{}: cannot read: {e}", path.display()),
+        Err(e) => bail!("{}: {e}", path.display()),
     }
 }

@@ -346,6 +346,7 @@ impl<'a> ImageCopier<'a> {
 /// Width and height from a PNG's IHDR chunk, or why the file is not a PNG.
 pub fn png_size(path: &Path) -> Result<(usize, usize), String> {
     use std::io::Read;
+    cvtrace_streams::input_file::regular_file(path).map_err(|e| e.to_string())?;
     let mut f = std::fs::File::open(path).map_err(|e| format!("cannot open: {e}"))?;
     let mut head = [0u8; 24];
     f.read_exact(&mut head).map_err(|_| "too short to be a PNG".to_string())?;

@@ -6,6 +6,7 @@
 use crate::reference_noise::ReferenceNoise;
 use crate::stats::SeedStats;
 use crate::EvalError;
+use cvtrace_streams::input_file::{regular_file, NotAFile};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeSet;
 use std::path::Path;
@@ -355,6 +356,11 @@ impl StudyResults {
 
     /// Reads and validates a results JSON file.
     pub fn read_json(path: &Path) -> Result<Self, EvalError> {
+        match regular_file(path) {
+            Err(NotAFile::Io(e)) => return Err(EvalError::io(path, e)),
+            Err(e) => return Err(EvalError::invalid(path.display().to_string(), e.to_string())),
+            Ok(_) => {}
+        }
         let bytes = std::fs::read(path).map_err(|e| EvalError::io(path, e))?;
         let results: StudyResults = serde_json::from_slice(&bytes)
             .map_err(|e| EvalError::Json { path: path.to_path_buf(), message: e.to_string() })?;

@@ -21,6 +21,7 @@ use crate::material::Material;
 use crate::scene::{default_camera, Scene, SceneError, SceneParts};
 use crate::sidecar::Sidecar;
 use crate::texture::{srgb_to_linear, Texture};
+use cvtrace_streams::input_file::{regular_file, NotAFile};
 use glam::{Mat3, Mat4, Vec2, Vec3};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -373,19 +374,11 @@ fn import_images(doc: &gltf::Document, base: &Path, buffers: &[gltf::buffer::Dat
 /// `file` (the scene `path` itself or a file it references) must be a readable regular file:
 /// reading a device such as /dev/zero would never end.
 fn require_regular_file(file: &Path, path: &Path) -> Result<(), SceneError> {
-    let missing = |message: String| SceneError::MissingFile { path: path.to_path_buf(), file: file.to_path_buf(), message };
-    match std::fs::metadata(file) {
-        Err(e) if file == path => Err(SceneError::Io { path: path.to_path_buf(), error: e }),
-        Err(e) => Err(missing(e.to_string())),
-        Ok(md) if !md.is_file() => {
-            let message = if md.is_dir() { "is a directory" } else { "is not a regular file" };
-            if file == path {
-                Err(SceneError::invalid(path, message))
-            } else {
-                Err(missing(message.into()))
-            }
-        }
+    match regular_file(file) {
         Ok(_) => Ok(()),
+        Err(NotAFile::Io(e)) if file == path => Err(SceneError::Io { path: path.to_path_buf(), error: e }),
+        Err(e) if file == path => Err(SceneError::invalid(path, e.to_string())),
+        Err(e) => Err(SceneError::MissingFile { path: path.to_path_buf(), file: file.to_path_buf(), message: e.to_string() }),
     }
 }
 

@@ -6,6 +6,7 @@
 use crate::lights::Environment;
 use crate::render::MAX_IMAGE_SIDE;
 use crate::scene::SceneError;
+use cvtrace_streams::input_file::{regular_file, NotAFile};
 use glam::Vec3;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -114,14 +115,8 @@ impl Sidecar {
             }
             if let Some(file) = s.map_path() {
                 // A FIFO would block the read forever, a device never end it.
-                let message = match std::fs::metadata(&file) {
-                    Err(e) => Some(e.to_string()),
-                    Ok(md) if md.is_dir() => Some("is a directory".into()),
-                    Ok(md) if !md.is_file() => Some("is not a regular file".into()),
-                    Ok(_) => None,
-                };
-                if let Some(message) = message {
-                    return Err(SceneError::MissingFile { path: path.to_path_buf(), file, message });
+                if let Err(e) = regular_file(&file) {
+                    return Err(SceneError::MissingFile { path: path.to_path_buf(), file, message: e.to_string() });
                 }
             }
         }
@@ -133,12 +128,12 @@ impl Sidecar {
     pub fn load(path: &Path) -> Result<Sidecar, SceneError> {
         use std::io::Read;
         let io = |e: std::io::Error| SceneError::Io { path: path.to_path_buf(), error: e };
-        let md = std::fs::metadata(path).map_err(io)?;
-        if !md.is_file() {
-            return Err(SceneError::invalid(path, if md.is_dir() { "is a directory" } else { "is not a regular file" }));
-        }
-        if md.len() > MAX_SIDECAR_BYTES {
-            return Err(SceneError::invalid(path, format!("is {} bytes; a sidecar may have at most {MAX_SIDECAR_BYTES}", md.len())));
+        let len = regular_file(path).map_err(|e| match e {
+            NotAFile::Io(e) => io(e),
+            other => SceneError::invalid(path, other.to_string()),
+        })?;
+        if len > MAX_SIDECAR_BYTES {
+            return Err(SceneError::invalid(path, format!("is {len} bytes; a sidecar may have at most {MAX_SIDECAR_BYTES}")));
         }
         let mut text = String::new();
         std::fs::File::open(path).and_then(|f| f.take(MAX_SIDECAR_BYTES + 1).read_to_string(&mut text)).map_err(io)?;

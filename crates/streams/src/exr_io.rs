@@ -1,5 +1,6 @@
 //! Flat f32 multi-channel OpenEXR read/write: the one place that talks to the `exr` crate.
 use crate::atomic::write_atomically;
+use crate::input_file::NotAFile;
 use crate::StreamError;
 use exr::prelude::{read, AnyChannel, AnyChannels, AttributeValue, Blocks, Compression, Encoding, FlatSamples, Layer, LayerAttributes, LineOrder, ReadChannels, ReadLayers, SmallVec, Text, WritableImage};
 use std::collections::{BTreeMap, BTreeSet};
@@ -140,14 +141,10 @@ impl ExrChannels {
 /// `path` must be a regular file (a FIFO would block the read forever, a device never end
 /// it); returns its length.
 fn require_regular_file(path: &Path) -> Result<u64, StreamError> {
-    let md = std::fs::metadata(path).map_err(|error| StreamError::Io { path: path.to_path_buf(), error })?;
-    if md.is_dir() {
-        return Err(StreamError::invalid(path, "is a directory, expected an EXR file"));
-    }
-    if !md.is_file() {
-        return Err(StreamError::invalid(path, "is not a regular file (a device, FIFO or socket)"));
-    }
-    Ok(md.len())
+    crate::input_file::regular_file(path).map_err(|e| match e {
+        NotAFile::Io(error) => StreamError::Io { path: path.to_path_buf(), error },
+        other => StreamError::invalid(path, other.to_string()),
+    })
 }
 
 /// Largest ratio of decoded pixel bytes to file bytes that `compression` can reach: deflate
