@@ -14,14 +14,20 @@
 //! becomes `(a, b, c, c)`, whose second half has no area. Both halves use the mesh's own vertex
 //! indices, so the watertightness of robust traversal at shared edges is unchanged.
 
+use cvtrace_render::select::select4;
+use glam::Vec4;
+
 /// One half of a quad as a triangle of the input mesh.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Half {
     /// Index of the input triangle.
     pub prim: u32,
     /// For each vertex of the half (in Embree's order), which corner (0, 1, 2) of the input
     /// triangle it is.
     pub corners: [u8; 3],
+    /// `corners` as 0/1 weights: `[c][k]` is 1 if vertex `k` is corner `c + 1`. Hits multiply
+    /// by these instead of comparing corners, which the compiler would turn into branches.
+    picks: [[f32; 3]; 2],
 }
 
 /// The quads to hand to Embree, with the way back to triangles.
@@ -50,7 +56,7 @@ pub fn pair_triangles(triangles: &[[u32; 3]]) -> QuadMesh {
             let [a, b, c] = triangles[i];
             mesh.quads.push([a, b, c, c]);
             let prim = i as u32;
-            mesh.halves.0.push([Half { prim, corners: [0, 1, 2] }, Half { prim, corners: [2, 2, 1] }]);
+            mesh.halves.0.push([Half::new(prim, [0, 1, 2]), Half::new(prim, [2, 2, 1])]);
             i += 1;
         }
     }
@@ -74,25 +80,26 @@ fn pair(i: u32, t1: &[u32; 3], t2: &[u32; 3]) -> Option<([u32; 4], [Half; 2])> {
     let (xk, xk1, x_opposite) = (t1[k], t1[(k + 1) % 3], t1[(k + 2) % 3]);
     let y_corner = (0..3).find(|&c| t2[c] != xk && t2[c] != xk1)?;
     let corner2 = |v: u32| position(t2, v).map(|c| c as u8);
-    let first = Half { prim: i, corners: [((k + 2) % 3) as u8, k as u8, ((k + 1) % 3) as u8] };
-    let second = Half { prim: i + 1, corners: [y_corner as u8, corner2(xk1)?, corner2(xk)?] };
+    let first = Half::new(i, [((k + 2) % 3) as u8, k as u8, ((k + 1) % 3) as u8]);
+    let second = Half::new(i + 1, [y_corner as u8, corner2(xk1)?, corner2(xk)?]);
     Some(([x_opposite, xk, t2[y_corner], xk1], [first, second]))
 }
 
 impl Half {
+    fn new(prim: u32, corners: [u8; 3]) -> Half {
+        let picks = [1, 2].map(|c| corners.map(|k| if k == c { 1.0 } else { 0.0 }));
+        Half { prim, corners, picks }
+    }
+
     /// The input triangle's barycentrics `(u, v)` (weights of its corners 1 and 2) of the point
-    /// with weights `w` on this half's vertices.
+    /// with weights `w` on this half's vertices. Masks, not branches: which corner is which
+    /// differs from hit to hit, so a branch here is mispredicted about half the time.
     #[inline]
     fn barycentrics(&self, w: [f32; 3]) -> (f32, f32) {
-        let (mut u, mut v) = (0.0, 0.0);
-        for (weight, corner) in w.iter().zip(self.corners) {
-            match corner {
-                1 => u += weight,
-                2 => v += weight,
-                _ => {}
-            }
-        }
-        (u, v)
+        // `w` is finite, so `w · 0` is ±0, and adding a zero changes no sum: this adds exactly
+        // the weights of the matching vertices, in order.
+        let weight_of = |p: [f32; 3]| 0.0 + w[0] * p[0] + w[1] * p[1] + w[2] * p[2];
+        (weight_of(self.picks[0]), weight_of(self.picks[1]))
     }
 }
 
@@ -101,8 +108,11 @@ impl QuadHalves {
     #[inline]
     pub fn triangle_hit(&self, quad: u32, u: f32, v: f32) -> (u32, f32, f32) {
         let halves = &self.0[quad as usize];
-        let (half, w) = if u + v <= 1.0 { (&halves[0], [1.0 - u - v, u, v]) } else { (&halves[1], [u + v - 1.0, 1.0 - u, 1.0 - v]) };
-        let (tu, tv) = half.barycentrics(w);
+        // Which half a ray hits is a coin toss for the branch predictor: select instead.
+        let second = u + v > 1.0;
+        let half = &halves[second as usize];
+        let w = select4(second, Vec4::new(u + v - 1.0, 1.0 - u, 1.0 - v, 0.0), Vec4::new(1.0 - u - v, u, v, 0.0));
+        let (tu, tv) = half.barycentrics([w.x, w.y, w.z]);
         (half.prim, tu, tv)
     }
 }

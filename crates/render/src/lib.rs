@@ -21,6 +21,7 @@ pub mod material;
 pub mod render;
 pub mod sampler;
 pub mod scene;
+pub mod select;
 pub mod sidecar;
 pub mod testing;
 pub mod texture;

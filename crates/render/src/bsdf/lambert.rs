@@ -1,4 +1,5 @@
 //! The Lambertian lobe: `f = 1/π` on the upper hemisphere, cosine-weighted sampling.
+use crate::select::select_pair;
 use glam::{Vec2, Vec3};
 use std::f32::consts::{FRAC_1_PI, FRAC_PI_4};
 
@@ -41,15 +42,14 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
     if o.x == 0.0 && o.y == 0.0 {
         return Vec2::ZERO;
     }
-    if o.x.abs() > o.y.abs() {
-        // θ = π/4 · y/x ∈ [-π/4, π/4]
-        let (s, c) = sin_cos_quarter(FRAC_PI_4 * (o.y / o.x));
-        Vec2::new(o.x * c, o.x * s)
-    } else {
-        // θ = π/2 − π/4 · x/y: cos θ = sin a, sin θ = cos a with a = π/4 · x/y.
-        let (s, c) = sin_cos_quarter(FRAC_PI_4 * (o.x / o.y));
-        Vec2::new(o.y * s, o.y * c)
-    }
+    // The two octant cases as selects: which one applies is random, so a branch would be
+    // mispredicted half the time. With `a = π/4 · minor/major`, θ = a in the x-major case and
+    // θ = π/2 − a in the y-major one, where cos θ = sin a and sin θ = cos a.
+    let x_major = o.x.abs() > o.y.abs();
+    let (major, minor) = select_pair(x_major, (o.x, o.y), (o.y, o.x));
+    let (s, c) = sin_cos_quarter(FRAC_PI_4 * (minor / major));
+    let (cos_t, sin_t) = select_pair(x_major, (c, s), (s, c));
+    Vec2::new(major * cos_t, major * sin_t)
 }
 
 /// A cosine-distributed direction on the upper hemisphere (Malley's method).
