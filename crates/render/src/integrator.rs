@@ -19,7 +19,7 @@
 //!
 //! Random numbers come from [`crate::sampler`] with a fixed block of dimensions per vertex, so
 //! CRN paths of neighbouring pixels make the same decisions at the same depths.
-use crate::bsdf::Bsdf;
+use crate::bsdf::{Bsdf, SampleDraw};
 use crate::intersect::{Hit, Intersector, Ray};
 use crate::lights::ShadowEnd;
 use crate::sampler::{dims, SampleSampler};
@@ -151,6 +151,9 @@ pub fn radiance_from_hit<T: Intersector>(
         let params = material.params_at(textures, sp.uv);
         let bsdf = Bsdf::new(&params, sp.ns, sp.ng, wo);
         let vertex = depth - 1;
+        // The continuation's random numbers, drawn before the shadow ray (see `SampleDraw`).
+        let u_choice = if bsdf.has_glass() { sampler.get1d(dims::at(vertex, dims::DIELECTRIC_CHOICE)) } else { 0.0 };
+        let draw = SampleDraw::new(sampler.get1d(dims::at(vertex, dims::LOBE)), sampler.get2d(dims::at(vertex, dims::BSDF_DIR)), u_choice);
 
         // Next-event estimation: one point or direction on one emitter.
         if bsdf.has_non_delta() && !lights.is_empty() {
@@ -173,10 +176,7 @@ pub fn radiance_from_hit<T: Intersector>(
         }
 
         // Continue the path by sampling the BSDF.
-        let u_lobe = sampler.get1d(dims::at(vertex, dims::LOBE));
-        let u_dir = sampler.get2d(dims::at(vertex, dims::BSDF_DIR));
-        let u_choice = if bsdf.has_glass() { sampler.get1d(dims::at(vertex, dims::DIELECTRIC_CHOICE)) } else { 0.0 };
-        let Some(bs) = bsdf.sample(u_lobe, u_dir, u_choice) else { break };
+        let Some(bs) = bsdf.sample_drawn(&draw) else { break };
         beta *= bs.weight;
         if beta == Vec3::ZERO || !beta.is_finite() {
             break;

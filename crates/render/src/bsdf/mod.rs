@@ -16,7 +16,7 @@ mod reference;
 
 use glam::Vec3;
 
-pub use pbr::{Bsdf, BsdfSample, PbrParams};
+pub use pbr::{Bsdf, BsdfSample, PbrParams, SampleDraw};
 
 /// An orthonormal basis around a normal: world ↔ local (z = normal).
 #[derive(Clone, Copy, Debug)]

@@ -66,6 +66,26 @@ pub struct BsdfSample {
     pub eta: f32,
 }
 
+/// The random numbers of one BSDF sample, and the cosine-weighted local direction they give.
+/// It depends on nothing at the surface, so the integrator works it out before tracing the
+/// shadow ray: its division, polynomial and square root then overlap that work instead of
+/// lying between one ray and the next.
+#[derive(Clone, Copy, Debug)]
+pub struct SampleDraw {
+    pub u_lobe: f32,
+    pub u: Vec2,
+    pub u_choice: f32,
+    /// `lambert::sample(u)`.
+    pub cosine: Vec3,
+}
+
+impl SampleDraw {
+    #[inline]
+    pub fn new(u_lobe: f32, u: Vec2, u_choice: f32) -> SampleDraw {
+        SampleDraw { u_lobe, u, u_choice, cosine: lambert::sample(u) }
+    }
+}
+
 /// The BSDF at one surface point for one outgoing direction.
 #[derive(Clone, Copy, Debug)]
 pub struct Bsdf {
@@ -236,13 +256,20 @@ impl Bsdf {
     /// Picks a lobe with `u_lobe`, a direction with `u`, and for glass reflect-or-refract with
     /// `u_choice`. `None` when the path ends here (black BSDF or a direction below the surface).
     pub fn sample(&self, u_lobe: f32, u: Vec2, u_choice: f32) -> Option<BsdfSample> {
+        self.sample_drawn(&SampleDraw::new(u_lobe, u, u_choice))
+    }
+
+    /// [`Bsdf::sample`] with its random numbers drawn (and the cosine direction worked out)
+    /// beforehand.
+    pub fn sample_drawn(&self, draw: &SampleDraw) -> Option<BsdfSample> {
+        let SampleDraw { u_lobe, u, u_choice, cosine } = *draw;
         let wo_l = self.wo;
         if self.lambert_only {
             // f·cos/pdf of a cosine-sampled Lambertian lobe is its albedo.
             if self.p_diffuse == 0.0 {
                 return None;
             }
-            let wi_l = self.opaque_local(lambert::sample(u));
+            let wi_l = self.opaque_local(cosine);
             let wi = self.frame.to_world(wi_l);
             if wi_l.z == 0.0 || wi.dot(self.ng) * self.wo_dot_ng <= 0.0 {
                 return None;
@@ -250,7 +277,7 @@ impl Bsdf {
             return Some(BsdfSample { wi, weight: self.diffuse, pdf: wi_l.z.abs() * std::f32::consts::FRAC_1_PI, delta: false, eta: 1.0 });
         }
         let wi_l = if u_lobe < self.p_diffuse {
-            self.opaque_local(lambert::sample(u))
+            self.opaque_local(cosine)
         } else if u_lobe < self.p_diffuse + self.p_spec || (self.p_glass == 0.0 && self.p_spec > 0.0) {
             self.opaque_local(self.spec.sample(self.opaque_local(wo_l), u)?)
         } else if self.p_glass > 0.0 {
