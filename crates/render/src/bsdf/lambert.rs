@@ -86,4 +86,31 @@ mod tests {
             assert!((concentric_disk(Vec2::new(x, y)) - expect).length() < 1e-6);
         }
     }
+
+    #[test]
+    fn directions_are_unit_and_cosine_distributed() {
+        // Under the cosine density p(ω) = cos θ / π: z² is uniform on [0, 1) (so P(z² < k/8) = k/8),
+        // the azimuth is uniform (each quadrant 1/4), E[x] = E[y] = 0 and E[x²] = E[y²] = 1/4.
+        // Bounds are 5 standard deviations of each estimate at this n.
+        use crate::sampler::{StreamKind, StreamSampler};
+        let st = StreamSampler::new(3, StreamKind::Pt);
+        let n = 200_000;
+        let (mut zbins, mut quadrants) = ([0u32; 8], [0u32; 4]);
+        let (mut sx, mut sy, mut sxx, mut syy) = (0.0f64, 0.0f64, 0.0f64, 0.0f64);
+        for i in 0..n {
+            let w = sample(st.sample(0, i).get2d(0));
+            assert!((w.length() - 1.0).abs() < 1e-5 && w.z >= 0.0, "{w}");
+            zbins[((w.z * w.z * 8.0) as usize).min(7)] += 1;
+            quadrants[(w.x < 0.0) as usize * 2 + (w.y < 0.0) as usize] += 1;
+            (sx, sy, sxx, syy) = (sx + w.x as f64, sy + w.y as f64, sxx + (w.x * w.x) as f64, syy + (w.y * w.y) as f64);
+        }
+        let nf = n as f64;
+        let count_ok = |count: u32, p: f64| (count as f64 - nf * p).abs() < 5.0 * (nf * p * (1.0 - p)).sqrt();
+        assert!(zbins.iter().all(|&c| count_ok(c, 1.0 / 8.0)), "{zbins:?}");
+        assert!(quadrants.iter().all(|&c| count_ok(c, 1.0 / 4.0)), "{quadrants:?}");
+        // Var[x] = 1/4; Var[x²] = E[x⁴] − 1/16 = 1/8 − 1/16.
+        let (sd_mean, sd_sq) = ((0.25 / nf).sqrt(), ((0.125 - 0.0625) / nf).sqrt());
+        assert!((sx / nf).abs() < 5.0 * sd_mean && (sy / nf).abs() < 5.0 * sd_mean, "{} {}", sx / nf, sy / nf);
+        assert!((sxx / nf - 0.25).abs() < 5.0 * sd_sq && (syy / nf - 0.25).abs() < 5.0 * sd_sq, "{} {}", sxx / nf, syy / nf);
+    }
 }
