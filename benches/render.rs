@@ -101,6 +101,13 @@ fn path_tracer(c: &mut Criterion) {
             BatchSize::LargeInput,
         )
     });
+    g.bench_function("cornell_256_depth8_pt_4spp_fast_traversal_1thread", |b| {
+        b.iter_batched_ref(
+            || ReferenceAccum::new(&s),
+            |acc| one_thread.install(|| render_reference_pass(&scene, &fast, &s, acc, 0..SPP, &|_| {})).unwrap(),
+            BatchSize::LargeInput,
+        )
+    });
 
     // The same with plain triangles instead of triangle pairs as Embree quads.
     let triangles = device_triangles(&scene);
