@@ -5,7 +5,7 @@
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use cvtrace::{set_flush_denormals, BuildOptions, BuildQuality, Device, EmbreeScene};
 use cvtrace_render::{render_reference_pass, render_streams, Intersector, Ray, ReferenceAccum, RenderSettings, Scene};
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3A};
 use std::hint::black_box;
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -146,11 +146,11 @@ fn embree_rays(c: &mut Criterion) {
     let mut st = 42u64;
     let incoherent: Vec<Ray> = (0..SIDE * SIDE)
         .map(|_| {
-            let origin = lo + (hi - lo) * Vec3::new(splitmix(&mut st), splitmix(&mut st), splitmix(&mut st)) * 0.98 + (hi - lo) * 0.01;
+            let origin = lo + (hi - lo) * Vec3A::new(splitmix(&mut st), splitmix(&mut st), splitmix(&mut st)) * 0.98 + (hi - lo) * 0.01;
             let z = 2.0 * splitmix(&mut st) - 1.0;
             let phi = std::f32::consts::TAU * splitmix(&mut st);
             let r = (1.0 - z * z).max(0.0).sqrt();
-            Ray { origin, dir: Vec3::new(r * phi.cos(), r * phi.sin(), z), tmin: 0.0, tmax: f32::INFINITY }
+            Ray { origin, dir: Vec3A::new(r * phi.cos(), r * phi.sin(), z), tmin: 0.0, tmax: f32::INFINITY }
         })
         .collect();
 

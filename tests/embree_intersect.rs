@@ -2,15 +2,15 @@
 //! occlusion, and sharing one committed scene between threads.
 use cvtrace::{BuildOptions, BuildQuality, Device, EmbreeScene};
 use cvtrace_render::{Hit, Intersector, Ray};
-use glam::Vec3;
+use glam::Vec3A;
 
 /// The triangle (0,0,0), (1,0,0), (0,1,0) in the z = 0 plane: the barycentrics of
 /// vertices 1 and 2 of a point (x, y, 0) are exactly (u, v) = (x, y).
 fn unit_triangle() -> EmbreeScene {
-    EmbreeScene::build(&[Vec3::ZERO, Vec3::X, Vec3::Y], &[[0, 1, 2]]).expect("valid triangle")
+    EmbreeScene::build(&[Vec3A::ZERO, Vec3A::X, Vec3A::Y], &[[0, 1, 2]]).expect("valid triangle")
 }
 
-fn ray(origin: Vec3, dir: Vec3) -> Ray {
+fn ray(origin: Vec3A, dir: Vec3A) -> Ray {
     Ray { origin, dir, tmin: 0.0, tmax: f32::INFINITY }
 }
 
@@ -24,20 +24,20 @@ fn single_triangle_hit_has_exact_distance_and_barycentrics() {
     let s = unit_triangle();
     assert_eq!(s.triangle_count(), 1);
     for (x, y, z) in [(0.25f32, 0.5f32, 1.0f32), (0.1, 0.1, 3.0), (0.6, 0.3, 0.5)] {
-        let h = s.intersect(&ray(Vec3::new(x, y, z), Vec3::NEG_Z)).unwrap_or_else(|| panic!("ray at ({x}, {y}) must hit"));
+        let h = s.intersect(&ray(Vec3A::new(x, y, z), Vec3A::NEG_Z)).unwrap_or_else(|| panic!("ray at ({x}, {y}) must hit"));
         assert!(close(h.t, z), "t = {} for a ray starting {z} above the plane", h.t);
         assert!(close(h.u, x) && close(h.v, y), "(u, v) = ({}, {}) at ({x}, {y})", h.u, h.v);
         assert_eq!(h.prim, 0);
     }
     // From below: Embree does not cull back faces.
-    let h = s.intersect(&ray(Vec3::new(0.2, 0.3, -2.0), Vec3::Z)).expect("back face hit");
+    let h = s.intersect(&ray(Vec3A::new(0.2, 0.3, -2.0), Vec3A::Z)).expect("back face hit");
     assert!(close(h.t, 2.0) && close(h.u, 0.2) && close(h.v, 0.3), "{h:?}");
     // Direction need not be normalised: t is in units of `dir`.
-    let h = s.intersect(&ray(Vec3::new(0.2, 0.3, 1.0), Vec3::new(0.0, 0.0, -4.0))).expect("hit");
+    let h = s.intersect(&ray(Vec3A::new(0.2, 0.3, 1.0), Vec3A::new(0.0, 0.0, -4.0))).expect("hit");
     assert!(close(h.t, 0.25), "t = {}", h.t);
     // An oblique ray.
-    let o = Vec3::new(1.0, 1.0, 2.0);
-    let target = Vec3::new(0.2, 0.4, 0.0);
+    let o = Vec3A::new(1.0, 1.0, 2.0);
+    let target = Vec3A::new(0.2, 0.4, 0.0);
     let h = s.intersect(&ray(o, target - o)).expect("oblique hit");
     assert!((h.t - 1.0).abs() < 1e-6 && (h.u - 0.2).abs() < 1e-6 && (h.v - 0.4).abs() < 1e-6, "{h:?}");
 }
@@ -46,15 +46,15 @@ fn single_triangle_hit_has_exact_distance_and_barycentrics() {
 fn misses_outside_the_triangle_behind_the_ray_and_outside_the_interval() {
     let s = unit_triangle();
     // Beyond the hypotenuse u + v = 1.
-    assert!(s.intersect(&ray(Vec3::new(0.6, 0.6, 1.0), Vec3::NEG_Z)).is_none());
+    assert!(s.intersect(&ray(Vec3A::new(0.6, 0.6, 1.0), Vec3A::NEG_Z)).is_none());
     // Outside the legs.
-    assert!(s.intersect(&ray(Vec3::new(-0.1, 0.5, 1.0), Vec3::NEG_Z)).is_none());
+    assert!(s.intersect(&ray(Vec3A::new(-0.1, 0.5, 1.0), Vec3A::NEG_Z)).is_none());
     // Pointing away.
-    assert!(s.intersect(&ray(Vec3::new(0.2, 0.2, 1.0), Vec3::Z)).is_none());
+    assert!(s.intersect(&ray(Vec3A::new(0.2, 0.2, 1.0), Vec3A::Z)).is_none());
     // Parallel to the plane, above it.
-    assert!(s.intersect(&ray(Vec3::new(-1.0, 0.2, 0.5), Vec3::X)).is_none());
+    assert!(s.intersect(&ray(Vec3A::new(-1.0, 0.2, 0.5), Vec3A::X)).is_none());
     // The hit at t = 1 lies outside [tmin, tmax] in both of these.
-    let r = ray(Vec3::new(0.2, 0.2, 1.0), Vec3::NEG_Z);
+    let r = ray(Vec3A::new(0.2, 0.2, 1.0), Vec3A::NEG_Z);
     assert!(s.intersect(&Ray { tmax: 0.999, ..r }).is_none());
     assert!(s.intersect(&Ray { tmin: 1.001, ..r }).is_none());
     assert!(s.intersect(&Ray { tmax: 1.001, ..r }).is_some());
@@ -63,12 +63,12 @@ fn misses_outside_the_triangle_behind_the_ray_and_outside_the_interval() {
 #[test]
 fn nearest_of_two_triangles_is_reported_with_its_index() {
     // Two parallel triangles at z = 0 (index 0) and z = -1 (index 1).
-    let p = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(0.0, 0.0, -1.0), Vec3::new(1.0, 0.0, -1.0), Vec3::new(0.0, 1.0, -1.0)];
+    let p = [Vec3A::ZERO, Vec3A::X, Vec3A::Y, Vec3A::new(0.0, 0.0, -1.0), Vec3A::new(1.0, 0.0, -1.0), Vec3A::new(0.0, 1.0, -1.0)];
     let s = EmbreeScene::build(&p, &[[3, 4, 5], [0, 1, 2]]).unwrap();
-    let h = s.intersect(&ray(Vec3::new(0.2, 0.2, 1.0), Vec3::NEG_Z)).unwrap();
+    let h = s.intersect(&ray(Vec3A::new(0.2, 0.2, 1.0), Vec3A::NEG_Z)).unwrap();
     assert_eq!(h.prim, 1, "the z = 0 triangle is listed second");
     assert!(close(h.t, 1.0));
-    let h = s.intersect(&ray(Vec3::new(0.2, 0.2, -3.0), Vec3::Z)).unwrap();
+    let h = s.intersect(&ray(Vec3A::new(0.2, 0.2, -3.0), Vec3A::Z)).unwrap();
     assert_eq!(h.prim, 0);
     assert!(close(h.t, 2.0));
 }
@@ -76,26 +76,26 @@ fn nearest_of_two_triangles_is_reported_with_its_index() {
 #[test]
 fn occlusion_respects_the_ray_interval() {
     let s = unit_triangle();
-    let r = ray(Vec3::new(0.2, 0.2, 1.0), Vec3::NEG_Z);
+    let r = ray(Vec3A::new(0.2, 0.2, 1.0), Vec3A::NEG_Z);
     assert!(s.occluded(&Ray { tmax: 2.0, ..r }));
     assert!(s.occluded(&Ray { tmax: f32::INFINITY, ..r }));
     assert!(!s.occluded(&Ray { tmax: 0.99, ..r }), "blocker beyond tmax");
     assert!(!s.occluded(&Ray { tmin: 1.01, tmax: 5.0, ..r }), "blocker before tmin");
-    assert!(!s.occluded(&ray(Vec3::new(0.8, 0.8, 1.0), Vec3::NEG_Z)), "passes beside the triangle");
+    assert!(!s.occluded(&ray(Vec3A::new(0.8, 0.8, 1.0), Vec3A::NEG_Z)), "passes beside the triangle");
 }
 
 #[test]
 fn every_build_option_gives_the_same_answers() {
     let s0 = unit_triangle();
     let device = Device::new().unwrap();
-    let r = ray(Vec3::new(0.3, 0.1, 2.0), Vec3::NEG_Z);
+    let r = ray(Vec3A::new(0.3, 0.1, 2.0), Vec3A::NEG_Z);
     let expected = s0.intersect(&r).unwrap();
     for quality in [BuildQuality::Low, BuildQuality::Medium, BuildQuality::High] {
         for robust in [false, true] {
             for compact in [false, true] {
                 for quads in [false, true] {
                     let options = BuildOptions { quality, robust, compact, quads };
-                    let s = device.build_scene(&[Vec3::ZERO, Vec3::X, Vec3::Y], &[[0, 1, 2]], &options).unwrap();
+                    let s = device.build_scene(&[Vec3A::ZERO, Vec3A::X, Vec3A::Y], &[[0, 1, 2]], &options).unwrap();
                     assert_eq!(s.intersect(&r), Some(expected), "{options:?}");
                 }
             }
@@ -116,7 +116,7 @@ fn one_scene_serves_many_threads() {
         for i in 0..n {
             let base = p.len() as u32;
             let (x, y) = (i as f32, j as f32);
-            p.extend([Vec3::new(x, y, 0.0), Vec3::new(x + 1.0, y, 0.0), Vec3::new(x, y + 1.0, 0.0)]);
+            p.extend([Vec3A::new(x, y, 0.0), Vec3A::new(x + 1.0, y, 0.0), Vec3A::new(x, y + 1.0, 0.0)]);
             t.push([base, base + 1, base + 2]);
         }
     }
@@ -124,7 +124,7 @@ fn one_scene_serves_many_threads() {
     let rays: Vec<Ray> = (0..4096)
         .map(|k| {
             let (i, j) = (k % n, (k / n) % n);
-            ray(Vec3::new(i as f32 + 0.25, j as f32 + 0.25 + (k / (n * n)) as f32 * 0.1, 5.0), Vec3::NEG_Z)
+            ray(Vec3A::new(i as f32 + 0.25, j as f32 + 0.25 + (k / (n * n)) as f32 * 0.1, 5.0), Vec3A::NEG_Z)
         })
         .collect();
     let reference: Vec<_> = rays.iter().map(|r| s.intersect(r)).collect();
@@ -150,9 +150,9 @@ fn one_scene_serves_many_threads() {
 /// edges): the case where a non-watertight triangle test lets rays slip between two triangles.
 /// Returns how many of `n` such rays miss the box.
 fn leaks_through_shared_edges(robust: bool, quads: bool, n: usize) -> usize {
-    let (lo, hi) = (Vec3::new(-0.7, -0.9, -0.3), Vec3::new(1.3, 1.1, 1.7));
-    let corner = |i: usize| Vec3::new([lo.x, hi.x][i & 1], [lo.y, hi.y][(i >> 1) & 1], [lo.z, hi.z][(i >> 2) & 1]);
-    let positions: Vec<Vec3> = (0..8).map(corner).collect();
+    let (lo, hi) = (Vec3A::new(-0.7, -0.9, -0.3), Vec3A::new(1.3, 1.1, 1.7));
+    let corner = |i: usize| Vec3A::new([lo.x, hi.x][i & 1], [lo.y, hi.y][(i >> 1) & 1], [lo.z, hi.z][(i >> 2) & 1]);
+    let positions: Vec<Vec3A> = (0..8).map(corner).collect();
     let faces = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]];
     let triangles: Vec<[u32; 3]> = faces.iter().flat_map(|&[a, b, c, d]| [[a, b, c], [a, c, d]]).collect();
     let device = Device::new().unwrap();
@@ -166,7 +166,7 @@ fn leaks_through_shared_edges(robust: bool, quads: bool, n: usize) -> usize {
     };
     let mut misses = 0;
     for _ in 0..n {
-        let origin = lo + (hi - lo) * Vec3::new(0.2 + 0.6 * next(), 0.2 + 0.6 * next(), 0.2 + 0.6 * next());
+        let origin = lo + (hi - lo) * Vec3A::new(0.2 + 0.6 * next(), 0.2 + 0.6 * next(), 0.2 + 0.6 * next());
         let [a, b, c, _] = faces[(next() * 6.0) as usize % 6];
         let t = next();
         // Half the targets on the diagonal a–c shared by the face's two triangles, half on its
@@ -195,11 +195,11 @@ fn robust_traversal_is_watertight_at_shared_edges() {
 
 /// A bumpy height field written as split quads (consecutive triangle pairs, both diagonals),
 /// followed by loose triangles in no particular order: what meshes from exporters look like.
-fn bumpy_mesh() -> (Vec<Vec3>, Vec<[u32; 3]>) {
+fn bumpy_mesh() -> (Vec<Vec3A>, Vec<[u32; 3]>) {
     let n = 24u32;
     let height = |i: u32, j: u32| ((i as f32 * 0.7).sin() * (j as f32 * 0.45).cos()) * 0.8;
-    let mut positions: Vec<Vec3> =
-        (0..=n).flat_map(|j| (0..=n).map(move |i| Vec3::new(i as f32, height(i, j), j as f32))).collect();
+    let mut positions: Vec<Vec3A> =
+        (0..=n).flat_map(|j| (0..=n).map(move |i| Vec3A::new(i as f32, height(i, j), j as f32))).collect();
     let at = |i: u32, j: u32| j * (n + 1) + i;
     let mut triangles = Vec::new();
     for j in 0..n {
@@ -216,9 +216,9 @@ fn bumpy_mesh() -> (Vec<Vec3>, Vec<[u32; 3]>) {
     let mut state = 5u64;
     for k in 0..200u32 {
         let base = positions.len() as u32;
-        let centre = Vec3::new((k % 20) as f32 * 1.2 + 0.3, 2.0 + (k / 20) as f32 * 0.3, (k * 7 % 23) as f32);
+        let centre = Vec3A::new((k % 20) as f32 * 1.2 + 0.3, 2.0 + (k / 20) as f32 * 0.3, (k * 7 % 23) as f32);
         for _ in 0..3 {
-            positions.push(centre + Vec3::new(splitmix(&mut state), splitmix(&mut state), splitmix(&mut state)) * 0.9);
+            positions.push(centre + Vec3A::new(splitmix(&mut state), splitmix(&mut state), splitmix(&mut state)) * 0.9);
         }
         triangles.push([base, base + 1, base + 2]);
     }
@@ -237,7 +237,7 @@ fn splitmix(state: &mut u64) -> f32 {
 /// and asserts the same answers: hit or miss, distance, point (from the triangle's
 /// barycentrics), triangle (but for rare ties across an edge), and occlusion before and after
 /// the hit. Returns the number of hits.
-fn assert_quads_match_triangles(what: &str, positions: &[Vec3], triangles: &[[u32; 3]], rays: &[Ray]) -> usize {
+fn assert_quads_match_triangles(what: &str, positions: &[Vec3A], triangles: &[[u32; 3]], rays: &[Ray]) -> usize {
     let device = Device::new().unwrap();
     let point = |h: &Hit| {
         let t = triangles[h.prim as usize].map(|i| positions[i as usize]);
@@ -285,8 +285,8 @@ fn quads_give_the_same_hits_as_triangles() {
     let rays: Vec<Ray> = (0..100_000)
         .map(|k| {
             let side = if k % 2 == 0 { 1.0 } else { -1.0 };
-            let origin = Vec3::new(next() * 24.0, 6.0 * side, next() * 24.0);
-            let target = Vec3::new(next() * 24.0, -1.5 * side, next() * 24.0);
+            let origin = Vec3A::new(next() * 24.0, 6.0 * side, next() * 24.0);
+            let target = Vec3A::new(next() * 24.0, -1.5 * side, next() * 24.0);
             ray(origin, target - origin)
         })
         .collect();
@@ -305,11 +305,11 @@ fn quads_give_the_same_hits_as_triangles_in_the_cornell_box() {
     let mut next = || splitmix(&mut state);
     let rays: Vec<Ray> = (0..100_000)
         .map(|_| {
-            let origin = lo + (hi - lo) * Vec3::new(0.02 + 0.96 * next(), 0.02 + 0.96 * next(), 0.02 + 0.96 * next());
+            let origin = lo + (hi - lo) * Vec3A::new(0.02 + 0.96 * next(), 0.02 + 0.96 * next(), 0.02 + 0.96 * next());
             let z = 2.0 * next() - 1.0;
             let phi = std::f32::consts::TAU * next();
             let r = (1.0 - z * z).max(0.0).sqrt();
-            ray(origin, Vec3::new(r * phi.cos(), r * phi.sin(), z))
+            ray(origin, Vec3A::new(r * phi.cos(), r * phi.sin(), z))
         })
         .collect();
     let hits = assert_quads_match_triangles("Cornell box", scene.positions(), scene.triangles(), &rays);
@@ -339,8 +339,8 @@ fn coherent_batches_give_the_same_hits_as_single_rays() {
     }
     let (lo, hi) = scene.bounds();
     for _ in 0..5_000 {
-        let origin = lo + (hi - lo) * Vec3::new(next(), next(), next());
-        rays.push(ray(origin, Vec3::new(next() - 0.5, next() - 0.5, next() - 0.5)));
+        let origin = lo + (hi - lo) * Vec3A::new(next(), next(), next());
+        rays.push(ray(origin, Vec3A::new(next() - 0.5, next() - 0.5, next() - 0.5)));
     }
     let device = Device::new().unwrap();
     for robust in [true, false] {

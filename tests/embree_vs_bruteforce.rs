@@ -3,7 +3,7 @@
 use cvtrace::EmbreeScene;
 use cvtrace_render::testing::BruteForce;
 use cvtrace_render::{Hit, Intersector, Material, Ray, Scene, SceneParts};
-use glam::Vec3;
+use glam::Vec3A;
 use std::path::Path;
 
 /// SplitMix64: a tiny, fixed-seed generator so the test needs no extra dependency.
@@ -21,13 +21,13 @@ impl Rng {
     fn f32(&mut self) -> f32 {
         (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
     }
-    fn in_cube(&mut self, half: f32) -> Vec3 {
-        Vec3::new(self.f32(), self.f32(), self.f32()) * (2.0 * half) - Vec3::splat(half)
+    fn in_cube(&mut self, half: f32) -> Vec3A {
+        Vec3A::new(self.f32(), self.f32(), self.f32()) * (2.0 * half) - Vec3A::splat(half)
     }
 }
 
 fn soup(rng: &mut Rng, count: usize) -> Scene {
-    let mut parts = SceneParts { materials: vec![Material::diffuse(Vec3::splat(0.5))], ..Default::default() };
+    let mut parts = SceneParts { materials: vec![Material::diffuse(Vec3A::splat(0.5))], ..Default::default() };
     for i in 0..count as u32 {
         // Triangles of random size and orientation around random centres, many overlapping.
         let c = rng.in_cube(1.0);

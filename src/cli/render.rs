@@ -14,7 +14,7 @@ use cvtrace_render::{render_reference_pass, render_streams, Camera, ReferenceAcc
 use cvtrace_streams::atomic::{check_extension, check_writable};
 use cvtrace_streams::output_lock::{lock_path_for, OutputLock};
 use cvtrace_streams::exr_io::{take_rgb, write_rgb, AttrValue, ExrChannels};
-use glam::Vec3;
+use glam::Vec3A;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -672,8 +672,8 @@ fn scene_hash(scene: &Scene) -> u64 {
 
 /// Eye, target and vertical field of view from `--camera`.
 struct CameraView {
-    eye: Vec3,
-    target: Vec3,
+    eye: Vec3A,
+    target: Vec3A,
     vfov_deg: f32,
 }
 
@@ -683,11 +683,11 @@ fn parse_camera(s: &str) -> Result<CameraView> {
     if parts.len() != 3 {
         bail!("--camera {s:?}: {usage}");
     }
-    let vec3 = |p: &str| -> Result<Vec3> {
+    let vec3 = |p: &str| -> Result<Vec3A> {
         let v: Vec<f32> =
             p.split(',').map(|x| x.trim().parse::<f32>()).collect::<Result<_, _>>().with_context(|| format!("--camera {s:?}: {usage}"))?;
         match v[..] {
-            [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Vec3::new(x, y, z)),
+            [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Vec3A::new(x, y, z)),
             _ => bail!("--camera {s:?}: {usage}"),
         }
     };
@@ -748,7 +748,7 @@ mod tests {
     #[test]
     fn camera_flag_parses_and_rejects_garbage() {
         let v = parse_camera("278,273,-800:278,273,0:37").unwrap();
-        assert_eq!((v.eye, v.target, v.vfov_deg), (Vec3::new(278.0, 273.0, -800.0), Vec3::new(278.0, 273.0, 0.0), 37.0));
+        assert_eq!((v.eye, v.target, v.vfov_deg), (Vec3A::new(278.0, 273.0, -800.0), Vec3A::new(278.0, 273.0, 0.0), 37.0));
         for bad in ["1,2:3,4,5:6", "1,2,3:4,5,6", "a,b,c:1,2,3:4", "1,2,3:4,5,6:x", "1,2,3,4:5,6,7:8", "nan,0,0:1,1,1:30"] {
             assert!(parse_camera(bad).is_err(), "{bad}");
         }
@@ -813,7 +813,7 @@ mod tests {
         assert_eq!(scene_hash(&scene), scene_hash(&with_defaults));
         let plane = |env: Option<f32>| {
             let mut p = cvtrace_render::testing::plane_parts(0.5, 1.0);
-            p.environment = env.map(|c| cvtrace_render::Environment::constant(Vec3::splat(c)).unwrap());
+            p.environment = env.map(|c| cvtrace_render::Environment::constant(Vec3A::splat(c)).unwrap());
             Scene::from_parts(p).unwrap()
         };
         assert_ne!(scene_hash(&plane(None)), scene_hash(&plane(Some(1.0))));

@@ -11,7 +11,7 @@ mod quads;
 pub use denormals::{flush_denormals_enabled, set_flush_denormals};
 
 use cvtrace_render::{Hit, Intersector, Ray};
-use glam::Vec3;
+use glam::Vec3A;
 use std::ffi::{c_char, c_void, CStr};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -168,7 +168,7 @@ impl Device {
     ///
     /// `triangles[i]` indexes `positions`; the resulting hits report `prim = i`.
     /// An empty mesh is allowed (every ray misses).
-    pub fn build_scene(&self, positions: &[Vec3], triangles: &[[u32; 3]], options: &BuildOptions) -> Result<EmbreeScene, EmbreeError> {
+    pub fn build_scene(&self, positions: &[Vec3A], triangles: &[[u32; 3]], options: &BuildOptions) -> Result<EmbreeScene, EmbreeError> {
         validate_mesh(positions, triangles)?;
         let start = Instant::now();
         // SAFETY: valid device.
@@ -227,7 +227,7 @@ impl Device {
     fn attach_mesh(
         &self,
         scene: ffi::RTCScene,
-        positions: &[Vec3],
+        positions: &[Vec3A],
         indices: MeshIndices,
         quality: ffi::RTCBuildQuality,
     ) -> Result<(), EmbreeError> {
@@ -308,7 +308,7 @@ enum MeshIndices<'a> {
 
 /// Rejects what Embree would silently mis-handle: out-of-range indices (undefined
 /// behaviour inside Embree) and non-finite vertices (triangles silently dropped).
-fn validate_mesh(positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<(), EmbreeError> {
+fn validate_mesh(positions: &[Vec3A], triangles: &[[u32; 3]]) -> Result<(), EmbreeError> {
     if positions.len() > u32::MAX as usize || triangles.len() > u32::MAX as usize {
         return Err(EmbreeError::InvalidMesh(format!(
             "{} vertices / {} triangles exceed Embree's 32-bit limits",
@@ -378,7 +378,7 @@ unsafe impl Sync for EmbreeScene {}
 
 impl EmbreeScene {
     /// Builds on a fresh device with default options: the one-liner for most callers.
-    pub fn build(positions: &[Vec3], triangles: &[[u32; 3]]) -> Result<EmbreeScene, EmbreeError> {
+    pub fn build(positions: &[Vec3A], triangles: &[[u32; 3]]) -> Result<EmbreeScene, EmbreeError> {
         Device::new()?.build_scene(positions, triangles, &BuildOptions::default())
     }
 
@@ -461,14 +461,14 @@ mod tests {
 
     #[test]
     fn bad_indices_are_rejected_before_embree_sees_them() {
-        let p = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let p = [Vec3A::ZERO, Vec3A::X, Vec3A::Y];
         let e = EmbreeScene::build(&p, &[[0, 1, 3]]).err().expect("out-of-range index must fail").to_string();
         assert!(e.contains("triangle 0") && e.contains("3 vertices"), "{e}");
     }
 
     #[test]
     fn non_finite_vertex_is_rejected() {
-        let p = [Vec3::ZERO, Vec3::new(f32::NAN, 0.0, 0.0), Vec3::Y];
+        let p = [Vec3A::ZERO, Vec3A::new(f32::NAN, 0.0, 0.0), Vec3A::Y];
         let e = EmbreeScene::build(&p, &[[0, 1, 2]]).err().expect("NaN vertex must fail").to_string();
         assert!(e.contains("vertex 1"), "{e}");
     }
@@ -476,7 +476,7 @@ mod tests {
     #[test]
     fn empty_scene_misses_everything() {
         let s = EmbreeScene::build(&[], &[]).unwrap();
-        let r = Ray { origin: Vec3::ZERO, dir: Vec3::Z, tmin: 0.0, tmax: f32::INFINITY };
+        let r = Ray { origin: Vec3A::ZERO, dir: Vec3A::Z, tmin: 0.0, tmax: f32::INFINITY };
         assert!(s.intersect(&r).is_none());
         assert!(!s.occluded(&r));
     }

@@ -1,15 +1,16 @@
 //! A pinhole perspective camera and its primary rays.
 use crate::intersect::Ray;
-use glam::{Vec2, Vec3};
+use crate::vector::unit;
+use glam::{Vec2, Vec3A};
 
 /// Where the camera is and what it sees. `width`/`height` are the scene's preferred
 /// resolution (from the glTF camera's aspect ratio, else 512×512); the render settings
 /// decide the actual resolution, and the field of view stays vertical.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camera {
-    pub eye: Vec3,
-    pub target: Vec3,
-    pub up: Vec3,
+    pub eye: Vec3A,
+    pub target: Vec3A,
+    pub up: Vec3A,
     /// Vertical field of view in degrees.
     pub vfov_deg: f32,
     pub width: u32,
@@ -18,7 +19,7 @@ pub struct Camera {
 
 impl Default for Camera {
     fn default() -> Self {
-        Camera { eye: Vec3::new(0.0, 0.0, 5.0), target: Vec3::ZERO, up: Vec3::Y, vfov_deg: 45.0, width: 512, height: 512 }
+        Camera { eye: Vec3A::new(0.0, 0.0, 5.0), target: Vec3A::ZERO, up: Vec3A::Y, vfov_deg: 45.0, width: 512, height: 512 }
     }
 }
 
@@ -36,7 +37,7 @@ impl Camera {
         if fwd.length_squared() <= 0.0 {
             return Err("camera eye and target coincide".into());
         }
-        if fwd.normalize().cross(self.up).length_squared() < 1e-12 {
+        if unit(fwd).cross(self.up).length_squared() < 1e-12 {
             return Err("camera up vector is parallel to the viewing direction".into());
         }
         if !(self.vfov_deg > 0.0 && self.vfov_deg < 180.0) {
@@ -53,8 +54,8 @@ impl Camera {
 
     /// The ray generator for an image of `width`×`height` pixels.
     pub fn frame(&self, width: u32, height: u32) -> CameraFrame {
-        let forward = (self.target - self.eye).normalize();
-        let right = forward.cross(self.up).normalize();
+        let forward = unit(self.target - self.eye);
+        let right = unit(forward.cross(self.up));
         let up = right.cross(forward);
         let tan_half = (self.vfov_deg.to_radians() * 0.5).tan();
         let aspect = width as f32 / height as f32;
@@ -71,10 +72,10 @@ impl Camera {
 /// Precomputed camera basis, scaled so that NDC maps directly to directions.
 #[derive(Clone, Copy, Debug)]
 pub struct CameraFrame {
-    eye: Vec3,
-    forward: Vec3,
-    right: Vec3,
-    up: Vec3,
+    eye: Vec3A,
+    forward: Vec3A,
+    right: Vec3A,
+    up: Vec3A,
     inv_size: Vec2,
 }
 
@@ -85,7 +86,7 @@ impl CameraFrame {
     pub fn ray(&self, x: u32, y: u32, jitter: Vec2) -> Ray {
         let sx = (x as f32 + jitter.x) * self.inv_size.x * 2.0 - 1.0;
         let sy = 1.0 - (y as f32 + jitter.y) * self.inv_size.y * 2.0;
-        let dir = (self.forward + self.right * sx + self.up * sy).normalize();
+        let dir = unit(self.forward + self.right * sx + self.up * sy);
         Ray { origin: self.eye, dir, tmin: 0.0, tmax: f32::INFINITY }
     }
 }
@@ -96,12 +97,12 @@ mod tests {
 
     #[test]
     fn centre_ray_looks_at_target_and_corners_span_the_fov() {
-        let cam = Camera { eye: Vec3::new(1.0, 2.0, 3.0), target: Vec3::new(1.0, 2.0, -7.0), vfov_deg: 60.0, ..Default::default() };
+        let cam = Camera { eye: Vec3A::new(1.0, 2.0, 3.0), target: Vec3A::new(1.0, 2.0, -7.0), vfov_deg: 60.0, ..Default::default() };
         let f = cam.frame(200, 100);
         let c = f.ray(100, 50, Vec2::ZERO);
-        assert!((c.dir - Vec3::NEG_Z).length() < 1e-6);
+        assert!((c.dir - Vec3A::NEG_Z).length() < 1e-6);
         let top = f.ray(100, 0, Vec2::ZERO);
-        let angle = top.dir.angle_between(Vec3::NEG_Z).to_degrees();
+        let angle = top.dir.angle_between(Vec3A::NEG_Z).to_degrees();
         assert!((angle - 30.0).abs() < 1e-3, "{angle}");
         assert!(top.dir.y > 0.0, "top row must look up");
         let right = f.ray(199, 50, Vec2::new(1.0, 0.0));
@@ -113,7 +114,7 @@ mod tests {
     fn degenerate_cameras_are_rejected() {
         assert!(Camera::default().validate().is_ok());
         assert!(Camera { target: Camera::default().eye, ..Default::default() }.validate().is_err());
-        assert!(Camera { up: Vec3::Z, ..Default::default() }.validate().is_err());
+        assert!(Camera { up: Vec3A::Z, ..Default::default() }.validate().is_err());
         assert!(Camera { vfov_deg: 0.0, ..Default::default() }.validate().is_err());
         // So narrow that every ray is the viewing direction in f32 (1e-30 degrees, a denormal).
         for vfov in [1e-30, 1e-45, 1e-5] {

@@ -3,7 +3,7 @@
 //! Each tile is rendered independently into its own buffers and then copied into the image,
 //! so per-pixel sums never depend on which thread ran which tile. Sums are kept in f64 and
 //! accumulated in sample-index order.
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec3A};
 
 /// Tile edge length in pixels: small enough to balance 2 cores, large enough to amortise overhead.
 pub const TILE_SIZE: u32 = 16;
@@ -48,7 +48,7 @@ pub struct PixelSums {
 
 impl PixelSums {
     #[inline]
-    pub fn add(&mut self, v: Vec3) {
+    pub fn add(&mut self, v: Vec3A) {
         let v = v.as_dvec3();
         self.total += v;
         self.batch += v;

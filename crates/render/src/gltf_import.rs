@@ -22,7 +22,7 @@ use crate::scene::{default_camera, Scene, SceneError, SceneParts};
 use crate::sidecar::Sidecar;
 use crate::texture::{srgb_to_linear, Texture};
 use cvtrace_streams::input_file::{regular_file, NotAFile};
-use glam::{Mat3, Mat4, Vec2, Vec3};
+use glam::{Mat3, Mat4, Vec2, Vec3A};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -526,9 +526,9 @@ impl<'a> Builder<'a> {
             .parts
             .positions
             .iter()
-            .fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+            .fold((Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
         self.parts.camera = Some(self.camera.take().unwrap_or_else(|| default_camera(lo, hi)));
-        if self.parts.normals.iter().all(|n| *n == Vec3::ZERO) {
+        if self.parts.normals.iter().all(|n| *n == Vec3A::ZERO) {
             self.parts.normals.clear();
         }
         if self.parts.uvs.iter().all(|n| *n == Vec2::ZERO) {
@@ -580,9 +580,9 @@ impl<'a> Builder<'a> {
         if !(intensity.is_finite() && intensity >= 0.0) {
             return Err(self.err(format!("{name}: intensity {intensity} must be finite and non-negative")));
         }
-        let value = Vec3::from(light.color()) * intensity;
-        let position = world.transform_point3(Vec3::ZERO);
-        let direction = world.transform_vector3(Vec3::NEG_Z).normalize_or_zero();
+        let value = Vec3A::from(light.color()) * intensity;
+        let position = world.transform_point3a(Vec3A::ZERO);
+        let direction = world.transform_vector3a(Vec3A::NEG_Z).normalize_or_zero();
         let l = match light.kind() {
             Kind::Point => Punctual::Point { position, intensity: value },
             Kind::Spot { inner_cone_angle, outer_cone_angle } => {
@@ -601,9 +601,9 @@ impl<'a> Builder<'a> {
     fn convert_camera(&self, cam: &gltf::Camera, world: Mat4) -> Result<Option<Camera>, SceneError> {
         match cam.projection() {
             gltf::camera::Projection::Perspective(p) => {
-                let eye = world.transform_point3(Vec3::ZERO);
-                let forward = world.transform_vector3(Vec3::NEG_Z).normalize_or_zero();
-                let up = world.transform_vector3(Vec3::Y).normalize_or_zero();
+                let eye = world.transform_point3a(Vec3A::ZERO);
+                let forward = world.transform_vector3a(Vec3A::NEG_Z).normalize_or_zero();
+                let up = world.transform_vector3a(Vec3A::Y).normalize_or_zero();
                 let (width, height) = match p.aspect_ratio() {
                     None => (512, 512),
                     Some(a) if a.is_finite() && a >= 1.0 => ((512.0 * a).round().min(16384.0) as u32, 512),
@@ -640,13 +640,13 @@ impl<'a> Builder<'a> {
             let Some(pos) = reader.read_positions() else {
                 return Err(self.err(format!("mesh {} has a primitive without POSITION", mesh.index())));
             };
-            let positions: Vec<Vec3> = pos.map(|p| world.transform_point3(Vec3::from(p))).collect();
+            let positions: Vec<Vec3A> = pos.map(|p| world.transform_point3a(Vec3A::from(p))).collect();
             let n = positions.len();
-            let raw_normals: Option<Vec<Vec3>> = reader.read_normals().map(|it| it.map(Vec3::from).collect());
+            let raw_normals: Option<Vec<Vec3A>> = reader.read_normals().map(|it| it.map(Vec3A::from).collect());
             if let Some(i) = raw_normals.as_ref().and_then(|v| v.iter().position(|n| !n.is_finite())) {
                 return Err(self.err(format!("mesh {}: NORMAL of vertex {i} is not finite", mesh.index())));
             }
-            let normals: Option<Vec<Vec3>> =
+            let normals: Option<Vec<Vec3A>> =
                 raw_normals.map(|v| v.into_iter().map(|n| (normal_matrix * n).normalize_or_zero()).collect());
             let uvs: Option<Vec<Vec2>> = reader.read_tex_coords(0).map(|t| t.into_f32().map(Vec2::from).collect());
             let indices: Vec<u32> = match reader.read_indices() {
@@ -676,7 +676,7 @@ impl<'a> Builder<'a> {
                 return Err(self.err("the scene has more than 2^32 vertices"));
             }
             self.parts.positions.extend_from_slice(&positions);
-            self.parts.normals.extend(normals.unwrap_or_else(|| vec![Vec3::ZERO; n]));
+            self.parts.normals.extend(normals.unwrap_or_else(|| vec![Vec3A::ZERO; n]));
             self.parts.uvs.extend(uvs.unwrap_or_else(|| vec![Vec2::ZERO; n]));
             for [a, b, c] in tris {
                 let t = if flip { [a, c, b] } else { [a, b, c] };
@@ -737,7 +737,7 @@ impl<'a> Builder<'a> {
         let bc = pbr.base_color_factor();
         let mut mat = Material {
             name: m.name().map(str::to_owned).unwrap_or_else(|| format!("material {}", m.index().unwrap_or(0))),
-            base_color: Vec3::new(bc[0], bc[1], bc[2]),
+            base_color: Vec3A::new(bc[0], bc[1], bc[2]),
             metallic: pbr.metallic_factor(),
             roughness: pbr.roughness_factor(),
             ..Material::default()
@@ -746,7 +746,7 @@ impl<'a> Builder<'a> {
         mat.metallic_roughness_texture = self.texture(pbr.metallic_roughness_texture(), false)?;
         if let Some(s) = m.specular() {
             mat.specular = s.specular_factor();
-            mat.specular_color = Vec3::from(s.specular_color_factor());
+            mat.specular_color = Vec3A::from(s.specular_color_factor());
         }
         if let Some(t) = m.transmission() {
             mat.transmission = t.transmission_factor();
@@ -782,7 +782,7 @@ impl<'a> Builder<'a> {
         if m.occlusion_texture().is_some() {
             self.warn_once("occlusionTexture is not rendered");
         }
-        mat.emission = Vec3::from(m.emissive_factor()) * strength;
+        mat.emission = Vec3A::from(m.emissive_factor()) * strength;
         if mat.emission.max_element() > 0.0 {
             mat.emissive_texture = self.texture(m.emissive_texture(), true)?;
         }
@@ -864,8 +864,8 @@ fn convert_image(data: &gltf::image::Data, srgb: bool) -> Result<Texture, String
     texels.extend((0..n).map(|p| {
         let c = |k: usize| decode(value(p * channels + k));
         match channels {
-            1 | 2 => Vec3::splat(c(0)),
-            _ => Vec3::new(c(0), c(1), c(2)),
+            1 | 2 => glam::Vec3::splat(c(0)),
+            _ => glam::Vec3::new(c(0), c(1), c(2)),
         }
     }));
     Texture::new(data.width, data.height, texels).ok_or_else(|| format!("{}×{} is not a usable size", data.width, data.height))
@@ -942,28 +942,28 @@ mod tests {
         let scene = Scene::load(&path).unwrap();
         let lights = scene.lights().punctual();
         assert_eq!(lights.len(), 4, "{lights:?}");
-        let near = |a: Vec3, b: Vec3| (a - b).length() < 1e-5;
-        let i = Vec3::new(8.0, 4.0, 2.0);
+        let near = |a: Vec3A, b: Vec3A| (a - b).length() < 1e-5;
+        let i = Vec3A::new(8.0, 4.0, 2.0);
         match &lights[0] {
-            Punctual::Point { position, intensity } => assert!(near(*position, Vec3::new(1.0, 4.0, 3.0)) && *intensity == i, "{:?}", lights[0]),
+            Punctual::Point { position, intensity } => assert!(near(*position, Vec3A::new(1.0, 4.0, 3.0)) && *intensity == i, "{:?}", lights[0]),
             l => panic!("{l:?}"),
         }
         match &lights[1] {
-            Punctual::Point { position, intensity } => assert!(near(*position, Vec3::new(-4.0, 0.0, 0.0)) && *intensity == i),
+            Punctual::Point { position, intensity } => assert!(near(*position, Vec3A::new(-4.0, 0.0, 0.0)) && *intensity == i),
             l => panic!("{l:?}"),
         }
         match &lights[2] {
             Punctual::Spot { position, direction, intensity, cos_inner, cos_outer } => {
-                assert!(near(*position, Vec3::new(0.0, 5.0, 0.0)) && near(*direction, Vec3::NEG_Y), "{:?}", lights[2]);
-                assert_eq!(*intensity, Vec3::splat(3.0));
+                assert!(near(*position, Vec3A::new(0.0, 5.0, 0.0)) && near(*direction, Vec3A::NEG_Y), "{:?}", lights[2]);
+                assert_eq!(*intensity, Vec3A::splat(3.0));
                 assert!((cos_inner - 0.2f32.cos()).abs() < 1e-6 && (cos_outer - 0.5f32.cos()).abs() < 1e-6);
             }
             l => panic!("{l:?}"),
         }
         match &lights[3] {
             Punctual::Directional { direction, irradiance } => {
-                assert!(near(*direction, Vec3::NEG_X), "{direction}");
-                assert_eq!(*irradiance, Vec3::new(2.0, 2.0, 1.0));
+                assert!(near(*direction, Vec3A::NEG_X), "{direction}");
+                assert_eq!(*irradiance, Vec3A::new(2.0, 2.0, 1.0));
             }
             l => panic!("{l:?}"),
         }
@@ -1067,7 +1067,7 @@ color = [0.5, 0.5, 1]
         let s = Scene::load(&path).unwrap();
         let d = s.render_defaults();
         assert_eq!((d.width, d.height, d.reference_spp, d.spp), (Some(320), Some(180), Some(512), None));
-        assert_eq!(s.lights().environment().unwrap().eval(Vec3::Y), Vec3::new(0.5, 0.5, 1.0));
+        assert_eq!(s.lights().environment().unwrap().eval(Vec3A::Y), Vec3A::new(0.5, 0.5, 1.0));
         assert_eq!(s.lights().len(), 5);
         // A broken sidecar fails the load, naming itself.
         std::fs::write(&sidecar, "[render]
@@ -1087,7 +1087,7 @@ colour = [1, 1, 1]
         let e = convert_image(&data, true).unwrap_err();
         assert!(e.contains("16384×8193") && e.contains("limit"), "{e}");
         let data = gltf::image::Data { pixels: vec![0, 128, 255, 7], format: gltf::image::Format::R8G8, width: 2, height: 1 };
-        assert_eq!(convert_image(&data, false).unwrap().texels, vec![Vec3::ZERO, Vec3::splat(1.0)]);
+        assert_eq!(convert_image(&data, false).unwrap().texels, vec![glam::Vec3::ZERO, glam::Vec3::splat(1.0)]);
         let short = gltf::image::Data { pixels: vec![0; 3], format: gltf::image::Format::R8G8, width: 2, height: 1 };
         assert!(convert_image(&short, false).is_err());
     }

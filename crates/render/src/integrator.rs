@@ -24,16 +24,16 @@ use crate::intersect::{Hit, Intersector, Ray};
 use crate::lights::ShadowEnd;
 use crate::sampler::{dims, SampleSampler};
 use crate::scene::Scene;
-use glam::Vec3;
+use glam::Vec3A;
 
 /// First-hit features of one sample (for denoising-style estimators).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct FirstHit {
     /// Base colour at the first hit; emission for emitters seen from the front; the
     /// environment's radiance for a miss (0 without an environment).
-    pub albedo: Vec3,
+    pub albedo: Vec3A,
     /// Shading normal facing the camera (world space); 0 for a miss.
-    pub normal: Vec3,
+    pub normal: Vec3A,
     /// Distance from the camera; 0 for a miss.
     pub depth: f32,
 }
@@ -61,7 +61,7 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
 
 /// Starts a ray at `p` off the surface with geometric normal `ng`, on the side of `dir`.
 #[inline]
-fn spawn_origin(p: Vec3, ng: Vec3, dir: Vec3, eps: f32) -> Vec3 {
+fn spawn_origin(p: Vec3A, ng: Vec3A, dir: Vec3A, eps: f32) -> Vec3A {
     if dir.dot(ng) >= 0.0 {
         p + ng * eps
     } else {
@@ -79,7 +79,7 @@ pub fn radiance<T: Intersector>(
     ray: Ray,
     sampler: &SampleSampler,
     first: Option<&mut FirstHit>,
-) -> Vec3 {
+) -> Vec3A {
     let hit = tracer.intersect(&ray);
     radiance_from_hit(scene, tracer, limits, ray, hit, sampler, first)
 }
@@ -94,13 +94,13 @@ pub fn radiance_from_hit<T: Intersector>(
     camera_hit: Option<Hit>,
     sampler: &SampleSampler,
     mut first: Option<&mut FirstHit>,
-) -> Vec3 {
+) -> Vec3A {
     let eps = scene.ray_epsilon();
     let textures = scene.textures();
     let lights = scene.lights();
     let max_depth = if limits.max_depth < 0 { u32::MAX } else { limits.max_depth as u32 };
-    let mut l = Vec3::ZERO;
-    let mut beta = Vec3::ONE;
+    let mut l = Vec3A::ZERO;
+    let mut beta = Vec3A::ONE;
     let mut eta_scale = 1.0f32;
     // Density of the BSDF sample that produced `ray`, and whether it was a delta lobe.
     let mut prev_pdf = 0.0f32;
@@ -117,7 +117,7 @@ pub fn radiance_from_hit<T: Intersector>(
                 let w = if prev_delta { 1.0 } else { power_heuristic(prev_pdf, pdf_light) };
                 l += beta * le * w;
                 if let Some(f) = first.take() {
-                    *f = FirstHit { albedo: le, normal: Vec3::ZERO, depth: 0.0 };
+                    *f = FirstHit { albedo: le, normal: Vec3A::ZERO, depth: 0.0 };
                 }
             }
             break;
@@ -127,7 +127,7 @@ pub fn radiance_from_hit<T: Intersector>(
         let front = ray.dir.dot(sp.ng) < 0.0;
 
         // Emission, MIS-weighted against light sampling unless the previous bounce was specular.
-        let mut le = Vec3::ZERO;
+        let mut le = Vec3A::ZERO;
         if front && material.is_emissive() {
             le = material.emission_at(textures, sp.uv);
             let w = if prev_delta {
@@ -141,7 +141,7 @@ pub fn radiance_from_hit<T: Intersector>(
         }
         if let Some(f) = first.take() {
             let ns = if sp.ns.dot(ray.dir) > 0.0 { -sp.ns } else { sp.ns };
-            *f = FirstHit { albedo: if le != Vec3::ZERO { le } else { material.base_color_at(textures, sp.uv) }, normal: ns, depth: hit.t };
+            *f = FirstHit { albedo: if le != Vec3A::ZERO { le } else { material.base_color_at(textures, sp.uv) }, normal: ns, depth: hit.t };
         }
         if depth >= max_depth {
             break;
@@ -161,7 +161,7 @@ pub fn radiance_from_hit<T: Intersector>(
             let u_pos = sampler.get2d(dims::at(vertex, dims::LIGHT_POS));
             if let Some(ls) = lights.sample(scene, sp.p, u_sel, u_pos) {
                 let (f, pdf_bsdf) = bsdf.eval_pdf(ls.wi);
-                if f != Vec3::ZERO {
+                if f != Vec3A::ZERO {
                     let origin = spawn_origin(sp.p, sp.ng, ls.wi, eps);
                     let shadow = match ls.end {
                         ShadowEnd::Point(target) => Ray { origin, dir: target - origin, tmin: 0.0, tmax: 1.0 },
@@ -178,7 +178,7 @@ pub fn radiance_from_hit<T: Intersector>(
         // Continue the path by sampling the BSDF.
         let Some(bs) = bsdf.sample_drawn(&draw) else { break };
         beta *= bs.weight;
-        if beta == Vec3::ZERO || !beta.is_finite() {
+        if beta == Vec3A::ZERO || !beta.is_finite() {
             break;
         }
         eta_scale *= bs.eta * bs.eta;

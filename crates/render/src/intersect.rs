@@ -1,12 +1,12 @@
 //! Ray casting behind a trait: the renderer needs "nearest hit" and "anything in between",
 //! nothing else. The root crate implements it with Embree; tests implement it by brute force.
-use glam::Vec3;
+use glam::Vec3A;
 
 /// A ray segment `origin + t * dir`, `t` in `[tmin, tmax]`. `dir` need not be normalised.
 #[derive(Clone, Copy, Debug)]
 pub struct Ray {
-    pub origin: Vec3,
-    pub dir: Vec3,
+    pub origin: Vec3A,
+    pub dir: Vec3A,
     pub tmin: f32,
     pub tmax: f32,
 }

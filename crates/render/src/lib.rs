@@ -22,6 +22,7 @@ pub mod render;
 pub mod sampler;
 pub mod scene;
 pub mod select;
+pub mod vector;
 pub mod sidecar;
 pub mod testing;
 pub mod texture;

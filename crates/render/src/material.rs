@@ -2,7 +2,7 @@
 //! kept in a flat `Vec` indexed by the per-triangle material id.
 use crate::bsdf::PbrParams;
 use crate::texture::Texture;
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3A};
 
 /// One material. Texture fields index the scene's texture list; colour textures are stored
 /// linear (decoded from sRGB at load time). Only `TEXCOORD_0` is used.
@@ -10,7 +10,7 @@ use glam::{Vec2, Vec3};
 pub struct Material {
     pub name: String,
     /// baseColorFactor (RGB; alpha is ignored: all surfaces are opaque or glass).
-    pub base_color: Vec3,
+    pub base_color: Vec3A,
     pub base_color_texture: Option<u32>,
     pub metallic: f32,
     pub roughness: f32,
@@ -18,13 +18,13 @@ pub struct Material {
     pub metallic_roughness_texture: Option<u32>,
     /// `KHR_materials_specular`: specularFactor and specularColorFactor.
     pub specular: f32,
-    pub specular_color: Vec3,
+    pub specular_color: Vec3A,
     /// `KHR_materials_transmission`: transmissionFactor.
     pub transmission: f32,
     /// `KHR_materials_ior`.
     pub ior: f32,
     /// Emitted radiance: emissiveFactor × `KHR_materials_emissive_strength`.
-    pub emission: Vec3,
+    pub emission: Vec3A,
     pub emissive_texture: Option<u32>,
 }
 
@@ -33,16 +33,16 @@ impl Default for Material {
     fn default() -> Self {
         Material {
             name: "default".into(),
-            base_color: Vec3::ONE,
+            base_color: Vec3A::ONE,
             base_color_texture: None,
             metallic: 1.0,
             roughness: 1.0,
             metallic_roughness_texture: None,
             specular: 1.0,
-            specular_color: Vec3::ONE,
+            specular_color: Vec3A::ONE,
             transmission: 0.0,
             ior: 1.5,
-            emission: Vec3::ZERO,
+            emission: Vec3A::ZERO,
             emissive_texture: None,
         }
     }
@@ -50,12 +50,12 @@ impl Default for Material {
 
 impl Material {
     /// A pure Lambertian surface (specular layer off, as the Cornell box uses).
-    pub fn diffuse(albedo: Vec3) -> Material {
+    pub fn diffuse(albedo: Vec3A) -> Material {
         Material { name: "diffuse".into(), base_color: albedo, metallic: 0.0, specular: 0.0, ..Default::default() }
     }
 
     /// A Lambertian surface that also emits `radiance` from its front face.
-    pub fn emissive(albedo: Vec3, radiance: Vec3) -> Material {
+    pub fn emissive(albedo: Vec3A, radiance: Vec3A) -> Material {
         Material { name: "emitter".into(), emission: radiance, ..Material::diffuse(albedo) }
     }
 
@@ -65,7 +65,7 @@ impl Material {
     }
 
     /// A metal with base colour `f0` (its normal-incidence reflectance).
-    pub fn metal(f0: Vec3, roughness: f32) -> Material {
+    pub fn metal(f0: Vec3A, roughness: f32) -> Material {
         Material { name: "metal".into(), base_color: f0, metallic: 1.0, roughness, ..Default::default() }
     }
 
@@ -100,7 +100,7 @@ impl Material {
 
     /// Base colour at `uv` (the albedo feature).
     #[inline]
-    pub fn base_color_at(&self, textures: &[Texture], uv: Vec2) -> Vec3 {
+    pub fn base_color_at(&self, textures: &[Texture], uv: Vec2) -> Vec3A {
         match self.base_color_texture {
             Some(t) => self.base_color * textures[t as usize].sample(uv),
             None => self.base_color,
@@ -109,7 +109,7 @@ impl Material {
 
     /// Emitted radiance at `uv` (front face only; the caller checks the side).
     #[inline]
-    pub fn emission_at(&self, textures: &[Texture], uv: Vec2) -> Vec3 {
+    pub fn emission_at(&self, textures: &[Texture], uv: Vec2) -> Vec3A {
         match self.emissive_texture {
             Some(t) => self.emission * textures[t as usize].sample(uv),
             None => self.emission,
@@ -117,7 +117,7 @@ impl Material {
     }
 
     /// Average emitted radiance over the surface, to weight light selection by power.
-    pub fn mean_emission(&self, textures: &[Texture]) -> Vec3 {
+    pub fn mean_emission(&self, textures: &[Texture]) -> Vec3A {
         match self.emissive_texture {
             Some(t) => self.emission * textures[t as usize].mean(),
             None => self.emission,
@@ -132,22 +132,22 @@ mod tests {
     #[test]
     fn textures_modulate_factors_with_gltf_channel_layout() {
         // Texture 0: colour; texture 1: metallic-roughness (G = roughness, B = metallic).
-        let textures = vec![Texture::constant(Vec3::new(0.5, 1.0, 0.25)), Texture::constant(Vec3::new(0.9, 0.5, 0.2))];
+        let textures = vec![Texture::constant(Vec3A::new(0.5, 1.0, 0.25)), Texture::constant(Vec3A::new(0.9, 0.5, 0.2))];
         let m = Material {
-            base_color: Vec3::new(0.8, 0.6, 1.0),
+            base_color: Vec3A::new(0.8, 0.6, 1.0),
             base_color_texture: Some(0),
             metallic: 1.0,
             roughness: 0.8,
             metallic_roughness_texture: Some(1),
-            emission: Vec3::splat(2.0),
+            emission: Vec3A::splat(2.0),
             emissive_texture: Some(0),
             ..Default::default()
         };
         let p = m.params_at(&textures, Vec2::new(0.3, 0.7));
-        assert_eq!(p.base_color, Vec3::new(0.4, 0.6, 0.25));
+        assert_eq!(p.base_color, Vec3A::new(0.4, 0.6, 0.25));
         assert!((p.roughness - 0.4).abs() < 1e-6 && (p.metallic - 0.2).abs() < 1e-6, "{p:?}");
-        assert_eq!(m.emission_at(&textures, Vec2::ZERO), Vec3::new(1.0, 2.0, 0.5));
-        assert_eq!(m.mean_emission(&textures), Vec3::new(1.0, 2.0, 0.5));
-        assert!(m.is_emissive() && !Material::diffuse(Vec3::ONE).is_emissive());
+        assert_eq!(m.emission_at(&textures, Vec2::ZERO), Vec3A::new(1.0, 2.0, 0.5));
+        assert_eq!(m.mean_emission(&textures), Vec3A::new(1.0, 2.0, 0.5));
+        assert!(m.is_emissive() && !Material::diffuse(Vec3A::ONE).is_emissive());
     }
 }

@@ -12,7 +12,7 @@ use crate::intersect::{Hit, Intersector, Ray};
 use crate::sampler::{dims, SampleSampler, StreamKind, StreamSampler};
 use crate::scene::Scene;
 use cvtrace_streams::{Features, Image, Stream, StreamMeta, StreamSet};
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec3A};
 use rayon::prelude::*;
 use std::ops::Range;
 
@@ -148,7 +148,7 @@ impl<T: Intersector> Context<'_, T> {
         tile: &Tile,
         samples: Range<u32>,
         features: bool,
-        mut each: impl FnMut(usize, u32, Vec3, bool, &FirstHit),
+        mut each: impl FnMut(usize, u32, Vec3A, bool, &FirstHit),
     ) {
         let mut batch = CameraBatch::default();
         for (i, (x, y)) in tile.pixels().enumerate() {
@@ -167,7 +167,7 @@ impl<T: Intersector> Context<'_, T> {
 
     /// Traces the batch's camera rays together, then follows each path on its own; empties the batch.
     #[inline]
-    fn trace_batch(&self, batch: &mut CameraBatch, features: bool, each: &mut impl FnMut(usize, u32, Vec3, bool, &FirstHit)) {
+    fn trace_batch(&self, batch: &mut CameraBatch, features: bool, each: &mut impl FnMut(usize, u32, Vec3A, bool, &FirstHit)) {
         batch.hits.clear();
         batch.hits.resize(batch.rays.len(), None);
         self.tracer.intersect_coherent(&batch.rays, &mut batch.hits);
@@ -176,7 +176,7 @@ impl<T: Intersector> Context<'_, T> {
             let first = if features { Some(&mut fh) } else { None };
             let v = radiance_from_hit(self.scene, self.tracer, self.limits, ray, hit, &smp, first);
             let bad = !v.is_finite();
-            each(i, s, if bad { Vec3::ZERO } else { v }, bad, &fh);
+            each(i, s, if bad { Vec3A::ZERO } else { v }, bad, &fh);
         }
         batch.paths.clear();
         batch.rays.clear();

@@ -8,7 +8,7 @@ use crate::lights::{triangle_power, Environment, LightSet, Punctual};
 use crate::sidecar::RenderDefaults;
 use crate::material::Material;
 use crate::texture::Texture;
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3A};
 use std::path::{Path, PathBuf};
 
 /// Why a scene could not be loaded or built. Every variant names the file (or `<memory>`).
@@ -36,10 +36,10 @@ impl SceneError {
 /// Everything needed to build a [`Scene`] in memory (tests, procedural scenes, other loaders).
 #[derive(Clone, Debug, Default)]
 pub struct SceneParts {
-    pub positions: Vec<Vec3>,
+    pub positions: Vec<Vec3A>,
     pub triangles: Vec<[u32; 3]>,
     /// Per-vertex shading normals, or empty to use geometric normals. A zero normal means "none".
-    pub normals: Vec<Vec3>,
+    pub normals: Vec<Vec3A>,
     /// Per-vertex `TEXCOORD_0`, or empty.
     pub uvs: Vec<Vec2>,
     /// Material id of each triangle.
@@ -59,11 +59,11 @@ pub struct SceneParts {
 /// A surface point reconstructed from a hit.
 #[derive(Clone, Copy, Debug)]
 pub struct SurfacePoint {
-    pub p: Vec3,
+    pub p: Vec3A,
     /// Unit geometric normal from the winding (front face side).
-    pub ng: Vec3,
+    pub ng: Vec3A,
     /// Unit shading normal, on the same side as `ng`.
-    pub ns: Vec3,
+    pub ns: Vec3A,
     pub uv: Vec2,
     pub material: u32,
 }
@@ -71,18 +71,18 @@ pub struct SurfacePoint {
 /// A scene ready to render.
 #[derive(Clone, Debug)]
 pub struct Scene {
-    positions: Vec<Vec3>,
+    positions: Vec<Vec3A>,
     triangles: Vec<[u32; 3]>,
-    normals: Vec<Vec3>,
+    normals: Vec<Vec3A>,
     uvs: Vec<Vec2>,
     tri_material: Vec<u32>,
-    tri_normal: Vec<Vec3>,
+    tri_normal: Vec<Vec3A>,
     tri_area: Vec<f32>,
     materials: Vec<Material>,
     textures: Vec<Texture>,
     lights: LightSet,
     camera: Camera,
-    bounds: (Vec3, Vec3),
+    bounds: (Vec3A, Vec3A),
     ray_epsilon: f32,
     render_defaults: RenderDefaults,
 }
@@ -176,15 +176,15 @@ impl Scene {
             let c = (p1 - p0).cross(p2 - p0);
             let len = c.length();
             tri_area.push(0.5 * len);
-            tri_normal.push(if len > 0.0 { c / len } else { Vec3::Z });
+            tri_normal.push(if len > 0.0 { c / len } else { Vec3A::Z });
         }
         for (i, l) in punctual.iter().enumerate() {
             l.validate().map_err(|m| SceneError::invalid(origin, format!("punctual light {i}: {m}")))?;
         }
         render_defaults.validate().map_err(|m| SceneError::invalid(origin, format!("render defaults: {m}")))?;
         let (lo, hi) =
-            positions.iter().fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
-        let mean_emission: Vec<Vec3> = materials.iter().map(|m| m.mean_emission(&textures)).collect();
+            positions.iter().fold((Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        let mean_emission: Vec<Vec3A> = materials.iter().map(|m| m.mean_emission(&textures)).collect();
         let power: Vec<f64> =
             triangle_materials.iter().zip(&tri_area).map(|(&m, &a)| triangle_power(mean_emission[m as usize], a)).collect();
         let radius = ((hi - lo).length() * 0.5).max(1e-3);
@@ -215,7 +215,7 @@ impl Scene {
     }
 
     /// All vertices, world space.
-    pub fn positions(&self) -> &[Vec3] {
+    pub fn positions(&self) -> &[Vec3A] {
         &self.positions
     }
 
@@ -262,7 +262,7 @@ impl Scene {
     }
 
     /// Axis-aligned bounds `(min, max)` of all vertices.
-    pub fn bounds(&self) -> (Vec3, Vec3) {
+    pub fn bounds(&self) -> (Vec3A, Vec3A) {
         self.bounds
     }
 
@@ -272,7 +272,7 @@ impl Scene {
     }
 
     #[inline]
-    pub fn triangle_vertices(&self, prim: u32) -> [Vec3; 3] {
+    pub fn triangle_vertices(&self, prim: u32) -> [Vec3A; 3] {
         self.triangles[prim as usize].map(|i| self.positions[i as usize])
     }
 
@@ -282,7 +282,7 @@ impl Scene {
     }
 
     #[inline]
-    pub fn geometric_normal(&self, prim: u32) -> Vec3 {
+    pub fn geometric_normal(&self, prim: u32) -> Vec3A {
         self.tri_normal[prim as usize]
     }
 
@@ -333,11 +333,11 @@ impl Scene {
             h.floats(t.texels.len(), t.texels.iter().flat_map(|c| c.to_array()));
         }
         // Small, structured parts by their debug form (an environment map's shows a hash of
-        // its texels); emitters are derived from the geometry and materials above.
-        h.text(&format!("{:?}", self.materials));
-        h.text(&format!("{:?}", self.lights.punctual()));
-        h.text(&format!("{:?}", self.lights.environment()));
-        h.text(&format!("{:?}", self.camera));
+        // its texels); emitters are derived from the geometry and materials above. Vectors are
+        // spelt `Vec3(…)` as before they became the SIMD `Vec3A`, so recorded hashes still match.
+        for part in [format!("{:?}", self.materials), format!("{:?}", self.lights.punctual()), format!("{:?}", self.lights.environment()), format!("{:?}", self.camera)] {
+            h.text(&part.replace("Vec3A(", "Vec3("));
+        }
         h.0
     }
 }
@@ -370,12 +370,12 @@ impl Fingerprint {
 }
 
 /// A camera looking at the bounds' centre from +Z (glTF's "front"), framing the bounding sphere.
-pub fn default_camera(lo: Vec3, hi: Vec3) -> Camera {
+pub fn default_camera(lo: Vec3A, hi: Vec3A) -> Camera {
     let centre = (lo + hi) * 0.5;
     let radius = ((hi - lo).length() * 0.5).max(1e-3);
     let vfov: f32 = 45.0;
     let dist = radius / (vfov.to_radians() * 0.5).sin() * 1.05;
-    Camera { eye: centre + Vec3::Z * dist, target: centre, up: Vec3::Y, vfov_deg: vfov, width: 512, height: 512 }
+    Camera { eye: centre + Vec3A::Z * dist, target: centre, up: Vec3A::Y, vfov_deg: vfov, width: 512, height: 512 }
 }
 
 #[cfg(test)]
@@ -386,7 +386,7 @@ mod tests {
     fn the_fingerprint_sees_every_part_of_the_scene_but_not_its_render_defaults() {
         let parts = || {
             let mut p = quad();
-            p.textures = vec![Texture::new(2, 1, vec![Vec3::ZERO, Vec3::ONE]).unwrap()];
+            p.textures = vec![Texture::new(2, 1, vec![glam::Vec3::ZERO, glam::Vec3::ONE]).unwrap()];
             p.materials[0].base_color_texture = Some(0);
             p.uvs = vec![Vec2::ZERO; 4];
             p
@@ -396,7 +396,8 @@ mod tests {
         let mut with_defaults = Scene::from_parts(parts()).unwrap();
         with_defaults.set_render_defaults(RenderDefaults { reference_spp: Some(64), ..Default::default() });
         assert_eq!(base, with_defaults.fingerprint());
-        let changes: Vec<(&str, Box<dyn Fn(&mut SceneParts)>)> = vec![
+        type Change = (&'static str, Box<dyn Fn(&mut SceneParts)>);
+        let changes: Vec<Change> = vec![
             ("a position", Box::new(|p| p.positions[2].x = f32::from_bits(p.positions[2].x.to_bits() + 1))),
             ("a triangle's winding", Box::new(|p| p.triangles[0] = [0, 2, 1])),
             ("a triangle's material", Box::new(|p| p.triangle_materials.swap(0, 1))),
@@ -404,7 +405,7 @@ mod tests {
             ("a texture's shape", Box::new(|p| (p.textures[0].width, p.textures[0].height) = (1, 2))),
             ("a uv", Box::new(|p| p.uvs[3] = Vec2::new(0.0, 1.0))),
             ("a material", Box::new(|p| p.materials[0].roughness = 0.5)),
-            ("the environment", Box::new(|p| p.environment = Some(Environment::constant(Vec3::ONE).unwrap()))),
+            ("the environment", Box::new(|p| p.environment = Some(Environment::constant(Vec3A::ONE).unwrap()))),
             ("the camera", Box::new(|p| p.camera = Some(Camera { vfov_deg: 30.0, ..Camera::default() }))),
         ];
         for (what, change) in changes {
@@ -416,10 +417,10 @@ mod tests {
 
     fn quad() -> SceneParts {
         SceneParts {
-            positions: vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y],
+            positions: vec![Vec3A::ZERO, Vec3A::X, Vec3A::new(1.0, 1.0, 0.0), Vec3A::Y],
             triangles: vec![[0, 1, 2], [0, 2, 3]],
             triangle_materials: vec![0, 1],
-            materials: vec![Material::diffuse(Vec3::splat(0.5)), Material::emissive(Vec3::ZERO, Vec3::ONE)],
+            materials: vec![Material::diffuse(Vec3A::splat(0.5)), Material::emissive(Vec3A::ZERO, Vec3A::ONE)],
             ..Default::default()
         }
     }
@@ -427,12 +428,12 @@ mod tests {
     #[test]
     fn from_parts_precomputes_normals_areas_and_lights() {
         let s = Scene::from_parts(quad()).unwrap();
-        assert_eq!(s.geometric_normal(0), Vec3::Z);
+        assert_eq!(s.geometric_normal(0), Vec3A::Z);
         assert!((s.triangle_area(1) - 0.5).abs() < 1e-6);
         assert_eq!(s.lights().len(), 1);
         assert!((s.lights().pdf_area(1) - 2.0).abs() < 1e-6);
         let sp = s.surface(0, 0.25, 0.5);
-        assert!((sp.p - Vec3::new(0.75, 0.5, 0.0)).length() < 1e-6);
+        assert!((sp.p - Vec3A::new(0.75, 0.5, 0.0)).length() < 1e-6);
         // Default camera sees the whole quad from +Z.
         assert!(s.camera().eye.z > 1.0);
     }
@@ -441,19 +442,19 @@ mod tests {
     fn shading_normals_are_interpolated_and_oriented_with_the_winding() {
         let mut p = quad();
         // Vertex normals pointing *against* the winding normal (+z), tilted differently per vertex.
-        p.normals = vec![Vec3::new(0.0, 0.0, -1.0), Vec3::new(0.6, 0.0, -0.8), Vec3::new(0.0, 0.6, -0.8), Vec3::new(0.0, 0.0, -1.0)];
+        p.normals = vec![Vec3A::new(0.0, 0.0, -1.0), Vec3A::new(0.6, 0.0, -0.8), Vec3A::new(0.0, 0.6, -0.8), Vec3A::new(0.0, 0.0, -1.0)];
         p.uvs = vec![Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y];
         let s = Scene::from_parts(p).unwrap();
         let sp = s.surface(0, 1.0, 0.0); // at vertex 1
-        assert!((sp.ns - Vec3::new(-0.6, 0.0, 0.8)).length() < 1e-6, "{}", sp.ns);
-        assert_eq!(sp.ng, Vec3::Z);
+        assert!((sp.ns - Vec3A::new(-0.6, 0.0, 0.8)).length() < 1e-6, "{}", sp.ns);
+        assert_eq!(sp.ng, Vec3A::Z);
         let mid = s.surface(0, 0.5, 0.5);
         assert!((mid.ns.length() - 1.0).abs() < 1e-6 && mid.ns.z > 0.0);
         assert!((mid.uv - Vec2::new(1.0, 0.5)).length() < 1e-6);
         // Zero normals fall back to the geometric normal.
         let mut p = quad();
-        p.normals = vec![Vec3::ZERO; 4];
-        assert_eq!(Scene::from_parts(p).unwrap().surface(1, 0.2, 0.2).ns, Vec3::Z);
+        p.normals = vec![Vec3A::ZERO; 4];
+        assert_eq!(Scene::from_parts(p).unwrap().surface(1, 0.2, 0.2).ns, Vec3A::Z);
     }
 
     #[test]
@@ -466,7 +467,7 @@ mod tests {
         p.triangle_materials[0] = 5;
         assert!(Scene::from_parts(p).unwrap_err().to_string().contains("material 5"));
         let mut p = quad();
-        p.normals = vec![Vec3::Z];
+        p.normals = vec![Vec3A::Z];
         assert!(Scene::from_parts(p).is_err());
     }
 }

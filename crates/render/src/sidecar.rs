@@ -7,7 +7,7 @@ use crate::lights::Environment;
 use crate::render::MAX_IMAGE_SIDE;
 use crate::scene::SceneError;
 use cvtrace_streams::input_file::{regular_file, NotAFile};
-use glam::Vec3;
+use glam::Vec3A;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -164,7 +164,7 @@ impl Sidecar {
         let invalid = |m: String| SceneError::invalid(&self.path, m);
         let strength = spec.strength.unwrap_or(1.0);
         let env = match (spec.color, self.map_path()) {
-            (Some(c), _) => Environment::constant(Vec3::from_array(c) * strength).map_err(invalid)?,
+            (Some(c), _) => Environment::constant(Vec3A::from_array(c) * strength).map_err(invalid)?,
             (None, Some(file)) => {
                 let image = cvtrace_streams::exr_io::read_rgb(&file).map_err(|e| invalid(format!("environment map: {e}")))?;
                 Environment::from_image(&image, strength).map_err(|m| invalid(format!("environment map {}: {m}", file.display())))?
@@ -202,7 +202,7 @@ mod tests {
             }
         );
         let env = s.environment().unwrap().unwrap();
-        assert!((env.eval(Vec3::Y) - Vec3::new(1.2, 1.4, 2.0)).length() < 1e-6);
+        assert!((env.eval(Vec3A::Y) - Vec3A::new(1.2, 1.4, 2.0)).length() < 1e-6);
         // Everything is optional.
         assert_eq!(parse("").unwrap().render, RenderDefaults::default());
         assert!(parse("[render]\nspp = 4\n").unwrap().environment.is_none());
@@ -243,7 +243,7 @@ mod tests {
         let s = Sidecar::discover(&dir.path().join("scene.gltf")).unwrap().unwrap();
         let env = s.environment().unwrap().unwrap();
         // Direction −Z is the centre column (u = 0.5 → x = 4).
-        assert_eq!(env.eval(Vec3::NEG_Z), Vec3::new(2.0, 0.5, 0.5));
+        assert_eq!(env.eval(Vec3A::NEG_Z), Vec3A::new(2.0, 0.5, 0.5));
         let mut bad = img.clone();
         bad.pixels[5][2] = -3.0;
         cvtrace_streams::exr_io::write_rgb(&dir.path().join("sky.exr"), &bad, &[], true).unwrap();

@@ -8,13 +8,13 @@ use crate::intersect::{Hit, Intersector, Ray};
 use crate::material::Material;
 use crate::sampler::{StreamKind, StreamSampler};
 use crate::scene::{Scene, SceneParts};
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec3A};
 
 /// Tests every triangle for every ray: O(n) per ray, exact and obviously correct.
 pub struct BruteForce {
-    v0: Vec<Vec3>,
-    e1: Vec<Vec3>,
-    e2: Vec<Vec3>,
+    v0: Vec<Vec3A>,
+    e1: Vec<Vec3A>,
+    e2: Vec<Vec3A>,
 }
 
 impl BruteForce {
@@ -74,7 +74,7 @@ impl Intersector for BruteForce {
 }
 
 /// Appends the quad `a b c d` (counter-clockwise seen from its front) as two triangles.
-pub fn add_quad(parts: &mut SceneParts, [a, b, c, d]: [Vec3; 4], material: u32) {
+pub fn add_quad(parts: &mut SceneParts, [a, b, c, d]: [Vec3A; 4], material: u32) {
     let base = parts.positions.len() as u32;
     parts.positions.extend_from_slice(&[a, b, c, d]);
     parts.triangles.push([base, base + 1, base + 2]);
@@ -83,8 +83,8 @@ pub fn add_quad(parts: &mut SceneParts, [a, b, c, d]: [Vec3; 4], material: u32) 
 }
 
 /// Appends an axis-aligned box with outward-facing sides.
-pub fn add_box(parts: &mut SceneParts, lo: Vec3, hi: Vec3, material: u32) {
-    let p = |x: bool, y: bool, z: bool| Vec3::new(if x { hi.x } else { lo.x }, if y { hi.y } else { lo.y }, if z { hi.z } else { lo.z });
+pub fn add_box(parts: &mut SceneParts, lo: Vec3A, hi: Vec3A, material: u32) {
+    let p = |x: bool, y: bool, z: bool| Vec3A::new(if x { hi.x } else { lo.x }, if y { hi.y } else { lo.y }, if z { hi.z } else { lo.z });
     let (f, t) = (false, true);
     add_quad(parts, [p(f, f, t), p(t, f, t), p(t, t, t), p(f, t, t)], material); // +z
     add_quad(parts, [p(t, f, f), p(f, f, f), p(f, t, f), p(t, t, f)], material); // -z
@@ -100,14 +100,14 @@ pub fn add_box(parts: &mut SceneParts, lo: Vec3, hi: Vec3, material: u32) {
 pub fn cornell_box() -> Scene {
     let mut parts = SceneParts {
         materials: vec![
-            Material::diffuse(Vec3::splat(0.73)),
-            Material::diffuse(Vec3::new(0.65, 0.05, 0.05)),
-            Material::diffuse(Vec3::new(0.12, 0.45, 0.15)),
-            Material::emissive(Vec3::splat(0.78), Vec3::new(17.0, 12.0, 4.0)),
+            Material::diffuse(Vec3A::splat(0.73)),
+            Material::diffuse(Vec3A::new(0.65, 0.05, 0.05)),
+            Material::diffuse(Vec3A::new(0.12, 0.45, 0.15)),
+            Material::emissive(Vec3A::splat(0.78), Vec3A::new(17.0, 12.0, 4.0)),
         ],
         ..Default::default()
     };
-    let v = Vec3::new;
+    let v = Vec3A::new;
     add_quad(&mut parts, [v(-1., -1., 1.), v(1., -1., 1.), v(1., -1., -1.), v(-1., -1., -1.)], 0); // floor, up
     add_quad(&mut parts, [v(-1., 1., -1.), v(1., 1., -1.), v(1., 1., 1.), v(-1., 1., 1.)], 0); // ceiling, down
     add_quad(&mut parts, [v(-1., -1., -1.), v(1., -1., -1.), v(1., 1., -1.), v(-1., 1., -1.)], 0); // back, +z
@@ -117,7 +117,7 @@ pub fn cornell_box() -> Scene {
     add_quad(&mut parts, [v(-0.25, y, -0.25), v(0.25, y, -0.25), v(0.25, y, 0.25), v(-0.25, y, 0.25)], 3); // light, down
     add_box(&mut parts, v(-0.65, -1.0, -0.6), v(-0.05, 0.2, -0.05), 0);
     add_box(&mut parts, v(0.1, -1.0, -0.1), v(0.65, -0.4, 0.5), 0);
-    parts.camera = Some(Camera { eye: v(0.0, 0.0, 3.9), target: v(0.0, 0.0, 0.0), up: Vec3::Y, vfov_deg: 38.0, width: 256, height: 256 });
+    parts.camera = Some(Camera { eye: v(0.0, 0.0, 3.9), target: v(0.0, 0.0, 0.0), up: Vec3A::Y, vfov_deg: 38.0, width: 256, height: 256 });
     Scene::from_parts(parts).expect("the built-in Cornell box is valid")
 }
 
@@ -127,18 +127,18 @@ pub fn cornell_box() -> Scene {
 pub fn materials_box() -> Scene {
     let mut parts = SceneParts {
         materials: vec![
-            Material::diffuse(Vec3::splat(0.73)),
-            Material::diffuse(Vec3::new(0.65, 0.05, 0.05)),
-            Material::diffuse(Vec3::new(0.12, 0.45, 0.15)),
-            Material::emissive(Vec3::splat(0.78), Vec3::new(17.0, 12.0, 4.0)),
-            Material { name: "plastic".into(), base_color: Vec3::new(0.2, 0.3, 0.6), metallic: 0.0, roughness: 0.25, ..Default::default() },
-            Material::metal(Vec3::new(1.0, 0.78, 0.34), 0.35),
+            Material::diffuse(Vec3A::splat(0.73)),
+            Material::diffuse(Vec3A::new(0.65, 0.05, 0.05)),
+            Material::diffuse(Vec3A::new(0.12, 0.45, 0.15)),
+            Material::emissive(Vec3A::splat(0.78), Vec3A::new(17.0, 12.0, 4.0)),
+            Material { name: "plastic".into(), base_color: Vec3A::new(0.2, 0.3, 0.6), metallic: 0.0, roughness: 0.25, ..Default::default() },
+            Material::metal(Vec3A::new(1.0, 0.78, 0.34), 0.35),
             Material::glass(1.5, 0.0),
-            Material::metal(Vec3::splat(0.95), 0.0),
+            Material::metal(Vec3A::splat(0.95), 0.0),
         ],
         ..Default::default()
     };
-    let v = Vec3::new;
+    let v = Vec3A::new;
     add_quad(&mut parts, [v(-1., -1., 1.), v(1., -1., 1.), v(1., -1., -1.), v(-1., -1., -1.)], 4);
     add_quad(&mut parts, [v(-1., 1., -1.), v(1., 1., -1.), v(1., 1., 1.), v(-1., 1., 1.)], 0);
     add_quad(&mut parts, [v(-1., -1., -1.), v(1., -1., -1.), v(1., 1., -1.), v(-1., 1., -1.)], 0);
@@ -149,24 +149,24 @@ pub fn materials_box() -> Scene {
     add_box(&mut parts, v(-0.65, -1.0, -0.6), v(-0.05, 0.2, -0.05), 5);
     add_box(&mut parts, v(0.1, -1.0, -0.1), v(0.65, -0.4, 0.5), 6);
     add_box(&mut parts, v(0.35, -1.0, -0.8), v(0.75, -0.6, -0.4), 7);
-    parts.camera = Some(Camera { eye: v(0.0, 0.0, 3.9), target: v(0.0, 0.0, 0.0), up: Vec3::Y, vfov_deg: 38.0, width: 256, height: 256 });
+    parts.camera = Some(Camera { eye: v(0.0, 0.0, 3.9), target: v(0.0, 0.0, 0.0), up: Vec3A::Y, vfov_deg: 38.0, width: 256, height: 256 });
     Scene::from_parts(parts).expect("the built-in material box is valid")
 }
 
 /// A closed cube `[-1, 1]³` whose inward-facing walls all emit `le` and reflect `albedo`
 /// (Lambertian), seen from its centre: radiance is `le / (1 − albedo)` everywhere.
 pub fn furnace_box(le: f32, albedo: f32) -> Scene {
-    let mut parts = SceneParts { materials: vec![Material::emissive(Vec3::splat(albedo), Vec3::splat(le))], ..Default::default() };
-    let (lo, hi) = (Vec3::splat(-1.0), Vec3::ONE);
+    let mut parts = SceneParts { materials: vec![Material::emissive(Vec3A::splat(albedo), Vec3A::splat(le))], ..Default::default() };
+    let (lo, hi) = (Vec3A::splat(-1.0), Vec3A::ONE);
     add_box(&mut parts, lo, hi, 0);
     // Turn the outward box inside out so the walls face the interior.
     for t in &mut parts.triangles {
         t.swap(1, 2);
     }
     parts.camera = Some(Camera {
-        eye: Vec3::new(0.1, -0.05, 0.2),
-        target: Vec3::new(0.3, 0.2, -1.0),
-        up: Vec3::Y,
+        eye: Vec3A::new(0.1, -0.05, 0.2),
+        target: Vec3A::new(0.3, 0.2, -1.0),
+        up: Vec3A::Y,
         vfov_deg: 90.0,
         width: 16,
         height: 16,
@@ -177,16 +177,16 @@ pub fn furnace_box(le: f32, albedo: f32) -> Scene {
 /// A square Lambertian plane `[−half, half]²` in `y = 0` facing +Y with albedo `rho`
 /// (material 0), seen from above; add lights, occluders or an environment to the parts.
 pub fn plane_parts(rho: f32, half: f32) -> SceneParts {
-    let mut parts = SceneParts { materials: vec![Material::diffuse(Vec3::splat(rho))], ..Default::default() };
-    let v = Vec3::new;
+    let mut parts = SceneParts { materials: vec![Material::diffuse(Vec3A::splat(rho))], ..Default::default() };
+    let v = Vec3A::new;
     add_quad(&mut parts, [v(-half, 0.0, half), v(half, 0.0, half), v(half, 0.0, -half), v(-half, 0.0, -half)], 0);
-    parts.camera = Some(Camera { eye: v(0.0, 3.0, 0.01), target: Vec3::ZERO, up: Vec3::NEG_Z, vfov_deg: 60.0, width: 16, height: 16 });
+    parts.camera = Some(Camera { eye: v(0.0, 3.0, 0.01), target: Vec3A::ZERO, up: Vec3A::NEG_Z, vfov_deg: 60.0, width: 16, height: 16 });
     parts
 }
 
 /// Mean and standard error (per channel) of the path tracer's radiance along `ray` over PT
 /// samples `0..n` of `seed` (one pixel key, so the samples are independent).
-pub fn estimate_radiance<T: Intersector>(scene: &Scene, tracer: &T, ray: Ray, max_depth: i32, n: u32, seed: u64) -> (Vec3, Vec3) {
+pub fn estimate_radiance<T: Intersector>(scene: &Scene, tracer: &T, ray: Ray, max_depth: i32, n: u32, seed: u64) -> (Vec3A, Vec3A) {
     let st = StreamSampler::new(seed, StreamKind::Pt);
     let limits = PathLimits { max_depth, rr_depth: 5 };
     let (mut sum, mut sq) = (DVec3::ZERO, DVec3::ZERO);
@@ -197,11 +197,11 @@ pub fn estimate_radiance<T: Intersector>(scene: &Scene, tracer: &T, ray: Ray, ma
     }
     let mean = sum / n as f64;
     let var = (sq / n as f64 - mean * mean).max(DVec3::ZERO) * (n as f64 / (n as f64 - 1.0).max(1.0));
-    (mean.as_vec3(), (var / n as f64).map(f64::sqrt).as_vec3())
+    (mean.as_vec3a(), (var / n as f64).map(f64::sqrt).as_vec3a())
 }
 
 /// A ray from `eye` through `target` (unit direction).
-pub fn ray_through(eye: Vec3, target: Vec3) -> Ray {
+pub fn ray_through(eye: Vec3A, target: Vec3A) -> Ray {
     Ray { origin: eye, dir: (target - eye).normalize(), tmin: 0.0, tmax: f32::INFINITY }
 }
 
@@ -213,7 +213,7 @@ mod tests {
     fn brute_force_uses_embree_barycentrics_and_nearest_hit() {
         let scene = cornell_box();
         let bf = BruteForce::new(&scene);
-        let ray = Ray { origin: Vec3::new(0.3, -0.7, 3.0), dir: Vec3::new(0.0, 0.0, -1.0), tmin: 0.0, tmax: f32::INFINITY };
+        let ray = Ray { origin: Vec3A::new(0.3, -0.7, 3.0), dir: Vec3A::new(0.0, 0.0, -1.0), tmin: 0.0, tmax: f32::INFINITY };
         let hit = bf.intersect(&ray).expect("looks into the box");
         let sp = scene.surface(hit.prim, hit.u, hit.v);
         let p = ray.origin + ray.dir * hit.t;

@@ -1,7 +1,7 @@
 //! glTF loading: a tiny file written by the test (JSON + base64 or external buffer) loads with
 //! the right geometry, instancing, camera and material; broken files give errors naming the file.
 use cvtrace_render::{Scene, SceneError};
-use glam::Vec3;
+use glam::Vec3A;
 use std::path::Path;
 
 mod common;
@@ -79,20 +79,20 @@ fn tiny_gltf_loads_geometry_instances_camera_and_material() {
     assert_eq!(scene.positions().len(), 8);
     let (lo, hi) = scene.bounds();
     // Parent scale 2 applies after the child's translation: x spans [0, 2] and [10, 12].
-    assert_eq!((lo, hi), (Vec3::ZERO, Vec3::new(12.0, 2.0, 0.0)));
+    assert_eq!((lo, hi), (Vec3A::ZERO, Vec3A::new(12.0, 2.0, 0.0)));
     let cam = scene.camera();
-    assert_eq!(cam.eye, Vec3::new(0.0, 1.0, 10.0));
-    assert!(((cam.target - cam.eye).normalize() - Vec3::NEG_Z).length() < 1e-6);
+    assert_eq!(cam.eye, Vec3A::new(0.0, 1.0, 10.0));
+    assert!(((cam.target - cam.eye).normalize() - Vec3A::NEG_Z).length() < 1e-6);
     assert!((cam.vfov_deg - 0.5f32.to_degrees()).abs() < 1e-4);
     assert_eq!((cam.width, cam.height), (1024, 512));
     let m = &scene.materials()[scene.triangle_materials()[0] as usize];
     assert_eq!(m.name, "lamp");
-    assert_eq!(m.base_color, Vec3::new(0.5, 0.25, 1.0));
+    assert_eq!(m.base_color, Vec3A::new(0.5, 0.25, 1.0));
     assert_eq!((m.metallic, m.roughness, m.specular), (0.0, 0.3, 0.0));
-    assert_eq!(m.emission, Vec3::new(4.0, 2.0, 1.0));
+    assert_eq!(m.emission, Vec3A::new(4.0, 2.0, 1.0));
     // Both instances emit, facing +z.
     assert_eq!(scene.lights().len(), 4);
-    assert_eq!(scene.geometric_normal(3), Vec3::Z);
+    assert_eq!(scene.geometric_normal(3), Vec3A::Z);
 }
 
 #[test]
@@ -170,9 +170,9 @@ fn base_colour_texture_is_decoded_from_srgb_and_a_missing_one_is_named() {
     let m = &scene.materials()[0];
     let t = &scene.textures()[m.base_color_texture.expect("texture is used") as usize];
     assert_eq!((t.width, t.height), (2, 1));
-    assert_eq!(t.texels[0], Vec3::new(1.0, 0.0, 0.0));
+    assert_eq!(t.texels[0], glam::Vec3::new(1.0, 0.0, 0.0));
     let g = cvtrace_render::texture::srgb_to_linear(128.0 / 255.0);
-    assert!((t.texels[1] - Vec3::splat(g)).length() < 1e-6 && g < 0.25, "{}", t.texels[1]);
+    assert!((t.texels[1] - glam::Vec3::splat(g)).length() < 1e-6 && g < 0.25, "{}", t.texels[1]);
     std::fs::remove_file(dir.path().join("albedo.png")).unwrap();
     let msg = Scene::load(&p).unwrap_err().to_string();
     assert!(msg.contains("tex.gltf") && msg.contains("albedo.png"), "{msg}");
@@ -196,11 +196,11 @@ fn repository_cornell_box_loads() {
     // One quad light facing down, emitting (17, 12, 4).
     assert_eq!(scene.lights().len(), 2);
     let light = (0..36u32).find(|&i| scene.lights().pdf_area(i) > 0.0).unwrap();
-    assert!((scene.material_of(light).emission - Vec3::new(17.0, 12.0, 4.0)).length() < 1e-3);
+    assert!((scene.material_of(light).emission - Vec3A::new(17.0, 12.0, 4.0)).length() < 1e-3);
     assert!(scene.geometric_normal(light).y < -0.99);
     let cam = scene.camera();
     assert_eq!((cam.width, cam.height), (256, 256));
-    assert!((cam.eye - Vec3::new(278.0, 273.0, -800.0)).length() < 1e-3);
+    assert!((cam.eye - Vec3A::new(278.0, 273.0, -800.0)).length() < 1e-3);
     assert!((cam.target - cam.eye).normalize().z > 0.999);
 }
 

@@ -5,7 +5,7 @@
 use cvtrace_render::testing::{add_box, add_quad, furnace_box, BruteForce};
 use cvtrace_render::{render_streams, Camera, Material, RenderSettings, Scene, SceneParts};
 use cvtrace_streams::Image;
-use glam::Vec3;
+use glam::Vec3A;
 
 /// Mean and standard error of the per-pixel values of channel `c` (independent PT pixels).
 fn pixel_stats(im: &Image, c: usize) -> (f64, f64) {
@@ -72,15 +72,15 @@ fn smooth_glass_is_invisible_in_a_furnace() {
     // lobes, refraction's radiance scaling and its compensation in Russian roulette.
     let (le, rho) = (1.0f32, 0.5f32);
     let mut parts = SceneParts {
-        materials: vec![Material::emissive(Vec3::splat(rho), Vec3::splat(le)), Material::glass(1.5, 0.0)],
+        materials: vec![Material::emissive(Vec3A::splat(rho), Vec3A::splat(le)), Material::glass(1.5, 0.0)],
         ..Default::default()
     };
-    add_box(&mut parts, Vec3::splat(-2.0), Vec3::splat(2.0), 0);
+    add_box(&mut parts, Vec3A::splat(-2.0), Vec3A::splat(2.0), 0);
     for t in &mut parts.triangles {
         t.swap(1, 2);
     }
-    add_box(&mut parts, Vec3::splat(-0.6), Vec3::splat(0.6), 1);
-    parts.camera = Some(Camera { eye: Vec3::new(0.3, 0.4, 1.9), target: Vec3::ZERO, up: Vec3::Y, vfov_deg: 30.0, width: 16, height: 16 });
+    add_box(&mut parts, Vec3A::splat(-0.6), Vec3A::splat(0.6), 1);
+    parts.camera = Some(Camera { eye: Vec3A::new(0.3, 0.4, 1.9), target: Vec3A::ZERO, up: Vec3A::Y, vfov_deg: 30.0, width: 16, height: 16 });
     let scene = Scene::from_parts(parts).unwrap();
     let tracer = BruteForce::new(&scene);
     let set = render_streams(&scene, &tracer, &settings(16, 64, 8, -1), &|_| {}).unwrap();
@@ -104,13 +104,13 @@ fn square_form_factor(a: f64, h: f64) -> f64 {
 fn max_depth_two_is_direct_lighting_and_one_shows_only_emitters() {
     let (le, rho, a, h) = (3.0f32, 0.5f32, 1.0f32, 1.0f32);
     let mut parts = SceneParts {
-        materials: vec![Material::diffuse(Vec3::splat(rho)), Material::emissive(Vec3::ZERO, Vec3::splat(le))],
+        materials: vec![Material::diffuse(Vec3A::splat(rho)), Material::emissive(Vec3A::ZERO, Vec3A::splat(le))],
         ..Default::default()
     };
-    let v = Vec3::new;
+    let v = Vec3A::new;
     add_quad(&mut parts, [v(-10., 0., 10.), v(10., 0., 10.), v(10., 0., -10.), v(-10., 0., -10.)], 0);
     add_quad(&mut parts, [v(-a, h, -a), v(a, h, -a), v(a, h, a), v(-a, h, a)], 1);
-    parts.camera = Some(Camera { eye: v(0.0, 0.5, 2.0), target: Vec3::ZERO, up: Vec3::Y, vfov_deg: 0.5, width: 8, height: 8 });
+    parts.camera = Some(Camera { eye: v(0.0, 0.5, 2.0), target: Vec3A::ZERO, up: Vec3A::Y, vfov_deg: 0.5, width: 8, height: 8 });
     let scene = Scene::from_parts(parts).unwrap();
     let tracer = BruteForce::new(&scene);
 

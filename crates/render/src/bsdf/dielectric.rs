@@ -11,12 +11,13 @@
 use super::fresnel::{dielectric as fresnel, refract};
 use super::ggx::{Ggx, MIN_ALPHA};
 use super::reflect;
-use glam::{Vec2, Vec3};
+use crate::vector::unit;
+use glam::{Vec2, Vec3A};
 
 /// Result of sampling a dielectric in local coordinates.
 #[derive(Clone, Copy, Debug)]
 pub struct DielectricSample {
-    pub wi: Vec3,
+    pub wi: Vec3A,
     /// `f · |cos θi|` (delta: the discrete weight), not yet divided by `pdf`.
     pub f_cos: f32,
     /// Density (or probability for delta lobes) of choosing `wi`.
@@ -41,17 +42,17 @@ impl Dielectric {
     }
 
     /// `f(wo, wi)` of the rough interface (zero for smooth ones).
-    pub fn eval(&self, wo: Vec3, wi: Vec3) -> f32 {
+    pub fn eval(&self, wo: Vec3A, wi: Vec3A) -> f32 {
         self.eval_pdf(wo, wi).0
     }
 
-    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f32 {
+    pub fn pdf(&self, wo: Vec3A, wi: Vec3A) -> f32 {
         self.eval_pdf(wo, wi).1
     }
 
     /// The generalised half vector of Walter et al., facing +z, with the relative index crossed.
     #[inline]
-    fn half_vector(&self, wo: Vec3, wi: Vec3) -> Option<(Vec3, f32, bool)> {
+    fn half_vector(&self, wo: Vec3A, wi: Vec3A) -> Option<(Vec3A, f32, bool)> {
         let (co, ci) = (wo.z, wi.z);
         if co == 0.0 || ci == 0.0 {
             return None;
@@ -68,7 +69,7 @@ impl Dielectric {
         if wm.length_squared() == 0.0 {
             return None;
         }
-        let wm = wm.normalize();
+        let wm = unit(wm);
         let wm = if wm.z < 0.0 { -wm } else { wm };
         // Microfacets seen from behind contribute nothing.
         if wm.dot(wi) * ci < 0.0 || wm.dot(wo) * co < 0.0 {
@@ -78,7 +79,7 @@ impl Dielectric {
     }
 
     /// `(f, pdf)` of the rough interface at once (they share the half vector and Fresnel term).
-    pub fn eval_pdf(&self, wo: Vec3, wi: Vec3) -> (f32, f32) {
+    pub fn eval_pdf(&self, wo: Vec3A, wi: Vec3A) -> (f32, f32) {
         if self.smooth {
             return (0.0, 0.0);
         }
@@ -102,17 +103,17 @@ impl Dielectric {
     }
 
     /// Samples reflection or refraction with probability equal to their Fresnel weights.
-    pub fn sample(&self, wo: Vec3, u_choice: f32, u: Vec2) -> Option<DielectricSample> {
+    pub fn sample(&self, wo: Vec3A, u_choice: f32, u: Vec2) -> Option<DielectricSample> {
         if wo.z == 0.0 {
             return None;
         }
         if self.smooth {
             let r = fresnel(wo.z, self.eta);
             if u_choice < r {
-                let wi = Vec3::new(-wo.x, -wo.y, wo.z);
+                let wi = Vec3A::new(-wo.x, -wo.y, wo.z);
                 return Some(DielectricSample { wi, f_cos: r, pdf: r, eta: 1.0, transmitted: false, delta: true });
             }
-            let (wi, etap) = refract(wo, Vec3::Z, self.eta)?;
+            let (wi, etap) = refract(wo, Vec3A::Z, self.eta)?;
             let t = 1.0 - r;
             return Some(DielectricSample { wi, f_cos: t / (etap * etap), pdf: t, eta: etap, transmitted: true, delta: true });
         }

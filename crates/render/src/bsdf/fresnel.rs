@@ -1,12 +1,12 @@
 //! Fresnel reflectance: Schlick's approximation for the glTF layers, the exact dielectric
 //! formula for glass.
-use glam::Vec3;
+use glam::Vec3A;
 
 /// Schlick's approximation with an explicit grazing value `f90` (glTF's `KHR_materials_specular`).
 #[inline]
-pub fn schlick(f0: Vec3, f90: f32, cos: f32) -> Vec3 {
+pub fn schlick(f0: Vec3A, f90: f32, cos: f32) -> Vec3A {
     let m = (1.0 - cos.clamp(0.0, 1.0)).powi(5);
-    f0 + (Vec3::splat(f90) - f0) * m
+    f0 + (Vec3A::splat(f90) - f0) * m
 }
 
 /// Unpolarised reflectance of a smooth dielectric interface. `cos_i` is measured against the
@@ -31,7 +31,7 @@ pub fn dielectric(cos_i: f32, eta: f32) -> f32 {
 /// direction and the relative index actually crossed (`η_t / η_i`), or `None` under total
 /// internal reflection.
 #[inline]
-pub fn refract(wi: Vec3, mut n: Vec3, mut eta: f32) -> Option<(Vec3, f32)> {
+pub fn refract(wi: Vec3A, mut n: Vec3A, mut eta: f32) -> Option<(Vec3A, f32)> {
     let mut cos_i = n.dot(wi);
     if cos_i < 0.0 {
         eta = 1.0 / eta;
@@ -69,16 +69,16 @@ mod tests {
 
     #[test]
     fn refraction_obeys_snell() {
-        let wi = Vec3::new(0.6, 0.0, 0.8);
-        let (wt, etap) = refract(wi, Vec3::Z, 1.5).unwrap();
+        let wi = Vec3A::new(0.6, 0.0, 0.8);
+        let (wt, etap) = refract(wi, Vec3A::Z, 1.5).unwrap();
         assert_eq!(etap, 1.5);
         assert!((wt.length() - 1.0).abs() < 1e-5);
         assert!(wt.z < 0.0);
         assert!((0.6 - 1.5 * (-wt.x)).abs() < 1e-5, "sin ratio, wt {wt}");
         // Reversibility: light travelling back along -wt leaves along the original wi.
-        let (back, etap2) = refract(wt, Vec3::Z, 1.5).unwrap();
+        let (back, etap2) = refract(wt, Vec3A::Z, 1.5).unwrap();
         assert!((etap2 - 1.0 / 1.5).abs() < 1e-6);
         assert!((back - wi).length() < 1e-5, "{back}");
-        assert!(refract(Vec3::new(0.9, 0.0, -0.43589).normalize(), Vec3::Z, 1.5).is_none());
+        assert!(refract(Vec3A::new(0.9, 0.0, -0.43589).normalize(), Vec3A::Z, 1.5).is_none());
     }
 }

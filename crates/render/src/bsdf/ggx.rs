@@ -3,7 +3,8 @@
 //!
 //! `alpha` is glTF's `roughness²`. Tangent-space quantities are computed from the x/y components
 //! directly (not `1 − cos²`) so near-mirror lobes keep their precision in f32.
-use glam::{Vec2, Vec3};
+use crate::vector::unit;
+use glam::{Vec2, Vec3A};
 use std::f32::consts::PI;
 
 /// Smallest `alpha` used for rough lobes; smoother opaque surfaces are rendered at this roughness
@@ -23,7 +24,7 @@ impl Ggx {
 
     /// Normal distribution `D(h)` for a local half vector `h` (z > 0).
     #[inline]
-    pub fn d(&self, h: Vec3) -> f32 {
+    pub fn d(&self, h: Vec3A) -> f32 {
         if h.z <= 0.0 {
             return 0.0;
         }
@@ -36,7 +37,7 @@ impl Ggx {
 
     /// Smith's Λ for direction `w`.
     #[inline]
-    pub fn lambda(&self, w: Vec3) -> f32 {
+    pub fn lambda(&self, w: Vec3A) -> f32 {
         let cos2 = w.z * w.z;
         if cos2 == 0.0 {
             return f32::INFINITY;
@@ -46,20 +47,20 @@ impl Ggx {
     }
 
     #[inline]
-    pub fn g1(&self, w: Vec3) -> f32 {
+    pub fn g1(&self, w: Vec3A) -> f32 {
         1.0 / (1.0 + self.lambda(w))
     }
 
     /// Height-correlated masking-shadowing `G2(wo, wi)`.
     #[inline]
-    pub fn g2(&self, wo: Vec3, wi: Vec3) -> f32 {
+    pub fn g2(&self, wo: Vec3A, wi: Vec3A) -> f32 {
         1.0 / (1.0 + self.lambda(wo) + self.lambda(wi))
     }
 
     /// Density of the visible normal `h` seen from `wo` (either hemisphere; `h.z > 0`):
     /// `G1(wo) · max(0, wo·h) · D(h) / |wo.z|` with `wo` flipped to the upper side.
     #[inline]
-    pub fn pdf_visible(&self, wo: Vec3, h: Vec3) -> f32 {
+    pub fn pdf_visible(&self, wo: Vec3A, h: Vec3A) -> f32 {
         let wo = if wo.z < 0.0 { -wo } else { wo };
         if wo.z == 0.0 {
             return 0.0;
@@ -70,11 +71,11 @@ impl Ggx {
     /// Samples a visible normal (z > 0) for `wo` (Heitz 2018); `wo` may be below the surface,
     /// in which case its mirror image is used, as the distribution is symmetric.
     #[inline]
-    pub fn sample_visible(&self, wo: Vec3, u: Vec2) -> Vec3 {
+    pub fn sample_visible(&self, wo: Vec3A, u: Vec2) -> Vec3A {
         let wo = if wo.z < 0.0 { -wo } else { wo };
-        let vh = Vec3::new(self.alpha * wo.x, self.alpha * wo.y, wo.z).normalize();
+        let vh = unit(Vec3A::new(self.alpha * wo.x, self.alpha * wo.y, wo.z));
         let lensq = vh.x * vh.x + vh.y * vh.y;
-        let t1 = if lensq > 0.0 { Vec3::new(-vh.y, vh.x, 0.0) / lensq.sqrt() } else { Vec3::X };
+        let t1 = if lensq > 0.0 { Vec3A::new(-vh.y, vh.x, 0.0) / lensq.sqrt() } else { Vec3A::X };
         let t2 = vh.cross(t1);
         let r = u.x.sqrt();
         let phi = 2.0 * PI * u.y;
@@ -83,7 +84,7 @@ impl Ggx {
         let s = 0.5 * (1.0 + vh.z);
         p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * p2;
         let nh = p1 * t1 + p2 * t2 + (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt() * vh;
-        Vec3::new(self.alpha * nh.x, self.alpha * nh.y, nh.z.max(1e-6)).normalize()
+        unit(Vec3A::new(self.alpha * nh.x, self.alpha * nh.y, nh.z.max(1e-6)))
     }
 }
 
@@ -106,7 +107,7 @@ mod tests {
                 let z = u.x; // uniform hemisphere: pdf 1/(2π)
                 let r = (1.0 - z * z).max(0.0).sqrt();
                 let phi = 2.0 * PI * u.y;
-                let h = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+                let h = Vec3A::new(r * phi.cos(), r * phi.sin(), z);
                 let v = (g.d(h) * h.z * 2.0 * PI) as f64;
                 sum += v;
                 sum2 += v * v;

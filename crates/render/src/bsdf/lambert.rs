@@ -1,11 +1,11 @@
 //! The Lambertian lobe: `f = 1/π` on the upper hemisphere, cosine-weighted sampling.
 use crate::select::select_pair;
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3A};
 use std::f32::consts::{FRAC_1_PI, FRAC_PI_4};
 
 /// `f` (without albedo) for local directions; zero unless both are above the surface.
 #[inline]
-pub fn eval(wo: Vec3, wi: Vec3) -> f32 {
+pub fn eval(wo: Vec3A, wi: Vec3A) -> f32 {
     if wo.z > 0.0 && wi.z > 0.0 {
         FRAC_1_PI
     } else {
@@ -14,7 +14,7 @@ pub fn eval(wo: Vec3, wi: Vec3) -> f32 {
 }
 
 #[inline]
-pub fn pdf(wo: Vec3, wi: Vec3) -> f32 {
+pub fn pdf(wo: Vec3A, wi: Vec3A) -> f32 {
     if wo.z > 0.0 && wi.z > 0.0 {
         wi.z * FRAC_1_PI
     } else {
@@ -54,10 +54,10 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
 
 /// A cosine-distributed direction on the upper hemisphere (Malley's method).
 #[inline]
-pub fn sample(u: Vec2) -> Vec3 {
+pub fn sample(u: Vec2) -> Vec3A {
     let d = concentric_disk(u);
     let z = (1.0 - d.length_squared()).max(0.0).sqrt();
-    Vec3::new(d.x, d.y, z)
+    Vec3A::new(d.x, d.y, z)
 }
 
 #[cfg(test)]

@@ -20,17 +20,17 @@ use super::dielectric::Dielectric;
 use super::ggx::Ggx;
 use super::microfacet::MicrofacetReflection;
 use super::{lambert, luminance, Frame};
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3A};
 
 /// Material parameters resolved at a surface point (textures already applied).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PbrParams {
-    pub base_color: Vec3,
+    pub base_color: Vec3A,
     pub metallic: f32,
     pub roughness: f32,
     /// `KHR_materials_specular` specularFactor (1 by default, 0 = no specular layer).
     pub specular: f32,
-    pub specular_color: Vec3,
+    pub specular_color: Vec3A,
     /// `KHR_materials_transmission` transmissionFactor.
     pub transmission: f32,
     /// `KHR_materials_ior` (1.5 by default).
@@ -40,11 +40,11 @@ pub struct PbrParams {
 impl Default for PbrParams {
     fn default() -> Self {
         PbrParams {
-            base_color: Vec3::ONE,
+            base_color: Vec3A::ONE,
             metallic: 0.0,
             roughness: 1.0,
             specular: 1.0,
-            specular_color: Vec3::ONE,
+            specular_color: Vec3A::ONE,
             transmission: 0.0,
             ior: 1.5,
         }
@@ -55,9 +55,9 @@ impl Default for PbrParams {
 #[derive(Clone, Copy, Debug)]
 pub struct BsdfSample {
     /// World-space direction (unit).
-    pub wi: Vec3,
+    pub wi: Vec3A,
     /// `f · |cos θi| / pdf`.
-    pub weight: Vec3,
+    pub weight: Vec3A,
     /// Solid-angle density of the non-delta lobes at `wi` (0 for a delta sample).
     pub pdf: f32,
     /// Sampled from a delta lobe: the next emitter hit must not be MIS-weighted.
@@ -76,7 +76,7 @@ pub struct SampleDraw {
     pub u: Vec2,
     pub u_choice: f32,
     /// `lambert::sample(u)`.
-    pub cosine: Vec3,
+    pub cosine: Vec3A,
 }
 
 impl SampleDraw {
@@ -91,16 +91,16 @@ impl SampleDraw {
 pub struct Bsdf {
     frame: Frame,
     /// Geometric normal (winding orientation), to reject light leaks through shading normals.
-    ng: Vec3,
+    ng: Vec3A,
     /// `wo` in the local frame.
-    wo: Vec3,
+    wo: Vec3A,
     /// Which side of the shading frame `wo` is on: opaque lobes are evaluated as if it were +z.
     side: f32,
-    diffuse: Vec3,
+    diffuse: Vec3A,
     spec: MicrofacetReflection,
     glass: Dielectric,
     /// Glass transmission weight (tinted) and reflection weight (white).
-    glass_weight: Vec3,
+    glass_weight: Vec3A,
     glass_scalar: f32,
     /// `wo · ng`, whose sign tells the geometric side `wo` is on.
     wo_dot_ng: f32,
@@ -115,7 +115,7 @@ pub struct Bsdf {
 impl Bsdf {
     /// `ns`, `ng`: unit shading and geometric normals with `ns·ng ≥ 0` (ng from the winding);
     /// `wo`: unit direction towards the previous vertex.
-    pub fn new(params: &PbrParams, ns: Vec3, ng: Vec3, wo: Vec3) -> Bsdf {
+    pub fn new(params: &PbrParams, ns: Vec3A, ng: Vec3A, wo: Vec3A) -> Bsdf {
         // Shading normals that put `wo` on the other side than the geometry are discarded.
         let ns = if ns.dot(wo) * ng.dot(wo) <= 0.0 { ng } else { ns };
         let frame = Frame::from_normal(ns);
@@ -126,7 +126,7 @@ impl Bsdf {
         let m = params.metallic.clamp(0.0, 1.0);
         let t = params.transmission.clamp(0.0, 1.0);
         let opaque = (1.0 - m) * (1.0 - t);
-        let base = params.base_color.max(Vec3::ZERO);
+        let base = params.base_color.max(Vec3A::ZERO);
         let spec_factor = params.specular.clamp(0.0, 1.0);
         if m == 0.0 && t == 0.0 && spec_factor == 0.0 {
             // Pure Lambertian: no Fresnel or microfacet set-up needed.
@@ -137,9 +137,9 @@ impl Bsdf {
                 wo: wo_local,
                 side,
                 diffuse: base,
-                spec: MicrofacetReflection { ggx: Ggx::new(1.0), f0: Vec3::ZERO, f90: 0.0 },
+                spec: MicrofacetReflection { ggx: Ggx::new(1.0), f0: Vec3A::ZERO, f90: 0.0 },
                 glass: Dielectric::new(1.5, 1.0),
-                glass_weight: Vec3::ZERO,
+                glass_weight: Vec3A::ZERO,
                 glass_scalar: 0.0,
                 wo_dot_ng: wo.dot(ng),
                 p_diffuse: p_d,
@@ -149,7 +149,7 @@ impl Bsdf {
             };
         }
         let r0 = ((params.ior - 1.0) / (params.ior + 1.0)).powi(2);
-        let f0_dielectric = (Vec3::splat(r0) * params.specular_color.max(Vec3::ZERO)).min(Vec3::ONE) * spec_factor;
+        let f0_dielectric = (Vec3A::splat(r0) * params.specular_color.max(Vec3A::ZERO)).min(Vec3A::ONE) * spec_factor;
         let f_view = super::fresnel::schlick(f0_dielectric, spec_factor, cos_o);
         let diffuse = base * (opaque * (1.0 - f_view.max_element()));
         let alpha = params.roughness.clamp(0.0, 1.0).powi(2);
@@ -205,21 +205,21 @@ impl Bsdf {
     }
 
     #[inline]
-    fn opaque_local(&self, v: Vec3) -> Vec3 {
-        Vec3::new(v.x, v.y, v.z * self.side)
+    fn opaque_local(&self, v: Vec3A) -> Vec3A {
+        Vec3A::new(v.x, v.y, v.z * self.side)
     }
 
     /// `(f · |cos θi|, pdf)` for the world direction `wi`, over the non-delta lobes.
     #[inline]
-    pub fn eval_pdf(&self, wi: Vec3) -> (Vec3, f32) {
+    pub fn eval_pdf(&self, wi: Vec3A) -> (Vec3A, f32) {
         let wi_l = self.frame.to_local(wi);
         let wo_l = self.wo;
         let geometric_reflection = wi.dot(self.ng) * self.wo_dot_ng > 0.0;
         let shading_reflection = wi_l.z * wo_l.z > 0.0;
         if geometric_reflection != shading_reflection || wi_l.z == 0.0 {
-            return (Vec3::ZERO, 0.0);
+            return (Vec3A::ZERO, 0.0);
         }
-        let mut f = Vec3::ZERO;
+        let mut f = Vec3A::ZERO;
         let mut pdf = 0.0;
         if shading_reflection {
             let (o, i) = (self.opaque_local(wo_l), self.opaque_local(wi_l));
@@ -235,7 +235,7 @@ impl Bsdf {
         if self.p_glass > 0.0 && !self.glass.smooth {
             let (fg, pg) = self.glass.eval_pdf(wo_l, wi_l);
             // Glass tints transmission only; reflection off the interface is white.
-            let w = if shading_reflection { Vec3::splat(self.glass_scalar) } else { self.glass_weight };
+            let w = if shading_reflection { Vec3A::splat(self.glass_scalar) } else { self.glass_weight };
             f += w * fg;
             pdf += self.p_glass * pg;
         }
@@ -244,12 +244,12 @@ impl Bsdf {
 
     /// `f · |cos θi|` for the world direction `wi`.
     #[inline]
-    pub fn eval(&self, wi: Vec3) -> Vec3 {
+    pub fn eval(&self, wi: Vec3A) -> Vec3A {
         self.eval_pdf(wi).0
     }
 
     #[inline]
-    pub fn pdf(&self, wi: Vec3) -> f32 {
+    pub fn pdf(&self, wi: Vec3A) -> f32 {
         self.eval_pdf(wi).1
     }
 
@@ -287,7 +287,7 @@ impl Bsdf {
                 if (wi.dot(self.ng) * self.wo_dot_ng > 0.0) == s.transmitted {
                     return None;
                 }
-                let tint = if s.transmitted { self.glass_weight } else { Vec3::splat(self.glass_scalar) };
+                let tint = if s.transmitted { self.glass_weight } else { Vec3A::splat(self.glass_scalar) };
                 return Some(BsdfSample { wi, weight: tint * (s.f_cos / (s.pdf * self.p_glass)), pdf: 0.0, delta: true, eta: s.eta });
             }
             s.wi
@@ -296,7 +296,7 @@ impl Bsdf {
         };
         let wi = self.frame.to_world(wi_l);
         let (f, pdf) = self.eval_pdf(wi);
-        if pdf <= 0.0 || !pdf.is_finite() || f == Vec3::ZERO {
+        if pdf <= 0.0 || !pdf.is_finite() || f == Vec3A::ZERO {
             return None;
         }
         let eta = if wi_l.z * wo_l.z < 0.0 {
@@ -319,11 +319,11 @@ mod tests {
     use std::f32::consts::PI;
 
     fn params(metallic: f32, roughness: f32, specular: f32, transmission: f32) -> PbrParams {
-        PbrParams { base_color: Vec3::ONE, metallic, roughness, specular, transmission, ..Default::default() }
+        PbrParams { base_color: Vec3A::ONE, metallic, roughness, specular, transmission, ..Default::default() }
     }
 
-    fn wo_at(cos: f32) -> Vec3 {
-        Vec3::new((1.0 - cos * cos).sqrt(), 0.0, cos)
+    fn wo_at(cos: f32) -> Vec3A {
+        Vec3A::new((1.0 - cos * cos).sqrt(), 0.0, cos)
     }
 
     /// Mean and standard error of a scalar sample.
@@ -381,7 +381,7 @@ mod tests {
             let z = 1.0 - 2.0 * u.x;
             let r = (1.0 - z * z).max(0.0).sqrt();
             let phi = 2.0 * PI * u.y;
-            let wi = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+            let wi = Vec3A::new(r * phi.cos(), r * phi.sin(), z);
             let (f, pdf) = b.eval_pdf(wi);
             pdf_int.add((pdf * 4.0 * PI) as f64);
             f_int.add((f.max_element() * 4.0 * PI) as f64);
@@ -408,7 +408,7 @@ mod tests {
     fn white_furnace_conserves_energy_and_sampling_matches_eval() {
         for (name, p) in cases() {
             for cos in [0.95f32, 0.5, 0.15] {
-                let b = Bsdf::new(&p, Vec3::Z, Vec3::Z, wo_at(cos));
+                let b = Bsdf::new(&p, Vec3A::Z, Vec3A::Z, wo_at(cos));
                 let (albedo, _, worst) = sample_stats(&b, 20_000, 7);
                 assert!(worst < 2e-3, "{name} cos {cos}: weight differs from eval/pdf by {worst}");
                 // From outside, refraction's 1/η² only lowers the integral, so ≤ 1 holds for all.
@@ -417,7 +417,7 @@ mod tests {
             }
         }
         // A pure Lambertian white surface reflects everything.
-        let b = Bsdf::new(&params(0.0, 1.0, 0.0, 0.0), Vec3::Z, Vec3::Z, wo_at(0.7));
+        let b = Bsdf::new(&params(0.0, 1.0, 0.0, 0.0), Vec3A::Z, Vec3A::Z, wo_at(0.7));
         let (albedo, _, _) = sample_stats(&b, 2_000, 1);
         assert!((albedo.mean() - 1.0).abs() < 1e-5, "{}", albedo.mean());
     }
@@ -428,7 +428,7 @@ mod tests {
         // sampling must equal the importance-sampled estimate (a wrong pdf would bias the latter).
         for (name, p) in cases() {
             for cos in [0.9f32, 0.4] {
-                let b = Bsdf::new(&p, Vec3::Z, Vec3::Z, wo_at(cos));
+                let b = Bsdf::new(&p, Vec3A::Z, Vec3A::Z, wo_at(cos));
                 let (albedo, valid, _) = sample_stats(&b, 40_000, 11);
                 let (pdf_int, f_int) = sphere_stats(&b, 200_000, 13);
                 let tol = |a: &Stats, b: &Stats| 5.0 * (a.se().powi(2) + b.se().powi(2)).sqrt() + 2e-3;
@@ -460,7 +460,7 @@ mod tests {
         for i in 0..n {
             let s = st.sample(0, i);
             let r = b.sample(s.get1d(0), s.get2d(1), s.get1d(3));
-            let w = r.map_or(Vec3::ZERO, |r| r.weight);
+            let w = r.map_or(Vec3A::ZERO, |r| r.weight);
             for (c, a) in albedo.iter_mut().enumerate() {
                 a.add(w[c] as f64);
             }
@@ -472,22 +472,22 @@ mod tests {
     /// Every lobe and mix, white and coloured, glass from both sides (`true`: `wo` inside).
     fn quadrature_cases() -> Vec<(&'static str, PbrParams, bool)> {
         let mut v: Vec<_> = cases().into_iter().map(|(name, p)| (name, p, false)).collect();
-        let coloured = |base: Vec3, p: PbrParams| PbrParams { base_color: base, ..p };
+        let coloured = |base: Vec3A, p: PbrParams| PbrParams { base_color: base, ..p };
         v.extend([
             ("mirror metal r0", params(1.0, 0.0, 1.0, 0.0), false),
-            ("gold r0.3", coloured(Vec3::new(1.0, 0.78, 0.34), params(1.0, 0.3, 1.0, 0.0)), false),
-            ("blue half metal r0.4", coloured(Vec3::new(0.2, 0.6, 0.9), params(0.5, 0.4, 1.0, 0.0)), false),
+            ("gold r0.3", coloured(Vec3A::new(1.0, 0.78, 0.34), params(1.0, 0.3, 1.0, 0.0)), false),
+            ("blue half metal r0.4", coloured(Vec3A::new(0.2, 0.6, 0.9), params(0.5, 0.4, 1.0, 0.0)), false),
             (
                 "red plastic r0.6 specular 0.7 coloured",
-                PbrParams { specular_color: Vec3::new(1.0, 0.5, 2.0), ..coloured(Vec3::new(0.8, 0.1, 0.1), params(0.0, 0.6, 0.7, 0.0)) },
+                PbrParams { specular_color: Vec3A::new(1.0, 0.5, 2.0), ..coloured(Vec3A::new(0.8, 0.1, 0.1), params(0.0, 0.6, 0.7, 0.0)) },
                 false,
             ),
-            ("tinted frosted mix", coloured(Vec3::new(0.9, 0.6, 0.3), params(0.0, 0.5, 1.0, 0.5)), false),
-            ("tinted rough water r0.5", PbrParams { ior: 1.33, ..coloured(Vec3::new(0.6, 0.9, 1.0), params(0.0, 0.5, 1.0, 1.0)) }, false),
+            ("tinted frosted mix", coloured(Vec3A::new(0.9, 0.6, 0.3), params(0.0, 0.5, 1.0, 0.5)), false),
+            ("tinted rough water r0.5", PbrParams { ior: 1.33, ..coloured(Vec3A::new(0.6, 0.9, 1.0), params(0.0, 0.5, 1.0, 1.0)) }, false),
             ("rough glass r0.4", params(0.0, 0.4, 1.0, 1.0), true),
             ("rough glass r0.7", params(0.0, 0.7, 1.0, 1.0), true),
-            ("smooth tinted glass", coloured(Vec3::new(0.6, 0.9, 1.0), params(0.0, 0.0, 1.0, 1.0)), false),
-            ("smooth tinted glass", coloured(Vec3::new(0.6, 0.9, 1.0), params(0.0, 0.0, 1.0, 1.0)), true),
+            ("smooth tinted glass", coloured(Vec3A::new(0.6, 0.9, 1.0), params(0.0, 0.0, 1.0, 1.0)), false),
+            ("smooth tinted glass", coloured(Vec3A::new(0.6, 0.9, 1.0), params(0.0, 0.0, 1.0, 1.0)), true),
         ]);
         v
     }
@@ -516,13 +516,13 @@ mod tests {
         };
         for (name, p, inside) in quadrature_cases() {
             for cos in [0.95f32, 0.5, 0.15] {
-                let wo = wo_at(cos) * Vec3::new(1.0, 1.0, if inside { -1.0 } else { 1.0 });
-                let b = Bsdf::new(&p, Vec3::Z, Vec3::Z, wo);
+                let wo = wo_at(cos) * Vec3A::new(1.0, 1.0, if inside { -1.0 } else { 1.0 });
+                let b = Bsdf::new(&p, Vec3A::Z, Vec3A::Z, wo);
                 let reference = Reference::new(&p, wo);
                 let (albedo, valid) = sampled_albedo(&b, n, 17);
                 let (q, err) = quadrature(reference.clusters(), 16, |wi| {
                     let r = reference.f_cos(wi);
-                    let (f, pdf) = b.eval_pdf(wi.as_vec3());
+                    let (f, pdf) = b.eval_pdf(wi.as_vec3a());
                     [r.x, r.y, r.z, f.x as f64, f.y as f64, f.z as f64, pdf as f64]
                 });
                 // Smooth glass: its delta lobes have no density to integrate.
@@ -587,7 +587,7 @@ mod tests {
     fn smooth_glass_splits_by_exact_fresnel() {
         let eta = 1.5f32;
         for cos in [0.9f32, 0.3] {
-            let b = Bsdf::new(&params(0.0, 0.0, 1.0, 1.0), Vec3::Z, Vec3::Z, wo_at(cos));
+            let b = Bsdf::new(&params(0.0, 0.0, 1.0, 1.0), Vec3A::Z, Vec3A::Z, wo_at(cos));
             assert!(!b.has_non_delta());
             let (albedo, valid, _) = sample_stats(&b, 20_000, 3);
             assert_eq!(valid.mean(), 0.0, "smooth glass must only produce delta samples");
@@ -598,7 +598,7 @@ mod tests {
             assert!((albedo.mean() - expect).abs() < 5.0 * se + 1e-6, "cos {cos}: {} vs {expect}", albedo.mean());
         }
         // From inside beyond the critical angle everything reflects, with weight 1.
-        let b = Bsdf::new(&params(0.0, 0.0, 1.0, 1.0), Vec3::Z, Vec3::Z, -wo_at(0.3));
+        let b = Bsdf::new(&params(0.0, 0.0, 1.0, 1.0), Vec3A::Z, Vec3A::Z, -wo_at(0.3));
         let (albedo, _, _) = sample_stats(&b, 1_000, 3);
         assert!((albedo.mean() - 1.0).abs() < 1e-6);
     }
@@ -607,15 +607,15 @@ mod tests {
     fn geometric_normal_blocks_light_leaks() {
         // Shading normal tilted 30° from the geometric one: a direction below the geometric
         // surface but above the shading hemisphere must not reflect.
-        let ng = Vec3::Z;
-        let ns = Vec3::new(0.5, 0.0, 0.75f32.sqrt());
+        let ng = Vec3A::Z;
+        let ns = Vec3A::new(0.5, 0.0, 0.75f32.sqrt());
         let b = Bsdf::new(&params(0.0, 1.0, 0.0, 0.0), ns, ng, wo_at(0.8));
-        let leak = Vec3::new(0.99, 0.0, -0.1).normalize();
+        let leak = Vec3A::new(0.99, 0.0, -0.1).normalize();
         assert!(ns.dot(leak) > 0.0);
-        assert_eq!(b.eval(leak), Vec3::ZERO);
-        assert!(b.eval(Vec3::new(0.3, 0.0, 0.9).normalize()).max_element() > 0.0);
+        assert_eq!(b.eval(leak), Vec3A::ZERO);
+        assert!(b.eval(Vec3A::new(0.3, 0.0, 0.9).normalize()).max_element() > 0.0);
         // Specular layer off and metallic 0 with black base: a black BSDF samples nothing.
-        let black = PbrParams { base_color: Vec3::ZERO, ..params(0.0, 1.0, 0.0, 0.0) };
-        assert!(Bsdf::new(&black, Vec3::Z, Vec3::Z, wo_at(0.5)).sample(0.5, glam::Vec2::splat(0.5), 0.5).is_none());
+        let black = PbrParams { base_color: Vec3A::ZERO, ..params(0.0, 1.0, 0.0, 0.0) };
+        assert!(Bsdf::new(&black, Vec3A::Z, Vec3A::Z, wo_at(0.5)).sample(0.5, glam::Vec2::splat(0.5), 0.5).is_none());
     }
 }

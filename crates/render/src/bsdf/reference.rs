@@ -7,7 +7,7 @@
 //! quadrature of this model and the importance-sampled albedo.
 use super::ggx::MIN_ALPHA;
 use super::pbr::PbrParams;
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec3A};
 use std::f64::consts::PI;
 
 /// GGX normal distribution of a unit microfacet normal `m`.
@@ -74,7 +74,7 @@ pub struct Reference {
 }
 
 impl Reference {
-    pub fn new(p: &PbrParams, wo: Vec3) -> Reference {
+    pub fn new(p: &PbrParams, wo: Vec3A) -> Reference {
         let wo = wo.as_dvec3().normalize();
         let m = p.metallic.clamp(0.0, 1.0) as f64;
         let t = p.transmission.clamp(0.0, 1.0) as f64;

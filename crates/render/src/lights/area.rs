@@ -4,17 +4,17 @@
 //! Emitters are one-sided: they emit from the front face, i.e. the side the geometric normal
 //! `(p1 − p0) × (p2 − p0)` points to (counter-clockwise winding, as glTF specifies).
 use crate::bsdf::luminance;
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3A};
 
 /// Power of a triangle as a light: luminance of its mean emission times its area.
-pub fn triangle_power(mean_emission: Vec3, area: f32) -> f64 {
-    (luminance(mean_emission.max(Vec3::ZERO)) as f64) * area as f64
+pub fn triangle_power(mean_emission: Vec3A, area: f32) -> f64 {
+    (luminance(mean_emission.max(Vec3A::ZERO)) as f64) * area as f64
 }
 
 /// A uniform point on the triangle by the square-root warp: `(point, barycentrics (u, v) of
 /// vertices 1 and 2)` in Embree's convention.
 #[inline]
-pub fn sample_triangle(u: Vec2, [p0, p1, p2]: [Vec3; 3]) -> (Vec3, Vec2) {
+pub fn sample_triangle(u: Vec2, [p0, p1, p2]: [Vec3A; 3]) -> (Vec3A, Vec2) {
     let su = u.x.sqrt();
     let bary = Vec2::new(su * (1.0 - u.y), su * u.y);
     (p0 * (1.0 - bary.x - bary.y) + p1 * bary.x + p2 * bary.y, bary)
@@ -28,10 +28,10 @@ mod tests {
     fn points_are_uniform_on_the_triangle() {
         // Mean of a uniform point on a triangle is its centroid; check with a fixed-seed MC bound.
         use crate::sampler::{StreamKind, StreamSampler};
-        let verts = [Vec3::ZERO, Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0)];
+        let verts = [Vec3A::ZERO, Vec3A::new(2.0, 0.0, 0.0), Vec3A::new(0.0, 1.0, 0.0)];
         let st = StreamSampler::new(1, StreamKind::Pt);
         let n = 40_000;
-        let mut sum = Vec3::ZERO.as_dvec3();
+        let mut sum = Vec3A::ZERO.as_dvec3();
         let mut inside_lower_half = 0;
         for i in 0..n {
             let (point, bary) = sample_triangle(st.sample(0, i).get2d(0), verts);

@@ -17,13 +17,13 @@
 use super::distribution::Distribution2D;
 use crate::bsdf::luminance;
 use cvtrace_streams::Image;
-use glam::{Mat3, Vec2, Vec3};
+use glam::{Mat3, Vec2, Vec3A};
 use std::f32::consts::PI;
 
 /// Where the radiance comes from.
 #[derive(Clone, Debug)]
 enum Source {
-    Constant(Vec3),
+    Constant(Vec3A),
     Map(LatLong),
 }
 
@@ -41,8 +41,8 @@ pub struct Environment {
 /// A direction sampled towards the environment.
 #[derive(Clone, Copy, Debug)]
 pub struct EnvironmentSample {
-    pub wi: Vec3,
-    pub li: Vec3,
+    pub wi: Vec3A,
+    pub li: Vec3A,
     /// Solid-angle density of `wi`.
     pub pdf: f32,
 }
@@ -51,7 +51,8 @@ pub struct EnvironmentSample {
 struct LatLong {
     width: usize,
     height: usize,
-    texels: Vec<Vec3>,
+    /// 12-byte `Vec3`s (a third less memory than `Vec3A`).
+    texels: Vec<glam::Vec3>,
     dist: Distribution2D,
     /// Hash of the texels, so `Debug` (used for scene hashes) stays short.
     hash: u64,
@@ -65,7 +66,7 @@ impl std::fmt::Debug for LatLong {
 
 impl Environment {
     /// Constant radiance `color` from every direction.
-    pub fn constant(color: Vec3) -> Result<Environment, String> {
+    pub fn constant(color: Vec3A) -> Result<Environment, String> {
         if !(color.is_finite() && color.min_element() >= 0.0) {
             return Err(format!("environment colour {color} must be finite and non-negative"));
         }
@@ -102,14 +103,14 @@ impl Environment {
             for v in p {
                 hash = (hash ^ v.to_bits() as u64).wrapping_mul(0x100_0000_01b3);
             }
-            texels.push(Vec3::from_array(*p) * strength);
+            texels.push(glam::Vec3::from_array(*p) * strength);
         }
         // luminance × (mean of sin θ over the row's band of v).
         let mut func = Vec::with_capacity(w * h);
         for row in 0..h {
             let (t0, t1) = (PI as f64 * row as f64 / h as f64, PI as f64 * (row + 1) as f64 / h as f64);
             let sin_mean = ((t0.cos() - t1.cos()) / (t1 - t0)) as f32;
-            func.extend(texels[row * w..(row + 1) * w].iter().map(|t| luminance(*t) * sin_mean));
+            func.extend(texels[row * w..(row + 1) * w].iter().map(|t| luminance((*t).into()) * sin_mean));
         }
         let dist = Distribution2D::new(&func, w, h);
         // ∫ L dω / 4π = 2π² ∫ lum · sin θ du dv / 4π.
@@ -154,7 +155,7 @@ impl Environment {
     /// Radiance arriving along `-dir` (i.e. seen looking towards unit `dir`) and the solid-angle
     /// density with which [`Environment::sample`] picks `dir`.
     #[inline]
-    pub fn eval_pdf(&self, dir: Vec3) -> (Vec3, f32) {
+    pub fn eval_pdf(&self, dir: Vec3A) -> (Vec3A, f32) {
         match &self.source {
             Source::Constant(c) => (*c, 1.0 / (4.0 * PI)),
             Source::Map(m) => {
@@ -162,14 +163,14 @@ impl Environment {
                 let (uv, sin_theta) = direction_to_uv(d);
                 let (col, row) = m.cell(uv);
                 let pdf = if sin_theta > 0.0 { m.dist.pdf(col, row) / (2.0 * PI * PI * sin_theta) } else { 0.0 };
-                (m.texels[row * m.width + col], pdf)
+                (m.texels[row * m.width + col].into(), pdf)
             }
         }
     }
 
     /// Radiance seen looking towards unit `dir`.
     #[inline]
-    pub fn eval(&self, dir: Vec3) -> Vec3 {
+    pub fn eval(&self, dir: Vec3A) -> Vec3A {
         self.eval_pdf(dir).0
     }
 
@@ -181,8 +182,8 @@ impl Environment {
                 let y = 1.0 - 2.0 * u.x;
                 let r = (1.0 - y * y).max(0.0).sqrt();
                 let phi = 2.0 * PI * u.y;
-                let wi = Vec3::new(r * phi.sin(), y, -r * phi.cos());
-                (*c != Vec3::ZERO).then_some(EnvironmentSample { wi, li: *c, pdf: 1.0 / (4.0 * PI) })
+                let wi = Vec3A::new(r * phi.sin(), y, -r * phi.cos());
+                (*c != Vec3A::ZERO).then_some(EnvironmentSample { wi, li: *c, pdf: 1.0 / (4.0 * PI) })
             }
             Source::Map(m) => {
                 let (uv, (col, row)) = m.dist.sample(u);
@@ -193,8 +194,8 @@ impl Environment {
                     return None;
                 }
                 let phi = 2.0 * PI * (uv.x - 0.5);
-                let d = Vec3::new(sin_theta * phi.sin(), theta.cos(), -sin_theta * phi.cos());
-                let li = m.texels[row * m.width + col];
+                let d = Vec3A::new(sin_theta * phi.sin(), theta.cos(), -sin_theta * phi.cos());
+                let li = Vec3A::from(m.texels[row * m.width + col]);
                 Some(EnvironmentSample { wi: self.from_map * d, li, pdf: pdf_uv / (2.0 * PI * PI * sin_theta) })
             }
         }
@@ -212,7 +213,7 @@ impl LatLong {
 
 /// `(u, v)` of a unit map-space direction (see the module doc) and `sin θ`.
 #[inline]
-pub fn direction_to_uv(d: Vec3) -> (Vec2, f32) {
+pub fn direction_to_uv(d: Vec3A) -> (Vec2, f32) {
     let y = d.y.clamp(-1.0, 1.0);
     let u = 0.5 + d.x.atan2(-d.z) / (2.0 * PI);
     let v = y.acos() / PI;
@@ -237,22 +238,22 @@ mod tests {
 
     #[test]
     fn lat_long_convention() {
-        let uv = |d: Vec3| direction_to_uv(d).0;
-        assert!((uv(Vec3::NEG_Z) - Vec2::new(0.5, 0.5)).length() < 1e-6);
-        assert!((uv(Vec3::X) - Vec2::new(0.75, 0.5)).length() < 1e-6);
-        assert!((uv(Vec3::NEG_X) - Vec2::new(0.25, 0.5)).length() < 1e-6);
-        assert!(uv(Vec3::Y).y.abs() < 1e-6 && (uv(Vec3::NEG_Y).y - 1.0).abs() < 1e-6);
-        let u_pz = uv(Vec3::new(1e-4, 0.0, 1.0)).x;
+        let uv = |d: Vec3A| direction_to_uv(d).0;
+        assert!((uv(Vec3A::NEG_Z) - Vec2::new(0.5, 0.5)).length() < 1e-6);
+        assert!((uv(Vec3A::X) - Vec2::new(0.75, 0.5)).length() < 1e-6);
+        assert!((uv(Vec3A::NEG_X) - Vec2::new(0.25, 0.5)).length() < 1e-6);
+        assert!(uv(Vec3A::Y).y.abs() < 1e-6 && (uv(Vec3A::NEG_Y).y - 1.0).abs() < 1e-6);
+        let u_pz = uv(Vec3A::new(1e-4, 0.0, 1.0)).x;
         assert!(u_pz > 0.99, "{u_pz}");
         // A map whose only bright column is u ∈ [0.75, 0.875) shows it towards +X; rotated by
         // 90° about +Y it shows it towards −Z (R_y(90°) takes +X to −Z).
         let img = Image::from_fn(8, 4, |x, _| if x == 6 { [1.0; 3] } else { [0.0; 3] });
         let env = Environment::from_image(&img, 1.0).unwrap();
-        let d = Vec3::new(1.0, 0.0, 0.2).normalize();
-        assert_eq!(env.eval(d), Vec3::ONE);
+        let d = Vec3A::new(1.0, 0.0, 0.2).normalize();
+        assert_eq!(env.eval(d), Vec3A::ONE);
         let env = env.rotated(90.0).unwrap();
-        assert_eq!(env.eval(d), Vec3::ZERO);
-        assert_eq!(env.eval(Vec3::new(0.2, 0.0, -1.0).normalize()), Vec3::ONE);
+        assert_eq!(env.eval(d), Vec3A::ZERO);
+        assert_eq!(env.eval(Vec3A::new(0.2, 0.0, -1.0).normalize()), Vec3A::ONE);
     }
 
     #[test]
@@ -270,7 +271,7 @@ mod tests {
         // E[f(ω)/pdf(ω)] = ∫ f dω for test functions f; and pdf() of the sample equals its pdf.
         let env = Environment::from_image(&test_map(), 1.0).unwrap().rotated(-20.0).unwrap();
         let st = StreamSampler::new(3, StreamKind::Pt);
-        type TestFn = (&'static str, fn(Vec3) -> f64, f64);
+        type TestFn = (&'static str, fn(Vec3A) -> f64, f64);
         let tests: [TestFn; 3] = [
             ("1", |_| 1.0, 4.0 * std::f64::consts::PI),
             ("max(y,0)", |d| d.y.max(0.0) as f64, std::f64::consts::PI),
@@ -303,19 +304,19 @@ mod tests {
     }
 
     /// ∫ f over the directions where the map is non-black (numerically).
-    fn covered_integral(env: &Environment, f: fn(Vec3) -> f64) -> f64 {
+    fn covered_integral(env: &Environment, f: fn(Vec3A) -> f64) -> f64 {
         sphere_integral(600, |d| if env.eval_pdf(d).1 > 0.0 { f(d) } else { 0.0 })
     }
 
     /// ∫ f dω over the sphere by the midpoint rule in (θ, φ) with `nt × 2nt` cells.
-    fn sphere_integral(nt: usize, f: impl Fn(Vec3) -> f64) -> f64 {
+    fn sphere_integral(nt: usize, f: impl Fn(Vec3A) -> f64) -> f64 {
         let np = 2 * nt;
         let mut total = 0.0f64;
         for i in 0..nt {
             let theta = PI * (i as f32 + 0.5) / nt as f32;
             for j in 0..np {
                 let phi = 2.0 * PI * (j as f32 + 0.5) / np as f32;
-                let d = Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin());
+                let d = Vec3A::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin());
                 total += f(d) * theta.sin() as f64;
             }
         }
@@ -324,13 +325,13 @@ mod tests {
 
     #[test]
     fn constant_colour_and_constant_map_agree() {
-        let c = Vec3::new(0.6, 0.7, 1.0);
+        let c = Vec3A::new(0.6, 0.7, 1.0);
         let a = Environment::constant(c).unwrap();
         let b = Environment::from_image(&Image::from_fn(16, 8, |_, _| [0.3, 0.35, 0.5]), 2.0).unwrap();
         let expect = luminance(c) as f64;
         assert!((a.mean_luminance() - expect).abs() < 1e-6);
         assert!((b.mean_luminance() - expect).abs() < 1e-5 * expect, "{} vs {expect}", b.mean_luminance());
-        for d in [Vec3::Y, Vec3::new(0.3, -0.4, 0.866).normalize(), Vec3::NEG_Z] {
+        for d in [Vec3A::Y, Vec3A::new(0.3, -0.4, 0.866).normalize(), Vec3A::NEG_Z] {
             assert!((b.eval(d) - c).length() < 1e-6);
             assert_eq!(a.eval(d), c);
         }
@@ -355,7 +356,7 @@ mod tests {
         assert!(Environment::from_image(&img, 1.0).is_err());
         assert!(Environment::from_image(&Image::new(0, 0), 1.0).unwrap_err().contains("empty"));
         assert!(Environment::from_image(&test_map(), -1.0).is_err());
-        assert!(Environment::constant(Vec3::new(1.0, -0.1, 0.0)).is_err());
-        assert!(Environment::constant(Vec3::ONE).unwrap().rotated(f32::NAN).is_err());
+        assert!(Environment::constant(Vec3A::new(1.0, -0.1, 0.0)).is_err());
+        assert!(Environment::constant(Vec3A::ONE).unwrap().rotated(f32::NAN).is_err());
     }
 }

@@ -20,7 +20,7 @@ pub use environment::Environment;
 pub use punctual::Punctual;
 
 use crate::scene::Scene;
-use glam::{Vec2, Vec3};
+use glam::{Vec2, Vec3A};
 
 /// One entry of the selection distribution.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -51,7 +51,7 @@ pub struct LightSet {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ShadowEnd {
     /// At this point (just off an emitter's surface, or a punctual light's position).
-    Point(Vec3),
+    Point(Vec3A),
     /// At infinity along the sample direction (environment, sun).
     Infinite,
 }
@@ -60,9 +60,9 @@ pub enum ShadowEnd {
 #[derive(Clone, Copy, Debug)]
 pub struct LightSample {
     /// Unit direction from the shading point towards the light.
-    pub wi: Vec3,
+    pub wi: Vec3A,
     /// Incident radiance (area lights, environment) or `I/d²`, `E` for delta lights; never 0.
-    pub li: Vec3,
+    pub li: Vec3A,
     /// Solid-angle density including the selection probability; for delta lights the
     /// selection probability alone. Always > 0.
     pub pdf: f32,
@@ -168,13 +168,13 @@ impl LightSet {
     /// Radiance of the environment towards unit `dir` and the density (selection × solid angle)
     /// with which next-event estimation samples `dir`; zeros without an environment.
     #[inline]
-    pub fn environment_radiance(&self, dir: Vec3) -> (Vec3, f32) {
+    pub fn environment_radiance(&self, dir: Vec3A) -> (Vec3A, f32) {
         match &self.environment {
             Some(env) => {
                 let (le, pdf) = env.eval_pdf(dir);
                 (le, self.env_prob * pdf)
             }
-            None => (Vec3::ZERO, 0.0),
+            None => (Vec3A::ZERO, 0.0),
         }
     }
 
@@ -182,7 +182,7 @@ impl LightSet {
     /// shading point `p`. `None` when the choice brings no light to `p` (back of an emitter,
     /// outside a spot cone, a black texel).
     #[inline]
-    pub fn sample(&self, scene: &Scene, p: Vec3, u_select: f32, u: Vec2) -> Option<LightSample> {
+    pub fn sample(&self, scene: &Scene, p: Vec3A, u_select: f32, u: Vec2) -> Option<LightSample> {
         if self.emitters.is_empty() {
             return None;
         }
@@ -192,12 +192,12 @@ impl LightSet {
             Emitter::Punctual(k) => {
                 let s = self.punctual[k as usize].sample_li(p)?;
                 let end = s.position.map_or(ShadowEnd::Infinite, ShadowEnd::Point);
-                (s.li != Vec3::ZERO).then_some(LightSample { wi: s.wi, li: s.li, pdf: self.punctual_prob[k as usize], delta: true, end })
+                (s.li != Vec3A::ZERO).then_some(LightSample { wi: s.wi, li: s.li, pdf: self.punctual_prob[k as usize], delta: true, end })
             }
             Emitter::Environment => {
                 let s = self.environment.as_ref()?.sample(u)?;
                 let pdf = self.env_prob * s.pdf;
-                (s.li != Vec3::ZERO && pdf > 0.0).then_some(LightSample {
+                (s.li != Vec3A::ZERO && pdf > 0.0).then_some(LightSample {
                     wi: s.wi,
                     li: s.li,
                     pdf,
@@ -211,7 +211,7 @@ impl LightSet {
 
 /// A uniform point on emissive triangle `prim` seen from `p`.
 #[inline]
-fn sample_area(scene: &Scene, prim: u32, pdf_area: f32, p: Vec3, u: Vec2) -> Option<LightSample> {
+fn sample_area(scene: &Scene, prim: u32, pdf_area: f32, p: Vec3A, u: Vec2) -> Option<LightSample> {
     let (point, bary) = sample_triangle(u, scene.triangle_vertices(prim));
     let to_light = point - p;
     let dist2 = to_light.length_squared();
@@ -228,7 +228,7 @@ fn sample_area(scene: &Scene, prim: u32, pdf_area: f32, p: Vec3, u: Vec2) -> Opt
     let uv = if material.emissive_texture.is_some() { scene.surface(prim, bary.x, bary.y).uv } else { Vec2::ZERO };
     let li = material.emission_at(scene.textures(), uv);
     let pdf = pdf_area * dist2 / cos_l;
-    (li != Vec3::ZERO && pdf > 0.0).then_some(LightSample {
+    (li != Vec3A::ZERO && pdf > 0.0).then_some(LightSample {
         wi,
         li,
         pdf,
@@ -260,9 +260,9 @@ mod tests {
     fn every_kind_is_selected_in_proportion_to_its_power() {
         // One unit-luminance triangle of area 2 (power 2), a point light of power 4π·0.5,
         // a sun of power π r²·1 and a white environment of power 4π² r²·0.25 with r = 1.
-        let point = Punctual::Point { position: Vec3::new(0.0, 3.0, 0.0), intensity: Vec3::splat(0.5) };
-        let sun = Punctual::Directional { direction: Vec3::NEG_Y, irradiance: Vec3::ONE };
-        let env = Environment::constant(Vec3::splat(0.25)).unwrap();
+        let point = Punctual::Point { position: Vec3A::new(0.0, 3.0, 0.0), intensity: Vec3A::splat(0.5) };
+        let sun = Punctual::Directional { direction: Vec3A::NEG_Y, irradiance: Vec3A::ONE };
+        let env = Environment::constant(Vec3A::splat(0.25)).unwrap();
         let ls = LightSet::new(&[2.0, 0.0], &[2.0, 1.0], vec![point, sun], Some(env), 1.0);
         let pi = std::f64::consts::PI;
         let powers = [2.0, 2.0 * pi, pi, pi * pi];
@@ -274,10 +274,10 @@ mod tests {
         assert!((ls.environment_probability() as f64 - powers[3] / total).abs() < 1e-6);
         // The pdf NEE reports for each kind carries its selection probability.
         let mut parts = SceneParts {
-            positions: vec![Vec3::new(-1.0, 2.0, -1.0), Vec3::new(1.0, 2.0, -1.0), Vec3::new(1.0, 2.0, 1.0), Vec3::new(5.0, 5.0, 5.0)],
+            positions: vec![Vec3A::new(-1.0, 2.0, -1.0), Vec3A::new(1.0, 2.0, -1.0), Vec3A::new(1.0, 2.0, 1.0), Vec3A::new(5.0, 5.0, 5.0)],
             triangles: vec![[0, 1, 2], [3, 3, 3]], // the emitter faces down, towards the origin
             triangle_materials: vec![0, 1],
-            materials: vec![Material::emissive(Vec3::ZERO, Vec3::ONE), Material::diffuse(Vec3::ONE)],
+            materials: vec![Material::emissive(Vec3A::ZERO, Vec3A::ONE), Material::diffuse(Vec3A::ONE)],
             ..Default::default()
         };
         parts.lights = ls.punctual().to_vec();
@@ -286,7 +286,7 @@ mod tests {
         let mut counts = [0usize; 4];
         for k in 0..n {
             let u_sel = (k as f32 + 0.5) / n as f32;
-            let Some(s) = ls.sample(&scene, Vec3::ZERO, u_sel, Vec2::new(0.3, 0.6)) else { continue };
+            let Some(s) = ls.sample(&scene, Vec3A::ZERO, u_sel, Vec2::new(0.3, 0.6)) else { continue };
             let kind = match (s.delta, s.end) {
                 (false, ShadowEnd::Point(_)) => 0,
                 (true, ShadowEnd::Point(_)) => 1,
@@ -296,7 +296,7 @@ mod tests {
             counts[kind] += 1;
             if kind == 1 {
                 assert_eq!(s.pdf, ls.punctual_probability(0));
-                assert!((s.li - Vec3::splat(0.5 / 9.0)).length() < 1e-6);
+                assert!((s.li - Vec3A::splat(0.5 / 9.0)).length() < 1e-6);
             }
             if kind == 3 {
                 assert!((s.pdf - ls.environment_probability() / (4.0 * std::f32::consts::PI)).abs() < 1e-6);

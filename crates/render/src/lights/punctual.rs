@@ -6,32 +6,32 @@
 //! `I = colour × intensity` (radiance arriving ∝ I/d², `range` ignored); a directional light
 //! gives irradiance `E = colour × intensity` on a surface facing it.
 use crate::bsdf::luminance;
-use glam::Vec3;
+use glam::Vec3A;
 use std::f32::consts::FRAC_PI_2;
 
 /// One punctual light in world space. Directions are unit vectors *along which light travels*
 /// (a node's local −Z).
 #[derive(Clone, Debug, PartialEq)]
 pub enum Punctual {
-    Point { position: Vec3, intensity: Vec3 },
-    Spot { position: Vec3, direction: Vec3, intensity: Vec3, cos_inner: f32, cos_outer: f32 },
-    Directional { direction: Vec3, irradiance: Vec3 },
+    Point { position: Vec3A, intensity: Vec3A },
+    Spot { position: Vec3A, direction: Vec3A, intensity: Vec3A, cos_inner: f32, cos_outer: f32 },
+    Directional { direction: Vec3A, irradiance: Vec3A },
 }
 
 /// Light arriving at a point from a punctual light.
 #[derive(Clone, Copy, Debug)]
 pub struct PunctualSample {
     /// Unit direction from the receiving point towards the light.
-    pub wi: Vec3,
+    pub wi: Vec3A,
     /// Where a shadow ray ends: the light's position, `None` for a light at infinity.
-    pub position: Option<Vec3>,
+    pub position: Option<Vec3A>,
     /// `I·falloff/d²` or `E`: what multiplies `f·|cos θ|` (no density: the light is a delta).
-    pub li: Vec3,
+    pub li: Vec3A,
 }
 
 impl Punctual {
     /// A spot light with the glTF cone angles (radians), checked: `0 ≤ inner < outer ≤ π/2`.
-    pub fn spot(position: Vec3, direction: Vec3, intensity: Vec3, inner: f32, outer: f32) -> Result<Punctual, String> {
+    pub fn spot(position: Vec3A, direction: Vec3A, intensity: Vec3A, inner: f32, outer: f32) -> Result<Punctual, String> {
         if !(inner.is_finite() && outer.is_finite() && 0.0 <= inner && inner < outer && outer <= FRAC_PI_2) {
             return Err(format!(
                 "spot cone angles inner {inner} and outer {outer} must satisfy 0 ≤ innerConeAngle < outerConeAngle ≤ π/2"
@@ -72,7 +72,7 @@ impl Punctual {
     /// spot `2π(1 − cos((θi + θo)/2))·I`, directional `π r²·E` with `r` the scene's
     /// bounding-sphere radius (the disc of the scene it can light).
     pub fn power(&self, scene_radius: f32) -> f64 {
-        let lum = |c: Vec3| luminance(c.max(Vec3::ZERO)) as f64;
+        let lum = |c: Vec3A| luminance(c.max(Vec3A::ZERO)) as f64;
         match self {
             Punctual::Point { intensity, .. } => 4.0 * std::f64::consts::PI * lum(*intensity),
             Punctual::Spot { intensity, cos_inner, cos_outer, .. } => {
@@ -85,7 +85,7 @@ impl Punctual {
 
     /// The light arriving at `p`; `None` if none does (outside a spot's cone, at the light).
     #[inline]
-    pub fn sample_li(&self, p: Vec3) -> Option<PunctualSample> {
+    pub fn sample_li(&self, p: Vec3A) -> Option<PunctualSample> {
         match *self {
             Punctual::Point { position, intensity } => {
                 let d = position - p;
@@ -123,20 +123,20 @@ mod tests {
 
     #[test]
     fn point_light_falls_off_with_the_square_of_the_distance() {
-        let l = Punctual::Point { position: Vec3::new(0.0, 2.0, 0.0), intensity: Vec3::new(4.0, 8.0, 12.0) };
-        let s = l.sample_li(Vec3::ZERO).unwrap();
-        assert_eq!(s.wi, Vec3::Y);
-        assert_eq!(s.position, Some(Vec3::new(0.0, 2.0, 0.0)));
-        assert_eq!(s.li, Vec3::new(1.0, 2.0, 3.0));
-        assert!(l.sample_li(Vec3::new(0.0, 2.0, 0.0)).is_none());
+        let l = Punctual::Point { position: Vec3A::new(0.0, 2.0, 0.0), intensity: Vec3A::new(4.0, 8.0, 12.0) };
+        let s = l.sample_li(Vec3A::ZERO).unwrap();
+        assert_eq!(s.wi, Vec3A::Y);
+        assert_eq!(s.position, Some(Vec3A::new(0.0, 2.0, 0.0)));
+        assert_eq!(s.li, Vec3A::new(1.0, 2.0, 3.0));
+        assert!(l.sample_li(Vec3A::new(0.0, 2.0, 0.0)).is_none());
     }
 
     #[test]
     fn spot_is_full_inside_the_inner_cone_zero_outside_the_outer_and_monotone_between() {
         let (inner, outer) = (0.3f32, 0.6f32);
-        let l = Punctual::spot(Vec3::ZERO, Vec3::NEG_Y, Vec3::ONE, inner, outer).unwrap();
+        let l = Punctual::spot(Vec3A::ZERO, Vec3A::NEG_Y, Vec3A::ONE, inner, outer).unwrap();
         // A receiver one unit below at angle `a` from the axis, at distance 1.
-        let at = |a: f32| l.sample_li(Vec3::new(a.sin(), -a.cos(), 0.0)).map_or(0.0, |s| s.li.x);
+        let at = |a: f32| l.sample_li(Vec3A::new(a.sin(), -a.cos(), 0.0)).map_or(0.0, |s| s.li.x);
         assert!((at(0.0) - 1.0).abs() < 1e-6);
         assert!((at(0.29) - 1.0).abs() < 1e-6);
         assert_eq!(at(0.61), 0.0);
@@ -152,28 +152,28 @@ mod tests {
             last = v;
         }
         for (i, o) in [(0.5, 0.5), (0.6, 0.3), (-0.1, 0.3), (0.2, 1.7), (f32::NAN, 0.5)] {
-            let e = Punctual::spot(Vec3::ZERO, Vec3::NEG_Y, Vec3::ONE, i, o).unwrap_err();
+            let e = Punctual::spot(Vec3A::ZERO, Vec3A::NEG_Y, Vec3A::ONE, i, o).unwrap_err();
             assert!(e.contains("innerConeAngle"), "{e}");
         }
     }
 
     #[test]
     fn directional_light_comes_from_against_its_direction() {
-        let d = Vec3::new(0.0, -0.6, -0.8);
-        let s = Punctual::Directional { direction: d, irradiance: Vec3::splat(3.0) }.sample_li(Vec3::new(5.0, 1.0, 2.0)).unwrap();
-        assert_eq!((s.wi, s.position, s.li), (-d, None, Vec3::splat(3.0)));
+        let d = Vec3A::new(0.0, -0.6, -0.8);
+        let s = Punctual::Directional { direction: d, irradiance: Vec3A::splat(3.0) }.sample_li(Vec3A::new(5.0, 1.0, 2.0)).unwrap();
+        assert_eq!((s.wi, s.position, s.li), (-d, None, Vec3A::splat(3.0)));
     }
 
     #[test]
     fn validation_rejects_negative_and_non_finite_values() {
-        assert!(Punctual::Point { position: Vec3::ZERO, intensity: Vec3::new(1.0, -1.0, 0.0) }.validate().is_err());
-        assert!(Punctual::Point { position: Vec3::ZERO, intensity: Vec3::splat(f32::INFINITY) }.validate().is_err());
-        assert!(Punctual::Directional { direction: Vec3::ZERO, irradiance: Vec3::ONE }.validate().is_err());
-        assert!(Punctual::Directional { direction: Vec3::Y, irradiance: Vec3::ONE }.validate().is_ok());
+        assert!(Punctual::Point { position: Vec3A::ZERO, intensity: Vec3A::new(1.0, -1.0, 0.0) }.validate().is_err());
+        assert!(Punctual::Point { position: Vec3A::ZERO, intensity: Vec3A::splat(f32::INFINITY) }.validate().is_err());
+        assert!(Punctual::Directional { direction: Vec3A::ZERO, irradiance: Vec3A::ONE }.validate().is_err());
+        assert!(Punctual::Directional { direction: Vec3A::Y, irradiance: Vec3A::ONE }.validate().is_ok());
         // Powers: 4π I, π r² E.
-        let p = Punctual::Point { position: Vec3::ZERO, intensity: Vec3::ONE }.power(1.0);
+        let p = Punctual::Point { position: Vec3A::ZERO, intensity: Vec3A::ONE }.power(1.0);
         assert!((p - 4.0 * std::f64::consts::PI).abs() < 1e-5);
-        let d = Punctual::Directional { direction: Vec3::Y, irradiance: Vec3::ONE }.power(2.0);
+        let d = Punctual::Directional { direction: Vec3A::Y, irradiance: Vec3A::ONE }.power(2.0);
         assert!((d - 4.0 * std::f64::consts::PI).abs() < 1e-5);
     }
 }

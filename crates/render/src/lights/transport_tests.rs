@@ -16,7 +16,7 @@ use std::f32::consts::PI;
 
 const RHO: f32 = 0.6;
 /// Camera position for looking at the plane.
-const EYE: Vec3 = Vec3::new(0.2, 4.0, 1.0);
+const EYE: Vec3A = Vec3A::new(0.2, 4.0, 1.0);
 
 fn scene_with(parts: crate::SceneParts) -> (Scene, BruteForce) {
     let scene = Scene::from_parts(parts).unwrap();
@@ -24,18 +24,18 @@ fn scene_with(parts: crate::SceneParts) -> (Scene, BruteForce) {
     (scene, bf)
 }
 
-fn close(a: Vec3, b: Vec3, rel: f32) -> bool {
+fn close(a: Vec3A, b: Vec3A, rel: f32) -> bool {
     (a - b).abs().max_element() <= rel * b.abs().max_element().max(1e-6)
 }
 
 #[test]
 fn point_light_over_a_plane_gives_rho_over_pi_i_cos_over_d2() {
     let mut parts = plane_parts(RHO, 10.0);
-    let light = Vec3::new(0.5, 1.5, -0.3);
-    let intensity = Vec3::new(4.0, 2.0, 1.0);
+    let light = Vec3A::new(0.5, 1.5, -0.3);
+    let intensity = Vec3A::new(4.0, 2.0, 1.0);
     parts.lights.push(Punctual::Point { position: light, intensity });
     let (scene, bf) = scene_with(parts);
-    for p in [Vec3::new(1.0, 0.0, 0.5), Vec3::new(-2.0, 0.0, 1.0), Vec3::new(0.5, 0.0, -0.3)] {
+    for p in [Vec3A::new(1.0, 0.0, 0.5), Vec3A::new(-2.0, 0.0, 1.0), Vec3A::new(0.5, 0.0, -0.3)] {
         let d = light - p;
         let expect = intensity * (RHO / PI) * (d.y / d.length()) / d.length_squared();
         for max_depth in [2, -1] {
@@ -46,43 +46,43 @@ fn point_light_over_a_plane_gives_rho_over_pi_i_cos_over_d2() {
     }
     // Below the horizon of the surface (light under the plane): nothing.
     let mut parts = plane_parts(RHO, 10.0);
-    parts.lights.push(Punctual::Point { position: Vec3::new(0.0, -1.0, 0.0), intensity });
+    parts.lights.push(Punctual::Point { position: Vec3A::new(0.0, -1.0, 0.0), intensity });
     let (scene, bf) = scene_with(parts);
-    assert_eq!(estimate_radiance(&scene, &bf, ray_through(EYE, Vec3::ZERO), -1, 4, 1).0, Vec3::ZERO);
+    assert_eq!(estimate_radiance(&scene, &bf, ray_through(EYE, Vec3A::ZERO), -1, 4, 1).0, Vec3A::ZERO);
 }
 
 #[test]
 fn directional_light_gives_rho_over_pi_e_cos_and_an_occluder_casts_a_shadow() {
-    let dir = Vec3::new(0.3, -1.0, 0.5).normalize();
-    let e = Vec3::new(2.0, 3.0, 1.5);
+    let dir = Vec3A::new(0.3, -1.0, 0.5).normalize();
+    let e = Vec3A::new(2.0, 3.0, 1.5);
     let mut parts = plane_parts(RHO, 10.0);
     parts.lights.push(Punctual::Directional { direction: dir, irradiance: e });
     // A small box hovering over (−3, 0, −3), shadowing the point along the sun direction.
-    let shadowed = Vec3::new(-3.0, 0.0, -3.0);
+    let shadowed = Vec3A::new(-3.0, 0.0, -3.0);
     let above = shadowed - dir * 1.0;
-    add_box(&mut parts, above - Vec3::splat(0.2), above + Vec3::splat(0.2), 0);
+    add_box(&mut parts, above - Vec3A::splat(0.2), above + Vec3A::splat(0.2), 0);
     let (scene, bf) = scene_with(parts);
     let expect = e * (RHO / PI) * (-dir.y);
-    for p in [Vec3::new(1.0, 0.0, 0.5), Vec3::new(4.0, 0.0, -2.0)] {
+    for p in [Vec3A::new(1.0, 0.0, 0.5), Vec3A::new(4.0, 0.0, -2.0)] {
         let (m, _) = estimate_radiance(&scene, &bf, ray_through(EYE, p), 2, 8, 2);
         assert!(close(m, expect, 1e-4), "at {p}: {m} vs {expect}");
     }
-    let (m, _) = estimate_radiance(&scene, &bf, ray_through(Vec3::new(-3.0, 8.0, -2.0), shadowed), 2, 8, 2);
-    assert_eq!(m, Vec3::ZERO, "the occluded point is lit");
+    let (m, _) = estimate_radiance(&scene, &bf, ray_through(Vec3A::new(-3.0, 8.0, -2.0), shadowed), 2, 8, 2);
+    assert_eq!(m, Vec3A::ZERO, "the occluded point is lit");
 }
 
 #[test]
 fn spot_light_follows_the_gltf_cone_on_the_plane() {
     let (inner, outer) = (0.3f32, 0.6f32);
     let h = 2.0f32;
-    let intensity = Vec3::splat(5.0);
+    let intensity = Vec3A::splat(5.0);
     let mut parts = plane_parts(RHO, 20.0);
-    parts.lights.push(Punctual::spot(Vec3::new(0.0, h, 0.0), Vec3::NEG_Y, intensity, inner, outer).unwrap());
+    parts.lights.push(Punctual::spot(Vec3A::new(0.0, h, 0.0), Vec3A::NEG_Y, intensity, inner, outer).unwrap());
     let (scene, bf) = scene_with(parts);
     let mut last = f32::INFINITY;
     for k in 0..=40 {
         let a = 0.8 * k as f32 / 40.0;
-        let p = Vec3::new(h * a.tan(), 0.0, 0.0);
+        let p = Vec3A::new(h * a.tan(), 0.0, 0.0);
         let (m, _) = estimate_radiance(&scene, &bf, ray_through(EYE, p), 2, 4, 3);
         let d2 = h * h + p.x * p.x;
         let falloff = if a <= inner {
@@ -109,7 +109,7 @@ fn spot_light_follows_the_gltf_cone_on_the_plane() {
 }
 
 /// Mean ± se of `f(i)` over `n` samples.
-fn mean_se(n: u32, mut f: impl FnMut(u32) -> Vec3) -> (Vec3, Vec3) {
+fn mean_se(n: u32, mut f: impl FnMut(u32) -> Vec3A) -> (Vec3A, Vec3A) {
     let (mut s, mut q) = (glam::DVec3::ZERO, glam::DVec3::ZERO);
     for i in 0..n {
         let v = f(i).as_dvec3();
@@ -118,10 +118,10 @@ fn mean_se(n: u32, mut f: impl FnMut(u32) -> Vec3) -> (Vec3, Vec3) {
     }
     let m = s / n as f64;
     let var = (q / n as f64 - m * m).max(glam::DVec3::ZERO) * (n as f64 / (n as f64 - 1.0));
-    (m.as_vec3(), (var / n as f64).map(f64::sqrt).as_vec3())
+    (m.as_vec3a(), (var / n as f64).map(f64::sqrt).as_vec3a())
 }
 
-fn within(m: Vec3, se: Vec3, expect: Vec3, what: &str) {
+fn within(m: Vec3A, se: Vec3A, expect: Vec3A, what: &str) {
     eprintln!("{what}: {m} ± {se} (expected {expect})");
     assert!(((m - expect).abs() - 5.0 * se).max_element() <= 1e-6, "{what}: {m} ± {se}, expected {expect}");
     assert!(se.max_element() < 0.05 * expect.max_element(), "{what}: suspiciously noisy, se {se}");
@@ -129,17 +129,17 @@ fn within(m: Vec3, se: Vec3, expect: Vec3, what: &str) {
 
 /// NEE alone, BSDF sampling alone and the full MIS estimator at the plane's centre: each must
 /// give `expect`.
-fn check_estimators(scene: &Scene, bf: &BruteForce, expect: Vec3, n: u32, what: &str) {
-    let p = Vec3::ZERO;
+fn check_estimators(scene: &Scene, bf: &BruteForce, expect: Vec3A, n: u32, what: &str) {
+    let p = Vec3A::ZERO;
     let wo = (EYE - p).normalize();
     let mat: &Material = &scene.materials()[0];
-    let bsdf = Bsdf::new(&mat.params_at(scene.textures(), glam::Vec2::ZERO), Vec3::Y, Vec3::Y, wo);
+    let bsdf = Bsdf::new(&mat.params_at(scene.textures(), glam::Vec2::ZERO), Vec3A::Y, Vec3A::Y, wo);
     let lights = scene.lights();
     let st = StreamSampler::new(11, StreamKind::Pt);
     let (m, se) = mean_se(n, |i| {
         let smp = st.sample(0, i);
         let Some(ls) = lights.sample(scene, p, smp.get1d(dims::at(0, dims::LIGHT_SELECT)), smp.get2d(dims::at(0, dims::LIGHT_POS))) else {
-            return Vec3::ZERO;
+            return Vec3A::ZERO;
         };
         // Nothing but the plane itself, which never occludes the upper hemisphere.
         bsdf.eval(ls.wi) * ls.li / ls.pdf
@@ -150,7 +150,7 @@ fn check_estimators(scene: &Scene, bf: &BruteForce, expect: Vec3, n: u32, what: 
         let smp = st.sample(1, i);
         match bsdf.sample(smp.get1d(dims::at(0, dims::LOBE)), smp.get2d(dims::at(0, dims::BSDF_DIR)), 0.0) {
             Some(bs) if bs.wi.y > 0.0 => bs.weight * env.eval(bs.wi),
-            _ => Vec3::ZERO,
+            _ => Vec3A::ZERO,
         }
     });
     within(m, se, expect, &format!("{what}, BSDF sampling only"));
@@ -160,7 +160,7 @@ fn check_estimators(scene: &Scene, bf: &BruteForce, expect: Vec3, n: u32, what: 
 
 #[test]
 fn constant_environment_over_a_plane_gives_rho_times_l() {
-    let l_env = Vec3::new(0.6, 0.7, 1.0);
+    let l_env = Vec3A::new(0.6, 0.7, 1.0);
     let mut parts = plane_parts(RHO, 1000.0);
     parts.environment = Some(Environment::constant(l_env).unwrap());
     let (scene, bf) = scene_with(parts);
@@ -168,11 +168,11 @@ fn constant_environment_over_a_plane_gives_rho_times_l() {
     // A camera ray that misses sees the environment, and records it as the first-hit albedo.
     let mut fh = crate::integrator::FirstHit::default();
     let st = StreamSampler::new(1, StreamKind::Pt);
-    let up = ray_through(EYE, EYE + Vec3::Y);
+    let up = ray_through(EYE, EYE + Vec3A::Y);
     let limits = crate::integrator::PathLimits { max_depth: -1, rr_depth: 5 };
     let v = crate::integrator::radiance(&scene, &bf, limits, up, &st.sample(0, 0), Some(&mut fh));
     assert_eq!(v, l_env);
-    assert_eq!((fh.albedo, fh.normal, fh.depth), (l_env, Vec3::ZERO, 0.0));
+    assert_eq!((fh.albedo, fh.normal, fh.depth), (l_env, Vec3A::ZERO, 0.0));
 }
 
 /// A sky-like lat-long map: a bright small sun, a gradient, a dark lower half.
@@ -199,10 +199,10 @@ fn lat_long_environment_over_a_plane_matches_the_irradiance_integral() {
         let (t0, t1) = (std::f64::consts::PI * row as f64 / h as f64, std::f64::consts::PI * (row + 1) as f64 / h as f64);
         let band = (t1.sin().powi(2) - t0.sin().powi(2)) / 2.0 * 2.0 * std::f64::consts::PI / w as f64;
         for col in 0..w {
-            e += Vec3::from_array(img.pixels[row * w + col]).as_dvec3() * (strength as f64 * band);
+            e += Vec3A::from_array(img.pixels[row * w + col]).as_dvec3() * (strength as f64 * band);
         }
     }
-    let expect = (e * (RHO as f64 / std::f64::consts::PI)).as_vec3();
+    let expect = (e * (RHO as f64 / std::f64::consts::PI)).as_vec3a();
     let mut parts = plane_parts(RHO, 1000.0);
     parts.environment = Some(env);
     let (scene, bf) = scene_with(parts);
@@ -211,17 +211,17 @@ fn lat_long_environment_over_a_plane_matches_the_irradiance_integral() {
 
 #[test]
 fn a_constant_map_renders_like_the_constant_colour() {
-    let c = Vec3::new(0.6, 0.7, 1.0);
+    let c = Vec3A::new(0.6, 0.7, 1.0);
     let map = Image::from_fn(16, 8, |_, _| [0.3, 0.35, 0.5]);
     let mut means = Vec::new();
     for env in [Environment::constant(c).unwrap(), Environment::from_image(&map, 2.0).unwrap()] {
         let mut parts = plane_parts(RHO, 3.0);
         // A box on the plane, so there are shadows and interreflections, plus a point light.
-        add_box(&mut parts, Vec3::new(-0.5, 0.0, -0.5), Vec3::new(0.5, 1.0, 0.5), 0);
-        parts.lights.push(Punctual::Point { position: Vec3::new(1.0, 2.0, 1.0), intensity: Vec3::splat(2.0) });
+        add_box(&mut parts, Vec3A::new(-0.5, 0.0, -0.5), Vec3A::new(0.5, 1.0, 0.5), 0);
+        parts.lights.push(Punctual::Point { position: Vec3A::new(1.0, 2.0, 1.0), intensity: Vec3A::splat(2.0) });
         parts.environment = Some(env);
         let (scene, bf) = scene_with(parts);
-        let (m, se) = estimate_radiance(&scene, &bf, ray_through(EYE, Vec3::new(0.8, 0.0, 0.2)), -1, 20_000, 8);
+        let (m, se) = estimate_radiance(&scene, &bf, ray_through(EYE, Vec3A::new(0.8, 0.0, 0.2)), -1, 20_000, 8);
         means.push((m, se));
     }
     let ((a, sa), (b, sb)) = (means[0], means[1]);
@@ -235,18 +235,18 @@ fn a_constant_map_renders_like_the_constant_colour() {
 /// under a constant environment: a white furnace, so every pixel converges to the environment's
 /// radiance however many bounces a path needs.
 fn white_furnace(l_env: f32, sun: bool) -> Scene {
-    let mut parts = crate::SceneParts { materials: vec![Material::diffuse(Vec3::ONE)], ..Default::default() };
-    let v = Vec3::new;
+    let mut parts = crate::SceneParts { materials: vec![Material::diffuse(Vec3A::ONE)], ..Default::default() };
+    let v = Vec3A::new;
     add_quad(&mut parts, [v(-1., -1., 1.), v(1., -1., 1.), v(1., -1., -1.), v(-1., -1., -1.)], 0);
     add_quad(&mut parts, [v(-1., 1., -1.), v(1., 1., -1.), v(1., 1., 1.), v(-1., 1., 1.)], 0);
     add_quad(&mut parts, [v(-1., -1., -1.), v(1., -1., -1.), v(1., 1., -1.), v(-1., 1., -1.)], 0);
     add_quad(&mut parts, [v(-1., -1., 1.), v(-1., -1., -1.), v(-1., 1., -1.), v(-1., 1., 1.)], 0);
     add_quad(&mut parts, [v(1., -1., -1.), v(1., -1., 1.), v(1., 1., 1.), v(1., 1., -1.)], 0);
     add_box(&mut parts, v(-0.65, -1.0, -0.6), v(-0.05, 0.2, -0.05), 0);
-    parts.camera = Some(Camera { eye: v(0.0, 0.0, 3.9), target: Vec3::ZERO, up: Vec3::Y, vfov_deg: 45.0, width: 16, height: 16 });
-    parts.environment = Some(Environment::constant(Vec3::splat(l_env)).unwrap());
+    parts.camera = Some(Camera { eye: v(0.0, 0.0, 3.9), target: Vec3A::ZERO, up: Vec3A::Y, vfov_deg: 45.0, width: 16, height: 16 });
+    parts.environment = Some(Environment::constant(Vec3A::splat(l_env)).unwrap());
     if sun {
-        parts.lights.push(Punctual::Directional { direction: v(-0.3, -0.5, -1.0).normalize(), irradiance: Vec3::splat(2.0) });
+        parts.lights.push(Punctual::Directional { direction: v(-0.3, -0.5, -1.0).normalize(), irradiance: Vec3A::splat(2.0) });
     }
     Scene::from_parts(parts).unwrap()
 }
