@@ -6,6 +6,7 @@
 //! next one; both are unit vectors. `eval` returns `f(wo, wi)` *without* the cosine; the sampled
 //! `weight` is `f · |cos θi| / pdf`. Transmission is scaled by `1/η²` for radiance transport.
 pub mod dielectric;
+pub mod diffuse;
 pub mod fresnel;
 pub mod ggx;
 pub mod lambert;

@@ -17,6 +17,7 @@
 //! a pure Lambertian surface. Opaque lobes are two-sided (they act on the side `wo` is on);
 //! glass distinguishes inside from outside by the geometric normal's orientation (winding).
 use super::dielectric::Dielectric;
+use super::diffuse::Diffuse;
 use super::ggx::Ggx;
 use super::microfacet::MicrofacetReflection;
 use super::{lambert, luminance, Frame};
@@ -86,9 +87,94 @@ impl SampleDraw {
     }
 }
 
-/// The BSDF at one surface point for one outgoing direction.
+/// The BSDF at one surface point for one outgoing direction: the glTF model, as its diffuse
+/// lobe alone when that is all a material has (the common case, made cheap), else as the
+/// mixture of its lobes.
 #[derive(Clone, Copy, Debug)]
-pub struct Bsdf {
+pub enum Bsdf {
+    Diffuse(Diffuse),
+    Mixture(Mixture),
+}
+
+impl Bsdf {
+    /// `ns`, `ng`: unit shading and geometric normals with `ns·ng ≥ 0` (ng from the winding);
+    /// `wo`: unit direction towards the previous vertex.
+    pub fn new(params: &PbrParams, ns: Vec3A, ng: Vec3A, wo: Vec3A) -> Bsdf {
+        // Shading normals that put `wo` on the other side than the geometry are discarded.
+        let ns = if ns.dot(wo) * ng.dot(wo) <= 0.0 { ng } else { ns };
+        let frame = Frame::from_normal(ns);
+        if params.metallic.clamp(0.0, 1.0) == 0.0 && params.transmission.clamp(0.0, 1.0) == 0.0 && params.specular.clamp(0.0, 1.0) == 0.0 {
+            // `wo`'s local z is its dot product with the frame's normal, as in `to_local`.
+            return Bsdf::Diffuse(Diffuse::new(frame, ng, wo, wo.dot(frame.n), params.base_color.max(Vec3A::ZERO)));
+        }
+        Bsdf::Mixture(Mixture::new(params, frame, ng, wo))
+    }
+
+    /// The general mixture even for a purely diffuse material (to test [`Diffuse`] against it).
+    #[cfg(test)]
+    pub(crate) fn mixture(params: &PbrParams, ns: Vec3A, ng: Vec3A, wo: Vec3A) -> Mixture {
+        let ns = if ns.dot(wo) * ng.dot(wo) <= 0.0 { ng } else { ns };
+        Mixture::new(params, Frame::from_normal(ns), ng, wo)
+    }
+
+    /// True if some lobe is not a delta distribution (light sampling can help).
+    #[inline]
+    pub fn has_non_delta(&self) -> bool {
+        match self {
+            Bsdf::Diffuse(d) => d.is_lit(),
+            Bsdf::Mixture(m) => m.has_non_delta(),
+        }
+    }
+
+    /// True if the glass lobe can be chosen (it needs the reflect-or-refract random number).
+    #[inline]
+    pub fn has_glass(&self) -> bool {
+        match self {
+            Bsdf::Diffuse(_) => false,
+            Bsdf::Mixture(m) => m.p_glass > 0.0,
+        }
+    }
+
+    /// `(f · |cos θi|, pdf)` for the world direction `wi`, over the non-delta lobes.
+    #[inline]
+    pub fn eval_pdf(&self, wi: Vec3A) -> (Vec3A, f32) {
+        match self {
+            Bsdf::Diffuse(d) => d.eval_pdf(wi),
+            Bsdf::Mixture(m) => m.eval_pdf(wi),
+        }
+    }
+
+    /// `f · |cos θi|` for the world direction `wi`.
+    #[inline]
+    pub fn eval(&self, wi: Vec3A) -> Vec3A {
+        self.eval_pdf(wi).0
+    }
+
+    #[inline]
+    pub fn pdf(&self, wi: Vec3A) -> f32 {
+        self.eval_pdf(wi).1
+    }
+
+    /// Picks a lobe with `u_lobe`, a direction with `u`, and for glass reflect-or-refract with
+    /// `u_choice`. `None` when the path ends here (black BSDF or a direction below the surface).
+    pub fn sample(&self, u_lobe: f32, u: Vec2, u_choice: f32) -> Option<BsdfSample> {
+        self.sample_drawn(&SampleDraw::new(u_lobe, u, u_choice))
+    }
+
+    /// [`Bsdf::sample`] with its random numbers drawn (and the cosine direction worked out)
+    /// beforehand.
+    #[inline]
+    pub fn sample_drawn(&self, draw: &SampleDraw) -> Option<BsdfSample> {
+        match self {
+            Bsdf::Diffuse(d) => d.sample_drawn(draw),
+            Bsdf::Mixture(m) => m.sample_drawn(draw),
+        }
+    }
+}
+
+/// The glTF model as a mixture of its lobes (see the module doc).
+#[derive(Clone, Copy, Debug)]
+pub struct Mixture {
     frame: Frame,
     /// Geometric normal (winding orientation), to reject light leaks through shading normals.
     ng: Vec3A,
@@ -108,17 +194,11 @@ pub struct Bsdf {
     p_diffuse: f32,
     p_spec: f32,
     p_glass: f32,
-    /// Only the Lambertian lobe is active (e.g. the Cornell box): sampling takes a shortcut.
-    lambert_only: bool,
 }
 
-impl Bsdf {
-    /// `ns`, `ng`: unit shading and geometric normals with `ns·ng ≥ 0` (ng from the winding);
-    /// `wo`: unit direction towards the previous vertex.
-    pub fn new(params: &PbrParams, ns: Vec3A, ng: Vec3A, wo: Vec3A) -> Bsdf {
-        // Shading normals that put `wo` on the other side than the geometry are discarded.
-        let ns = if ns.dot(wo) * ng.dot(wo) <= 0.0 { ng } else { ns };
-        let frame = Frame::from_normal(ns);
+impl Mixture {
+    /// `frame` around the shading normal in use; the rest as for [`Bsdf::new`].
+    fn new(params: &PbrParams, frame: Frame, ng: Vec3A, wo: Vec3A) -> Mixture {
         let wo_local = frame.to_local(wo);
         let side = if wo_local.z < 0.0 { -1.0 } else { 1.0 };
         let cos_o = wo_local.z.abs();
@@ -128,26 +208,6 @@ impl Bsdf {
         let opaque = (1.0 - m) * (1.0 - t);
         let base = params.base_color.max(Vec3A::ZERO);
         let spec_factor = params.specular.clamp(0.0, 1.0);
-        if m == 0.0 && t == 0.0 && spec_factor == 0.0 {
-            // Pure Lambertian: no Fresnel or microfacet set-up needed.
-            let p_d = if base.max_element() > 0.0 { 1.0 } else { 0.0 };
-            return Bsdf {
-                frame,
-                ng,
-                wo: wo_local,
-                side,
-                diffuse: base,
-                spec: MicrofacetReflection { ggx: Ggx::new(1.0), f0: Vec3A::ZERO, f90: 0.0 },
-                glass: Dielectric::new(1.5, 1.0),
-                glass_weight: Vec3A::ZERO,
-                glass_scalar: 0.0,
-                wo_dot_ng: wo.dot(ng),
-                p_diffuse: p_d,
-                p_spec: 0.0,
-                p_glass: 0.0,
-                lambert_only: true,
-            };
-        }
         let r0 = ((params.ior - 1.0) / (params.ior + 1.0)).powi(2);
         let f0_dielectric = (Vec3A::splat(r0) * params.specular_color.max(Vec3A::ZERO)).min(Vec3A::ONE) * spec_factor;
         let f_view = super::fresnel::schlick(f0_dielectric, spec_factor, cos_o);
@@ -174,7 +234,7 @@ impl Bsdf {
         } else {
             (1.0, 0.0, 0.0)
         };
-        Bsdf {
+        Mixture {
             frame,
             ng,
             wo: wo_local,
@@ -188,20 +248,12 @@ impl Bsdf {
             p_diffuse: p_d,
             p_spec: p_s,
             p_glass: p_g,
-            lambert_only: false,
         }
     }
 
-    /// True if some lobe is not a delta distribution (light sampling can help).
     #[inline]
-    pub fn has_non_delta(&self) -> bool {
+    fn has_non_delta(&self) -> bool {
         self.p_diffuse > 0.0 || self.p_spec > 0.0 || (self.p_glass > 0.0 && !self.glass.smooth)
-    }
-
-    /// True if the glass lobe can be chosen (it needs the reflect-or-refract random number).
-    #[inline]
-    pub fn has_glass(&self) -> bool {
-        self.p_glass > 0.0
     }
 
     #[inline]
@@ -209,9 +261,8 @@ impl Bsdf {
         Vec3A::new(v.x, v.y, v.z * self.side)
     }
 
-    /// `(f · |cos θi|, pdf)` for the world direction `wi`, over the non-delta lobes.
     #[inline]
-    pub fn eval_pdf(&self, wi: Vec3A) -> (Vec3A, f32) {
+    pub(crate) fn eval_pdf(&self, wi: Vec3A) -> (Vec3A, f32) {
         let wi_l = self.frame.to_local(wi);
         let wo_l = self.wo;
         let geometric_reflection = wi.dot(self.ng) * self.wo_dot_ng > 0.0;
@@ -242,40 +293,9 @@ impl Bsdf {
         (f * wi_l.z.abs(), pdf)
     }
 
-    /// `f · |cos θi|` for the world direction `wi`.
-    #[inline]
-    pub fn eval(&self, wi: Vec3A) -> Vec3A {
-        self.eval_pdf(wi).0
-    }
-
-    #[inline]
-    pub fn pdf(&self, wi: Vec3A) -> f32 {
-        self.eval_pdf(wi).1
-    }
-
-    /// Picks a lobe with `u_lobe`, a direction with `u`, and for glass reflect-or-refract with
-    /// `u_choice`. `None` when the path ends here (black BSDF or a direction below the surface).
-    pub fn sample(&self, u_lobe: f32, u: Vec2, u_choice: f32) -> Option<BsdfSample> {
-        self.sample_drawn(&SampleDraw::new(u_lobe, u, u_choice))
-    }
-
-    /// [`Bsdf::sample`] with its random numbers drawn (and the cosine direction worked out)
-    /// beforehand.
-    pub fn sample_drawn(&self, draw: &SampleDraw) -> Option<BsdfSample> {
+    pub(crate) fn sample_drawn(&self, draw: &SampleDraw) -> Option<BsdfSample> {
         let SampleDraw { u_lobe, u, u_choice, cosine } = *draw;
         let wo_l = self.wo;
-        if self.lambert_only {
-            // f·cos/pdf of a cosine-sampled Lambertian lobe is its albedo.
-            if self.p_diffuse == 0.0 {
-                return None;
-            }
-            let wi_l = self.opaque_local(cosine);
-            let wi = self.frame.to_world(wi_l);
-            if wi_l.z == 0.0 || wi.dot(self.ng) * self.wo_dot_ng <= 0.0 {
-                return None;
-            }
-            return Some(BsdfSample { wi, weight: self.diffuse, pdf: wi_l.z.abs() * std::f32::consts::FRAC_1_PI, delta: false, eta: 1.0 });
-        }
         let wi_l = if u_lobe < self.p_diffuse {
             self.opaque_local(cosine)
         } else if u_lobe < self.p_diffuse + self.p_spec || (self.p_glass == 0.0 && self.p_spec > 0.0) {
@@ -573,7 +593,7 @@ mod tests {
                     ),
                 );
                 check(pdf_int <= 1.0 + e_pdf + 1e-6, format!("{case}: ∫ pdf dω = {pdf_int:.6} > 1"));
-                if b.lambert_only {
+                if matches!(b, Bsdf::Diffuse(_)) {
                     check((pdf_int - 1.0).abs() <= e_pdf + 1e-6, format!("{case}: a Lambertian's pdf integrates to {pdf_int:.6}, not 1"));
                 }
             }
