@@ -148,12 +148,12 @@ pub fn radiance_from_hit<T: Intersector>(
         }
 
         let wo = -ray.dir;
-        let params = material.params_at(textures, sp.uv);
-        let bsdf = Bsdf::new(&params, sp.ns, sp.ng, wo);
+        let bsdf = material.bsdf_at(textures, sp.uv, sp.ns, sp.ng, wo);
         let vertex = depth - 1;
         // The continuation's random numbers, drawn before the shadow ray (see `SampleDraw`).
         let u_choice = if bsdf.has_glass() { sampler.get1d(dims::at(vertex, dims::DIELECTRIC_CHOICE)) } else { 0.0 };
-        let draw = SampleDraw::new(sampler.get1d(dims::at(vertex, dims::LOBE)), sampler.get2d(dims::at(vertex, dims::BSDF_DIR)), u_choice);
+        let u_lobe = if matches!(bsdf, Bsdf::Mixture(_)) { sampler.get1d(dims::at(vertex, dims::LOBE)) } else { 0.0 };
+        let draw = SampleDraw::new(u_lobe, sampler.get2d(dims::at(vertex, dims::BSDF_DIR)), u_choice);
 
         // Next-event estimation: one point or direction on one emitter.
         if bsdf.has_non_delta() && !lights.is_empty() {

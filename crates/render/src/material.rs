@@ -1,6 +1,6 @@
 //! Materials as loaded from glTF 2.0 (metallic-roughness + the KHR extensions cvtrace reads),
 //! kept in a flat `Vec` indexed by the per-triangle material id.
-use crate::bsdf::PbrParams;
+use crate::bsdf::{Bsdf, PbrParams};
 use crate::texture::Texture;
 use glam::{Vec2, Vec3A};
 
@@ -70,8 +70,28 @@ impl Material {
     }
 
     /// True if some part of the material emits light.
+    #[inline]
     pub fn is_emissive(&self) -> bool {
         self.emission.max_element() > 0.0
+    }
+
+    /// True if the material is its diffuse lobe alone at every texel: no metal, transmission or
+    /// specular layer (textures only scale metallic, so they cannot add one). Its BSDF is then
+    /// [`Bsdf::diffuse`] of the base colour, which skips resolving the other parameters.
+    #[inline]
+    pub fn is_diffuse_only(&self) -> bool {
+        self.metallic.clamp(0.0, 1.0) == 0.0 && self.transmission.clamp(0.0, 1.0) == 0.0 && self.specular.clamp(0.0, 1.0) == 0.0
+    }
+
+    /// The BSDF at texture coordinate `uv` of a point with shading and geometric normals `ns`,
+    /// `ng`, seen from the unit direction `wo` (see [`Bsdf::new`]).
+    #[inline]
+    pub fn bsdf_at(&self, textures: &[Texture], uv: Vec2, ns: Vec3A, ng: Vec3A, wo: Vec3A) -> Bsdf {
+        if self.is_diffuse_only() {
+            Bsdf::diffuse(self.base_color_at(textures, uv), ns, ng, wo)
+        } else {
+            Bsdf::new(&self.params_at(textures, uv), ns, ng, wo)
+        }
     }
 
     /// The BSDF parameters at texture coordinate `uv`.

@@ -100,21 +100,24 @@ impl Bsdf {
     /// `ns`, `ng`: unit shading and geometric normals with `ns·ng ≥ 0` (ng from the winding);
     /// `wo`: unit direction towards the previous vertex.
     pub fn new(params: &PbrParams, ns: Vec3A, ng: Vec3A, wo: Vec3A) -> Bsdf {
-        // Shading normals that put `wo` on the other side than the geometry are discarded.
-        let ns = if ns.dot(wo) * ng.dot(wo) <= 0.0 { ng } else { ns };
-        let frame = Frame::from_normal(ns);
         if params.metallic.clamp(0.0, 1.0) == 0.0 && params.transmission.clamp(0.0, 1.0) == 0.0 && params.specular.clamp(0.0, 1.0) == 0.0 {
-            // `wo`'s local z is its dot product with the frame's normal, as in `to_local`.
-            return Bsdf::Diffuse(Diffuse::new(frame, ng, wo, wo.dot(frame.n), params.base_color.max(Vec3A::ZERO)));
+            return Bsdf::diffuse(params.base_color, ns, ng, wo);
         }
-        Bsdf::Mixture(Mixture::new(params, frame, ng, wo))
+        Bsdf::Mixture(Mixture::new(params, shading_frame(ns, ng, wo), ng, wo))
+    }
+
+    /// The BSDF of a purely diffuse material with base colour `base` (see [`Bsdf::new`]).
+    #[inline]
+    pub fn diffuse(base: Vec3A, ns: Vec3A, ng: Vec3A, wo: Vec3A) -> Bsdf {
+        let frame = shading_frame(ns, ng, wo);
+        // `wo`'s local z is its dot product with the frame's normal, as in `to_local`.
+        Bsdf::Diffuse(Diffuse::new(frame, ng, wo, wo.dot(frame.n), base.max(Vec3A::ZERO)))
     }
 
     /// The general mixture even for a purely diffuse material (to test [`Diffuse`] against it).
     #[cfg(test)]
     pub(crate) fn mixture(params: &PbrParams, ns: Vec3A, ng: Vec3A, wo: Vec3A) -> Mixture {
-        let ns = if ns.dot(wo) * ng.dot(wo) <= 0.0 { ng } else { ns };
-        Mixture::new(params, Frame::from_normal(ns), ng, wo)
+        Mixture::new(params, shading_frame(ns, ng, wo), ng, wo)
     }
 
     /// True if some lobe is not a delta distribution (light sampling can help).
@@ -170,6 +173,13 @@ impl Bsdf {
             Bsdf::Mixture(m) => m.sample_drawn(draw),
         }
     }
+}
+
+/// The frame around the shading normal `ns`, or around `ng` where `ns` would put `wo` on the
+/// other side than the geometry does (such shading normals are discarded).
+#[inline]
+fn shading_frame(ns: Vec3A, ng: Vec3A, wo: Vec3A) -> Frame {
+    Frame::from_normal(if ns.dot(wo) * ng.dot(wo) <= 0.0 { ng } else { ns })
 }
 
 /// The glTF model as a mixture of its lobes (see the module doc).
