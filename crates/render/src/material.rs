@@ -80,7 +80,7 @@ impl Material {
     /// [`Bsdf::diffuse`] of the base colour, which skips resolving the other parameters.
     #[inline]
     pub fn is_diffuse_only(&self) -> bool {
-        self.metallic.clamp(0.0, 1.0) == 0.0 && self.transmission.clamp(0.0, 1.0) == 0.0 && self.specular.clamp(0.0, 1.0) == 0.0
+        crate::bsdf::pbr::is_diffuse_only(self.metallic, self.transmission, self.specular)
     }
 
     /// The BSDF at texture coordinate `uv` of a point with shading and geometric normals `ns`,

@@ -100,7 +100,7 @@ impl Bsdf {
     /// `ns`, `ng`: unit shading and geometric normals with `ns·ng ≥ 0` (ng from the winding);
     /// `wo`: unit direction towards the previous vertex.
     pub fn new(params: &PbrParams, ns: Vec3A, ng: Vec3A, wo: Vec3A) -> Bsdf {
-        if params.metallic.clamp(0.0, 1.0) == 0.0 && params.transmission.clamp(0.0, 1.0) == 0.0 && params.specular.clamp(0.0, 1.0) == 0.0 {
+        if is_diffuse_only(params.metallic, params.transmission, params.specular) {
             return Bsdf::diffuse(params.base_color, ns, ng, wo);
         }
         Bsdf::Mixture(Mixture::new(params, shading_frame(ns, ng, wo), ng, wo))
@@ -173,6 +173,13 @@ impl Bsdf {
             Bsdf::Mixture(m) => m.sample_drawn(draw),
         }
     }
+}
+
+/// True if these glTF factors leave the diffuse lobe alone: no metal, no transmission, no
+/// specular layer (each clamped to [0, 1] as the model uses it).
+#[inline]
+pub fn is_diffuse_only(metallic: f32, transmission: f32, specular: f32) -> bool {
+    metallic.clamp(0.0, 1.0) == 0.0 && transmission.clamp(0.0, 1.0) == 0.0 && specular.clamp(0.0, 1.0) == 0.0
 }
 
 /// The frame around the shading normal `ns`, or around `ng` where `ns` would put `wo` on the
