@@ -15,7 +15,7 @@ pub struct Diffuse {
     ng: Vec3A,
     /// `wo`'s local z (cosine with the shading normal).
     wo_z: f32,
-    /// Which side of the shading frame `wo` is on (±1): directions are sampled on that side.
+    /// Which side of the shading frame `wo` is on: the lobe is evaluated as if it were +z.
     side: f32,
     /// `wo · ng`, whose sign tells the geometric side `wo` is on.
     wo_dot_ng: f32,
@@ -39,15 +39,18 @@ impl Diffuse {
     #[inline]
     pub fn eval_pdf(&self, wi: Vec3A) -> (Vec3A, f32) {
         let wi_z = wi.dot(self.frame.n);
-        // Reflection by both normals (`wi` on the side of `wo`), else nothing: a reflecting lobe,
-        // and no light leaks through shading normals.
         let geometric_reflection = wi.dot(self.ng) * self.wo_dot_ng > 0.0;
         let shading_reflection = wi_z * self.wo_z > 0.0;
-        if !(geometric_reflection && shading_reflection && self.is_lit()) {
+        if geometric_reflection != shading_reflection || wi_z == 0.0 || !shading_reflection || !self.is_lit() {
             return (Vec3A::ZERO, 0.0);
         }
-        let cos = wi_z.abs();
-        ((self.albedo * FRAC_1_PI) * cos, cos * FRAC_1_PI)
+        // Both on the side of `wo`, which the lobe sees as +z (zero when `wo` grazes).
+        let (o_z, i_z) = (self.wo_z * self.side, wi_z * self.side);
+        if o_z > 0.0 && i_z > 0.0 {
+            ((self.albedo * FRAC_1_PI) * wi_z.abs(), i_z * FRAC_1_PI)
+        } else {
+            (Vec3A::ZERO, 0.0)
+        }
     }
 
     /// The cosine-weighted direction of `draw`, on the side of `wo`; its weight `f·cos/pdf` is
