@@ -1,8 +1,8 @@
 //! `cvtrace reconstruct`: run one or all estimators on a stream file (or IDUW's layout).
+use crate::cli::estimator_args::EstimatorArgs;
+use crate::cli::registry;
 use anyhow::{bail, Context, Result};
-use cvtrace_reconstruct::{
-    build, ErrorEstimate, Estimator, FloorMode, FloorSource, Input, Method, MethodChoice, Options, Output, Penalty, Selection,
-};
+use cvtrace_reconstruct::{EstimatorSpec, Input, Instance, Output};
 use cvtrace_streams::exr_io::{read_rgb, write_rgb, AttrValue};
 use cvtrace_streams::iduw_layout::{parse_iduw_name, read_iduw};
 use cvtrace_streams::preview::write_png;
@@ -12,160 +12,34 @@ use std::path::{Path, PathBuf};
 #[derive(clap::Args, Debug)]
 pub struct ReconstructArgs {
     /// A cvtrace stream file, or IDUW's `<scene>_<spp>spp_randImg.exr` / `_corrImg.exr`.
-    pub input: PathBuf,
-    /// pt, crn, average, iduw, cv, ours, or all.
+    #[arg(required_unless_present_any = ["list", "help_method"])]
+    pub input: Option<PathBuf>,
+    /// An estimator (`--list` shows them), a comma-separated list of them, or all.
     #[arg(long, default_value = "ours")]
-    pub method: MethodChoice,
-    /// Output `.exr` for one method; a directory for `--method all` (`<dir>/<method>.exr` + `.png`).
-    #[arg(short, long)]
-    pub output: PathBuf,
+    pub method: String,
+    /// Output `.exr` for one method; a directory for several (`<dir>/<method>.exr` + `.png`).
+    #[arg(short, long, required_unless_present_any = ["list", "help_method"])]
+    pub output: Option<PathBuf>,
     /// Replace existing outputs.
     #[arg(long)]
     pub force: bool,
     /// Ground truth: needed by `--errors oracle`; when given, relMSE of each output is printed.
     #[arg(long)]
     pub reference: Option<PathBuf>,
-    /// Also write an sRGB PNG preview next to a single-method output (always on for `all`).
+    /// Also write an sRGB PNG preview next to a single-method output (always on for several).
     #[arg(long)]
     pub png: bool,
     /// Exposure of the PNG previews, in stops.
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub exposure: f32,
+    /// List the registered estimators and exit.
+    #[arg(long)]
+    pub list: bool,
+    /// Print an estimator's spec (summary, inputs, every parameter with default, range and doc) and exit.
+    #[arg(long, value_name = "NAME")]
+    pub help_method: Option<String>,
     #[command(flatten)]
     pub options: EstimatorArgs,
-}
-
-/// The estimators' options; unset flags keep the library's measured defaults.
-#[derive(clap::Args, Debug, Default)]
-pub struct EstimatorArgs {
-    /// ours/cv: how the control-variate pixels are chosen (knn, window, random, gbuffer).
-    #[arg(long)]
-    pub select: Option<Selection>,
-    /// ours: pixels per set, centre included (cv uses k−1 neighbours).
-    #[arg(long)]
-    pub k: Option<usize>,
-    /// ours/cv: side of the window the k pixels are chosen from (odd).
-    #[arg(long)]
-    pub search_window: Option<usize>,
-    /// ours: PT error estimates (cbf, variance, cbf-residual, oracle — oracle needs --reference).
-    #[arg(long)]
-    pub errors: Option<ErrorEstimate>,
-    /// ours: symmetric penalty on neighbours' error estimates (none, avg, max, residual).
-    #[arg(long)]
-    pub penalty: Option<Penalty>,
-    /// ours: ridge, relative to the mean diagonal of the system.
-    #[arg(long)]
-    pub ridge: Option<f64>,
-    /// ours/cv: one coefficient vector for all channels instead of one per channel.
-    #[arg(long)]
-    pub shared_coefficients: bool,
-    /// ours: τ of the noise floor on the CRN covariance, as a fraction of the PT error estimate (0 = off; shape: --crn-floor-mode).
-    #[arg(long)]
-    pub crn_floor: Option<f64>,
-    /// ours: shape of the floor: common (noise shared by the set) or independent (diagonal).
-    #[arg(long)]
-    pub crn_floor_mode: Option<FloorMode>,
-    /// ours: the floor's variance ṽ: pt (the PT error estimates) or crn (filtered CRN variance).
-    #[arg(long)]
-    pub crn_floor_source: Option<FloorSource>,
-    /// ours: estimate β on one half of the CRN batches and apply it to the other half (and vice versa).
-    #[arg(long)]
-    pub cross_fit: bool,
-    /// ours, --errors cbf: radius in pixels of the cross-bilateral filter of the PT variances.
-    #[arg(long)]
-    pub cbf_radius: Option<usize>,
-    /// ours, --errors cbf: tolerance of the filter's relative CRN colour difference.
-    #[arg(long)]
-    pub cbf_sigma_colour: Option<f32>,
-    /// ours, --errors cbf: tolerance of the filter's albedo difference.
-    #[arg(long)]
-    pub cbf_sigma_albedo: Option<f32>,
-    /// ours, --errors cbf: tolerance of the filter's shading-normal difference.
-    #[arg(long)]
-    pub cbf_sigma_normal: Option<f32>,
-    /// ours, --errors cbf: leave a pixel's own variance out of its estimate (kept by default, so
-    /// that a firefly pixel is not trusted; docs/estimators.md).
-    #[arg(long)]
-    pub cbf_exclude_centre: bool,
-    /// cv: ridge, relative to the mean diagonal of V_g.
-    #[arg(long)]
-    pub cv_ridge: Option<f64>,
-    /// iduw: window side (odd).
-    #[arg(long)]
-    pub iduw_window: Option<usize>,
-    /// iduw: a fixed γ instead of choosing one from the published grid.
-    #[arg(long)]
-    pub iduw_gamma: Option<f32>,
-}
-
-impl EstimatorArgs {
-    /// The library defaults with every given flag applied.
-    pub fn to_options(&self) -> Options {
-        let mut o = Options::default();
-        if let Some(s) = self.select {
-            o.ours.select = s;
-            o.cv.select = s;
-        }
-        if let Some(k) = self.k {
-            o.ours.k = k;
-            o.cv.k = k.saturating_sub(1);
-        }
-        if let Some(w) = self.search_window {
-            o.ours.search_window = w;
-            o.cv.search_window = w;
-        }
-        if let Some(e) = self.errors {
-            o.ours.errors = e;
-        }
-        if let Some(p) = self.penalty {
-            o.ours.penalty = p;
-        }
-        if let Some(r) = self.ridge {
-            o.ours.ridge = r;
-        }
-        if self.shared_coefficients {
-            o.ours.shared_coefficients = true;
-            o.cv.shared_coefficients = true;
-        }
-        if let Some(t) = self.crn_floor {
-            o.ours.crn_floor = t;
-        }
-        if let Some(m) = self.crn_floor_mode {
-            o.ours.crn_floor_mode = m;
-        }
-        if let Some(src) = self.crn_floor_source {
-            o.ours.crn_floor_source = src;
-        }
-        if self.cross_fit {
-            o.ours.cross_fit = true;
-        }
-        let cbf = &mut o.ours.cbf;
-        if let Some(r) = self.cbf_radius {
-            cbf.radius = r;
-        }
-        if let Some(v) = self.cbf_sigma_colour {
-            cbf.sigma_colour = v;
-        }
-        if let Some(v) = self.cbf_sigma_albedo {
-            cbf.sigma_albedo = v;
-        }
-        if let Some(v) = self.cbf_sigma_normal {
-            cbf.sigma_normal = v;
-        }
-        if self.cbf_exclude_centre {
-            cbf.exclude_centre = true;
-        }
-        if let Some(r) = self.cv_ridge {
-            o.cv.ridge = r;
-        }
-        if let Some(w) = self.iduw_window {
-            o.iduw.window = w;
-        }
-        if self.iduw_gamma.is_some() {
-            o.iduw.gamma = self.iduw_gamma;
-        }
-        o
-    }
 }
 
 /// Reads a stream file, or IDUW's input layout when the name follows it.
@@ -179,60 +53,78 @@ pub fn read_input(path: &Path) -> Result<StreamSet> {
 
 /// Where each method's outputs go.
 struct Target {
-    method: Method,
+    spec: &'static EstimatorSpec,
     exr: PathBuf,
     png: Option<PathBuf>,
 }
 
-fn targets(args: &ReconstructArgs) -> Result<Vec<Target>> {
-    match args.method {
-        MethodChoice::One(m) => {
-            if args.output.is_dir() {
-                bail!("{}: is a directory; for one method give a file such as out/{m}.exr", args.output.display());
+fn targets(args: &ReconstructArgs, output: &Path) -> Result<Vec<Target>> {
+    let specs = registry().select(&args.method)?;
+    if let [spec] = specs[..] {
+        if !args.method.eq_ignore_ascii_case("all") {
+            if output.is_dir() {
+                bail!("{}: is a directory; for one method give a file such as out/{}.exr", output.display(), spec.name);
             }
-            let png = args.png.then(|| args.output.with_extension("png"));
-            Ok(vec![Target { method: m, exr: args.output.clone(), png }])
-        }
-        MethodChoice::All => {
-            if args.output.extension().is_some_and(|e| e == "exr") {
-                bail!("{}: --method all writes one file per method; give a directory", args.output.display());
-            }
-            if args.output.exists() && !args.output.is_dir() {
-                bail!("{}: is a file; --method all writes one file per method into a directory", args.output.display());
-            }
-            Ok(Method::ALL
-                .iter()
-                .map(|&m| Target {
-                    method: m,
-                    exr: args.output.join(format!("{m}.exr")),
-                    png: Some(args.output.join(format!("{m}.png"))),
-                })
-                .collect())
+            let png = args.png.then(|| output.with_extension("png"));
+            return Ok(vec![Target { spec, exr: output.to_path_buf(), png }]);
         }
     }
+    if output.extension().is_some_and(|e| e == "exr") {
+        bail!("{}: --method {} writes one file per method; give a directory", output.display(), args.method);
+    }
+    if output.exists() && !output.is_dir() {
+        bail!("{}: is a file; --method {} writes one file per method into a directory", output.display(), args.method);
+    }
+    Ok(specs
+        .into_iter()
+        .map(|spec| Target {
+            spec,
+            exr: output.join(format!("{}.exr", spec.name)),
+            png: Some(output.join(format!("{}.png", spec.name))),
+        })
+        .collect())
+}
+
+/// `--list`: one line per registered estimator.
+fn list() {
+    println!("{:<10} {:<24} {:<6} {:<44} summary", "name", "label", "spp", "reads (defaults)");
+    for spec in registry().specs() {
+        let needs = (spec.needs)(&cvtrace_reconstruct::Params::defaults(spec));
+        let spp = spec.samples.describe().split(' ').next().unwrap_or("");
+        println!("{:<10} {:<24} {:<6} {:<44} {}", spec.name, spec.label, spp, needs.describe(), spec.summary);
+    }
+    println!("\n`cvtrace reconstruct --help-method NAME` lists an estimator's parameters; set them with --param NAME.PARAM=VALUE.");
 }
 
 pub fn run(args: ReconstructArgs) -> Result<()> {
+    if args.list {
+        list();
+        return Ok(());
+    }
+    if let Some(name) = &args.help_method {
+        print!("{}", registry().get(name)?.help());
+        return Ok(());
+    }
+    let (Some(input_path), Some(output)) = (args.input.clone(), args.output.clone()) else {
+        bail!("reconstruct needs an input stream file and -o");
+    };
     check_exposure(args.exposure)?;
-    let options = args.options.to_options();
+    let overrides = args.options.overrides()?;
     // Every option given is checked, also those of methods not run: `--method pt --k 0` is as
-    // much a mistake as `--method ours --k 0`. `ours` first: it names `--k` as given (`cv`
-    // counts the neighbours, k − 1).
-    for m in [Method::Ours, Method::Cv, Method::Iduw] {
-        build(m, &options)?;
-    }
+    // much a mistake as `--method ours --k 0`.
+    registry().check(&overrides)?;
     // Build every estimator first: absurd options fail before any file is read.
-    let estimators: Vec<(Target, Box<dyn Estimator>)> = targets(&args)?
+    let estimators: Vec<(Target, Instance)> = targets(&args, &output)?
         .into_iter()
-        .map(|t| build(t.method, &options).map(|e| (t, e)))
+        .map(|t| registry().build(t.spec.name, &overrides).map(|e| (t, e)))
         .collect::<Result<_, _>>()?;
-    // `--method all` creates its directory, but only once the inputs have been read: a failed
-    // command leaves nothing behind.
-    let new_directory = matches!(args.method, MethodChoice::All) && !args.output.is_dir();
+    // Several methods create their directory, but only once the inputs have been read: a
+    // failed command leaves nothing behind.
+    let new_directory = (estimators.len() > 1 || args.method.eq_ignore_ascii_case("all")) && !output.is_dir();
     if new_directory {
-        atomic::check_writable(&args.output, false)?;
+        atomic::check_writable(&output, false)?;
     }
-    let inputs: Vec<&Path> = std::iter::once(args.input.as_path()).chain(args.reference.as_deref()).collect();
+    let inputs: Vec<&Path> = std::iter::once(input_path.as_path()).chain(args.reference.as_deref()).collect();
     for p in &inputs {
         crate::cli::check_input_file(p)?;
     }
@@ -252,25 +144,25 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
         }
     }
     let started = std::time::Instant::now();
-    let set = read_input(&args.input)?;
+    let set = read_input(&input_path)?;
     if set.meta.non_finite_samples > 0 {
         tracing::warn!(
             "{}: the renderer replaced {} NaN or infinite samples by zero; every estimate from this file is biased by them",
-            args.input.display(),
+            input_path.display(),
             set.meta.non_finite_samples
         );
     }
     let reference = args.reference.as_deref().map(read_rgb).transpose()?;
     tracing::info!(
         "read {} ({}x{}, {} spp per stream, {} batches) in {:.2} s",
-        args.input.display(),
+        input_path.display(),
         set.width,
         set.height,
         set.meta.spp,
         set.batch_count(),
         started.elapsed().as_secs_f64()
     );
-    let streams_name = args.input.display().to_string();
+    let streams_name = input_path.display().to_string();
     let reference_name = args.reference.as_ref().map(|p| p.display().to_string()).unwrap_or_default();
     let mut input = Input::new(&set).named(&streams_name, &reference_name);
     if let Some(r) = &reference {
@@ -289,7 +181,7 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
     }
     let mut outputs = Vec::with_capacity(estimators.len());
     for (_, estimator) in &estimators {
-        let out = estimator.reconstruct(&input)?;
+        let out = estimator.run(&input)?;
         tracing::info!("{}: {:.3} s", estimator.name(), out.diagnostics.seconds);
         if let Some((x, y, c)) = out.image.find_non_finite() {
             bail!(
@@ -306,11 +198,11 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
     // wrote, and the folder it made.
     let mut written = atomic::OutputSet::new();
     if new_directory {
-        written.create_dir_all(&args.output).with_context(|| format!("{}: cannot create directory", args.output.display()))?;
+        written.create_dir_all(&output).with_context(|| format!("{}: cannot create directory", output.display()))?;
     }
     let mut rows = Vec::new();
     for ((target, estimator), out) in estimators.iter().zip(outputs) {
-        written.write(&target.exr, || write_output(&target.exr, &args, estimator.as_ref(), &out, set.meta.non_finite_samples))?;
+        written.write(&target.exr, || write_output(&target.exr, &args, &input_path, estimator, &out, set.meta.non_finite_samples))?;
         if let Some(png) = &target.png {
             written.write(png, || write_png(png, &out.image, args.exposure, args.force))?;
         }
@@ -331,10 +223,10 @@ pub fn check_exposure(stops: f32) -> Result<()> {
 }
 
 /// `non_finite_samples`: the input's count of replaced samples, carried into the output.
-fn write_output(path: &Path, args: &ReconstructArgs, estimator: &dyn Estimator, out: &Output, non_finite_samples: u64) -> Result<()> {
+fn write_output(path: &Path, args: &ReconstructArgs, source: &Path, estimator: &Instance, out: &Output, non_finite_samples: u64) -> Result<()> {
     let mut attrs: Vec<(String, AttrValue)> = vec![
         ("cvtrace.method".into(), AttrValue::Text(estimator.name().into())),
-        ("cvtrace.source".into(), AttrValue::Text(args.input.display().to_string())),
+        ("cvtrace.source".into(), AttrValue::Text(source.display().to_string())),
         ("cvtrace.nonFiniteSamples".into(), AttrValue::Text(non_finite_samples.to_string())),
         ("cvtrace.version".into(), AttrValue::Text(env!("CARGO_PKG_VERSION").into())),
         ("cvtrace.seconds".into(), AttrValue::Float(out.diagnostics.seconds as f32)),
@@ -352,10 +244,11 @@ fn write_output(path: &Path, args: &ReconstructArgs, estimator: &dyn Estimator, 
 }
 
 fn print_summary(rows: &[(&str, Option<f64>, cvtrace_reconstruct::Diagnostics)]) {
-    println!("{:<8} {:>12} {:>9}  diagnostics", "method", "relMSE", "seconds");
+    let width = rows.iter().map(|(name, _, _)| name.len()).max().unwrap_or(0).max(8);
+    println!("{:<width$} {:>12} {:>9}  diagnostics", "method", "relMSE", "seconds");
     for (name, rel, diag) in rows {
         let rel = rel.map(|r| format!("{r:.6}")).unwrap_or_else(|| "-".into());
         let extra: Vec<String> = diag.entries.iter().map(|(k, v)| format!("{k}={v}")).collect();
-        println!("{name:<8} {rel:>12} {:>9.3}  {}", diag.seconds, extra.join(" "));
+        println!("{name:<width$} {rel:>12} {:>9.3}  {}", diag.seconds, extra.join(" "));
     }
 }

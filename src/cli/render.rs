@@ -526,7 +526,7 @@ impl RenderIdentity {
     }
 
     /// The recorded fields, named as in error messages.
-    fn fields(&self) -> [(&'static str, String); 7] {
+    pub fn fields(&self) -> [(&'static str, String); 7] {
         [
             ("size", format!("{}x{}", self.width, self.height)),
             ("seed", self.seed.to_string()),

@@ -6,7 +6,9 @@
 //! per stage. A missing reference is rendered first. The folder is resumable: every render is
 //! a file written atomically, so an interrupted study keeps its finished seeds and only
 //! re-runs the (cheap) reconstructions.
-use crate::cli::reconstruct::{read_input, EstimatorArgs};
+use crate::cli::estimator_args::EstimatorArgs;
+use crate::cli::reconstruct::read_input;
+use crate::cli::registry;
 use crate::cli::render::{self as render_cli, RenderArgs, RenderIdentity, ViewArgs};
 use anyhow::{bail, Context, Result};
 use cvtrace_eval::falsecolor::{scale_for_maps, write_false_color_png};
@@ -15,7 +17,7 @@ use cvtrace_eval::results::{keys, ConvergencePoint, MethodResult, ReferenceInfo,
 use cvtrace_eval::{table, Reference, SeedAccumulator};
 use cvtrace_render::render::MAX_SPP;
 use cvtrace_render::Sidecar;
-use cvtrace_reconstruct::{build, ErrorEstimate, Estimator, Input, Method, Options, Penalty, Selection};
+use cvtrace_reconstruct::{DiagValue, Diagnostics, Input, Instance, Overrides, Samples};
 use cvtrace_streams::exr_io::{read_rgb, take_rgb, AttrValue, ExrChannels};
 use cvtrace_streams::preview::write_png;
 use cvtrace_streams::{Features, Image, Stream, StreamMeta, StreamSet};
@@ -64,23 +66,31 @@ pub struct StudyArgs {
     /// Name of the scene in tables and the viewer (default: the scene's folder name).
     #[arg(long)]
     pub name: Option<String>,
+    /// The ratios of relMSE the tables and the viewer headline, as NUMERATOR/DENOMINATOR
+    /// method keys (pt2n is the study's PT render with 2n spp).
+    #[arg(long, value_delimiter = ',', default_value = "ours/iduw,ours/cv,ours/pt2n")]
+    pub headline: Vec<String>,
     #[command(flatten)]
     pub view: ViewArgs,
     #[command(flatten)]
     pub options: EstimatorArgs,
 }
 
-/// One column of the study: a key, a label, how to make the image, and whether it is an ablation.
+/// One column of the study: a key, labels and colour, how to make the image, how many samples
+/// it stands for, and for an ablation the key of the estimator it varies.
 struct Entry {
     key: String,
     label: String,
+    short: String,
+    colour: [u8; 3],
+    samples: Samples,
     source: Source,
-    ablation: bool,
+    base: Option<String>,
 }
 
 enum Source {
     /// An estimator on the stream set.
-    Estimator(Box<dyn Estimator>),
+    Estimator(Instance),
     /// The real PT render with 2n spp.
     Pt2n,
 }
@@ -105,45 +115,93 @@ fn check_needs_before_rendering(list: &[Entry], spps: &[u32], batches: u32) -> R
     Ok(())
 }
 
-/// An ablation of `ours`: result key, label, and how it changes the options.
-type Ablation = (&'static str, &'static str, fn(&mut Options));
+/// Colour of the study's own PT(2n) render.
+const PT_2N_COLOUR: [u8; 3] = [0xc8, 0xc0, 0xbc];
 
-fn entries(options: &Options, ablations: bool) -> Result<Vec<Entry>> {
+/// Every registered estimator, the PT(2n) render, then (with `ablations`) every variant the
+/// estimators declare, each with the study's parameters plus its own.
+fn entries(overrides: &Overrides, ablations: bool) -> Result<Vec<Entry>> {
     let mut list = Vec::new();
-    let labels = [
-        (Method::Pt, "PT (n)"),
-        (Method::Crn, "CRN (n)"),
-        (Method::Average, "Average"),
-        (Method::Iduw, "IDUW"),
-        (Method::Cv, "CV (baseline)"),
-        (Method::Ours, "Ours"),
-    ];
-    for (m, label) in labels {
-        list.push(Entry { key: m.name().into(), label: label.into(), source: Source::Estimator(build(m, options)?), ablation: false });
+    let entry = |key: &str, label: &str, spec: &'static cvtrace_reconstruct::EstimatorSpec, instance: Instance, base: Option<String>| Entry {
+        key: key.into(),
+        label: label.into(),
+        short: spec.short.into(),
+        colour: spec.colour,
+        samples: spec.samples,
+        source: Source::Estimator(instance),
+        base,
+    };
+    for spec in registry().specs() {
+        list.push(entry(spec.name, spec.label, spec, registry().build(spec.name, overrides)?, None));
     }
-    list.push(Entry { key: keys::PT_2N.into(), label: "PT (2n)".into(), source: Source::Pt2n, ablation: false });
+    list.push(Entry {
+        key: keys::PT_2N.into(),
+        label: "PT (2n)".into(),
+        short: "PT(2n)".into(),
+        colour: PT_2N_COLOUR,
+        samples: Samples::BothStreams,
+        source: Source::Pt2n,
+        base: None,
+    });
     if ablations {
-        let variants: [Ablation; 6] = [
-            ("ours-no-penalty", "Ours, no penalty (CBF errors)", |o| o.ours.penalty = Penalty::None),
-            ("ours-oracle", "Ours, oracle errors", |o| o.ours.errors = ErrorEstimate::Oracle),
-            ("ours-oracle-no-penalty", "Ours, oracle errors, no penalty", |o| {
-                o.ours.errors = ErrorEstimate::Oracle;
-                o.ours.penalty = Penalty::None;
-            }),
-            ("ours-window", "Ours, 5×5 window selection", |o| {
-                o.ours.select = Selection::Window;
-                o.ours.search_window = 5;
-            }),
-            ("ours-random", "Ours, random selection", |o| o.ours.select = Selection::Random),
-            ("ours-gbuffer", "Ours, G-buffer selection", |o| o.ours.select = Selection::Gbuffer),
-        ];
-        for (key, label, edit) in variants {
-            let mut o = options.clone();
-            edit(&mut o);
-            list.push(Entry { key: key.into(), label: label.into(), source: Source::Estimator(build(Method::Ours, &o)?), ablation: true });
+        for spec in registry().specs() {
+            for v in spec.variants {
+                let instance = registry().build(spec.name, &overrides.with(spec.name, v.params))?;
+                list.push(entry(v.key, v.label, spec, instance, Some(spec.name.into())));
+            }
         }
     }
     Ok(list)
+}
+
+/// `--headline` as (numerator, denominator) keys of the study's columns.
+fn headline(args: &StudyArgs, list: &[Entry]) -> Result<Vec<(String, String)>> {
+    args.headline
+        .iter()
+        .map(|r| {
+            let (a, b) = r.split_once('/').with_context(|| format!("--headline {r}: give NUMERATOR/DENOMINATOR, e.g. ours/iduw"))?;
+            for k in [a, b] {
+                if !list.iter().any(|e| e.key == k) {
+                    let keys: Vec<&str> = list.iter().map(|e| e.key.as_str()).collect();
+                    bail!("--headline {r}: `{k}` is not a column of this study; its columns: {}", keys.join(", "));
+                }
+            }
+            Ok((a.to_string(), b.to_string()))
+        })
+        .collect()
+}
+
+/// Diagnostics summed over seeds: numbers averaged, text kept from the first seed.
+#[derive(Default)]
+struct DiagnosticsMean {
+    entries: Vec<(String, Option<f64>, DiagValue)>,
+    seeds: usize,
+}
+
+impl DiagnosticsMean {
+    fn add(&mut self, d: &Diagnostics) {
+        for (name, v) in &d.entries {
+            match self.entries.iter_mut().find(|(n, _, _)| n == name) {
+                Some((_, sum, _)) => *sum = sum.zip(v.as_f64()).map(|(s, x)| s + x),
+                None => self.entries.push((name.to_string(), v.as_f64(), v.clone())),
+            }
+        }
+        self.seeds += 1;
+    }
+
+    fn finish(&self) -> Vec<(String, serde_json::Value)> {
+        let n = self.seeds.max(1) as f64;
+        self.entries
+            .iter()
+            .map(|(name, sum, first)| {
+                let v = match sum {
+                    Some(s) => serde_json::Number::from_f64(s / n).map(serde_json::Value::Number).unwrap_or(serde_json::Value::Null),
+                    None => serde_json::Value::String(first.to_string()),
+                };
+                (name.clone(), v)
+            })
+            .collect()
+    }
 }
 
 pub fn run(args: StudyArgs) -> Result<()> {
@@ -191,8 +249,10 @@ pub fn run(args: StudyArgs) -> Result<()> {
     // finished one is only reused if it matches), and a scene that does not load fails here,
     // before the study folder is made.
     let planned = render_cli::planned_identity(&render_args(&args, spps[0], Some(args.batches), args.seed, &args.output, false))?;
-    let options = args.options.to_options();
-    let list = entries(&options, args.ablations)?;
+    let overrides = args.options.overrides()?;
+    registry().check(&overrides)?;
+    let list = entries(&overrides, args.ablations)?;
+    let headline = headline(&args, &list)?;
     check_needs_before_rendering(&list, &spps, args.batches)?;
     // A given reference of another scene, view or path length is the ground truth of another
     // image. Seed, spp and rr depth may differ (the expectation does not), and so may the
@@ -227,7 +287,7 @@ pub fn run(args: StudyArgs) -> Result<()> {
     // The folders this run makes: if it fails before anything is written in them, they go again.
     let made: Vec<PathBuf> = args.output.ancestors().take_while(|p| !p.as_os_str().is_empty() && !p.exists()).map(Path::to_path_buf).collect();
     std::fs::create_dir_all(&args.output).with_context(|| format!("{}: cannot create the study folder", args.output.display()))?;
-    let result = study_in_folder(&args, &planned, &list, &spps, existing, reference_spp);
+    let result = study_in_folder(&args, &planned, &list, &headline, &spps, existing, reference_spp);
     if result.is_err() {
         // Only empty ones: a finished render or checkpoint stays for the next run.
         for dir in spps.iter().map(|&n| spp_dir(&args.output, n)).chain(made) {
@@ -264,6 +324,7 @@ fn study_in_folder(
     args: &StudyArgs,
     planned: &RenderIdentity,
     list: &[Entry],
+    headline: &[(String, String)],
     spps: &[u32],
     existing: Option<(Reference, Option<u32>)>,
     reference_spp: u32,
@@ -287,11 +348,11 @@ fn study_in_folder(
         let last = si + 1 == spps.len();
         let r = run_spp(args, planned, list, &reference, n, last)?;
         for (e, acc) in list.iter().zip(&r.accs) {
-            if e.ablation {
+            if e.base.is_some() {
                 continue;
             }
             let s = acc.finish()?;
-            convergence.push(ConvergencePoint { method: e.key.clone(), spp_total: spp_total(&e.key, n), relmse: s.relmse_mean, relmse_se: s.relmse_se });
+            convergence.push(ConvergencePoint { method: e.key.clone(), spp_total: e.samples.total(n), relmse: s.relmse_mean, relmse_se: s.relmse_se });
         }
         if last {
             main = Some(r);
@@ -306,9 +367,16 @@ fn study_in_folder(
     let mut methods = Vec::new();
     for (i, e) in list.iter().enumerate() {
         let stats = main.accs[i].finish()?;
-        let mut m = MethodResult::from_stats(&e.key, &e.label, spp_total(&e.key, n), &stats);
+        let mut m = MethodResult::from_stats(&e.key, &e.label, e.samples.total(n), &stats);
         m.time_seconds = main.times[i];
-        m.ablation = e.ablation;
+        m.ablation = e.base.is_some();
+        m.base = e.base.clone();
+        m.short = e.short.clone();
+        m.colour = Some(cvtrace_eval::palette::hex(e.colour));
+        if let Source::Estimator(est) = &e.source {
+            m.settings = est.settings().into_iter().map(|(k, v)| (k.to_string(), v)).collect();
+        }
+        m.diagnostics = main.diagnostics[i].finish();
         let image = format!("{}.png", e.key);
         write_png(&args.output.join(&image), &main.first_images[i], 0.0, true)?;
         m.image = Some(image);
@@ -345,6 +413,8 @@ fn study_in_folder(
         convergence: if spps.len() > 1 { convergence } else { Vec::new() },
         error_map_scale: Some(scale),
         warnings: Vec::new(),
+        headline: headline.to_vec(),
+        render: planned.fields().into_iter().filter(|(k, _)| *k != "seed").map(|(k, v)| (k.to_string(), v)).collect(),
     };
     let too_noisy = noise.zip(scene.best_relmse()).and_then(|(noise, best)| too_noisy_warning(noise.relmse, best));
     for w in reference.unusable_warning().into_iter().chain(too_noisy) {
@@ -364,19 +434,11 @@ fn spp_dir(study: &Path, n: u32) -> PathBuf {
     study.join(format!("spp{n:05}"))
 }
 
-/// PT and CRN alone use `n` samples; everything else uses `2n`.
-fn spp_total(key: &str, n: u32) -> u32 {
-    if key == keys::PT || key == keys::CRN {
-        n
-    } else {
-        2 * n
-    }
-}
-
 struct SppRun<'r> {
     accs: Vec<SeedAccumulator<'r>>,
     times: Vec<StageTimes>,
     first_images: Vec<Image>,
+    diagnostics: Vec<DiagnosticsMean>,
     /// Per-pixel variance of the PT stream mean (from its batches), averaged over seeds.
     pt_variance: Option<Image>,
 }
@@ -394,6 +456,7 @@ fn run_spp<'r>(
     let mut accs: Vec<SeedAccumulator> = list.iter().map(|e| SeedAccumulator::new(reference, e.key.clone())).collect();
     let mut times = vec![StageTimes::default(); list.len()];
     let mut first_images = Vec::new();
+    let mut diagnostics: Vec<DiagnosticsMean> = list.iter().map(|_| DiagnosticsMean::default()).collect();
     let mut pt_variance: Option<Image> = None;
     let seeds = args.seeds as f64;
     for i in 0..args.seeds as u64 {
@@ -419,9 +482,10 @@ fn run_spp<'r>(
         for (k, e) in list.iter().enumerate() {
             let (img, t) = match &e.source {
                 Source::Estimator(est) => {
-                    let out = est.reconstruct(&input)?;
-                    // PT and CRN alone need only their own stream: half the pair's render time.
-                    let render = if e.key == keys::PT || e.key == keys::CRN { t_streams / 2.0 } else { t_streams };
+                    let out = est.run(&input)?;
+                    diagnostics[k].add(&out.diagnostics);
+                    // An estimator of one stream needs only that stream: half the pair's render time.
+                    let render = e.samples.render_share() * t_streams;
                     (out.image, StageTimes { render, reconstruct: out.diagnostics.seconds })
                 }
                 Source::Pt2n => (pt2n.clone(), StageTimes { render: t_pt2n, reconstruct: 0.0 }),
@@ -435,7 +499,7 @@ fn run_spp<'r>(
         }
         tracing::info!("spp {n}, seed {} of {}: done", i + 1, args.seeds);
     }
-    Ok(SppRun { accs, times, first_images, pt_variance })
+    Ok(SppRun { accs, times, first_images, diagnostics, pt_variance })
 }
 
 /// Renders `args.output` unless a finished file is already there; returns the render's seconds

@@ -64,6 +64,8 @@ pub fn compare_files(reference: &Path, images: &[PathBuf]) -> Result<SceneResult
         convergence: Vec::new(),
         error_map_scale: None,
         warnings: reference_img.unusable_warning().into_iter().collect(),
+        headline: crate::results::paper_headline(),
+        render: Vec::new(),
     })
 }
 

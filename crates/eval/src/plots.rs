@@ -2,7 +2,6 @@
 //!
 //! Drawn with `plotters`' SVG backend, which writes `<text>` elements and only estimates
 //! text extents, so no system fonts are needed. Colours match the viewer (dark theme).
-use crate::palette::method_color;
 use crate::results::{ConvergencePoint, SceneResult};
 use crate::EvalError;
 use plotters::prelude::*;
@@ -24,7 +23,7 @@ struct Line {
     points: Vec<(f64, f64, Option<f64>)>,
 }
 
-fn lines(points: &[ConvergencePoint], label_of: &dyn Fn(&str) -> String) -> Vec<Line> {
+fn lines(points: &[ConvergencePoint], style_of: &dyn Fn(&str, usize) -> (String, [u8; 3])) -> Vec<Line> {
     // First-appearance order of methods, so the legend follows the results file.
     let mut order: Vec<String> = Vec::new();
     let mut by_method: BTreeMap<String, Vec<(f64, f64, Option<f64>)>> = BTreeMap::new();
@@ -40,8 +39,8 @@ fn lines(points: &[ConvergencePoint], label_of: &dyn Fn(&str) -> String) -> Vec<
         .map(|(i, key)| {
             let mut pts = by_method.remove(&key).unwrap_or_default();
             pts.sort_by(|a, b| a.0.total_cmp(&b.0));
-            let c = method_color(&key, i);
-            Line { label: label_of(&key), color: RGBColor(c[0], c[1], c[2]), key, points: pts }
+            let (label, c) = style_of(&key, i);
+            Line { label, color: RGBColor(c[0], c[1], c[2]), key, points: pts }
         })
         .collect()
 }
@@ -61,19 +60,20 @@ fn plot_err(e: impl std::fmt::Display) -> EvalError {
     EvalError::invalid("convergence plot", e.to_string())
 }
 
-/// The SVG text of a convergence plot. `label_of` maps a method key to its legend label.
-/// A dashed grey guide shows the `1/spp` slope of an unbiased Monte Carlo estimator.
+/// The SVG text of a convergence plot. `style_of` maps a method key and its position in the
+/// legend to its legend label and colour. A dashed grey guide shows the `1/spp` slope of an
+/// unbiased Monte Carlo estimator.
 pub fn convergence_svg(
     points: &[ConvergencePoint],
     title: &str,
-    label_of: &dyn Fn(&str) -> String,
+    style_of: &dyn Fn(&str, usize) -> (String, [u8; 3]),
 ) -> Result<String, EvalError> {
     let valid: Vec<ConvergencePoint> =
         points.iter().filter(|p| p.spp_total > 0 && p.relmse > 0.0 && p.relmse.is_finite()).cloned().collect();
     if valid.is_empty() {
         return Err(EvalError::invalid("convergence plot", "no point with spp > 0 and a finite relMSE > 0"));
     }
-    let lines = lines(&valid, label_of);
+    let lines = lines(&valid, style_of);
     let xs = valid.iter().map(|p| p.spp_total as f64);
     let (xmin, xmax) = xs.fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(x), b.max(x)));
     let lows = valid.iter().map(|p| (p.relmse - p.relmse_se.unwrap_or(0.0)).max(p.relmse * 0.5));
@@ -154,9 +154,11 @@ pub fn write_convergence_svg(scene: &SceneResult, path: &Path, overwrite: bool) 
     if scene.convergence.is_empty() {
         return Ok(false);
     }
-    let label_of = |k: &str| scene.method(k).map(|m| m.label.clone()).unwrap_or_else(|| k.to_string());
+    let style_of = |k: &str, i: usize| {
+        (scene.method(k).map(|m| m.label.clone()).unwrap_or_else(|| k.to_string()), crate::palette::method_colour(scene, k, i))
+    };
     let title = format!("{}: relMSE vs spp", scene.name);
-    let svg = convergence_svg(&scene.convergence, &title, &label_of)
+    let svg = convergence_svg(&scene.convergence, &title, &style_of)
         .map_err(|e| EvalError::invalid(format!("scene `{}`", scene.name), e.to_string()))?;
     cvtrace_streams::atomic::write_atomically(path, overwrite, |tmp| std::fs::write(tmp, svg.as_bytes()))?;
     Ok(true)
@@ -183,7 +185,8 @@ mod tests {
 
     #[test]
     fn svg_has_lines_labels_and_text_without_system_fonts() {
-        let svg = convergence_svg(&pts(), "cbox: relMSE vs spp", &|k| format!("label-{k}")).unwrap();
+        let style = |k: &str, _| (format!("label-{k}"), if k == "ours" { [0x59, 0xd9, 0x8e] } else { [0xe1, 0x57, 0x59] });
+        let svg = convergence_svg(&pts(), "cbox: relMSE vs spp", &style).unwrap();
         assert!(svg.starts_with("<svg"), "{}", &svg[..100]);
         assert!(svg.contains("data-methods=\"pt ours\""));
         assert!(svg.contains("cbox: relMSE vs spp"));
@@ -193,7 +196,7 @@ mod tests {
         // One polyline per method plus the guide; a point per sample.
         assert!(svg.matches("<polyline").count() >= 2, "{svg}");
         assert!(svg.matches("<circle").count() >= 6);
-        assert!(svg.contains("#59D98E") || svg.contains("#59d98e"), "ours keeps its viewer colour");
+        assert!(svg.contains("#59D98E") || svg.contains("#59d98e"), "ours keeps the colour it was given");
     }
 
     #[test]
@@ -208,6 +211,6 @@ mod tests {
     #[test]
     fn invalid_points_are_rejected_not_drawn() {
         let bad = vec![ConvergencePoint { method: "pt".into(), spp_total: 0, relmse: 1.0, relmse_se: None }];
-        assert!(convergence_svg(&bad, "t", &|k| k.to_string()).is_err());
+        assert!(convergence_svg(&bad, "t", &|k, _| (k.to_string(), [0; 3])).is_err());
     }
 }

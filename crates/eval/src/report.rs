@@ -11,7 +11,7 @@
 //! The page builds itself from data.js (a plain script, so no server or fetch is needed);
 //! every number it shows comes from the results tree, formatted like the terminal table.
 use crate::falsecolor::write_colorbar_png;
-use crate::palette::{hex, method_color};
+use crate::palette::{hex, method_colour};
 use crate::plots::write_convergence_svg;
 use crate::results::{Ratio, SceneResult, StudyResults};
 use crate::table::write_csv;
@@ -216,7 +216,7 @@ fn write_viewer(
             .ordered_methods()
             .iter()
             .enumerate()
-            .map(|(i, m)| (m.name.clone(), hex(method_color(&m.name, i))))
+            .map(|(i, m)| (m.name.clone(), hex(method_colour(scene, &m.name, i))))
             .collect();
         scenes.push(ViewerScene { slug, plot, ratios: scene.ratios(), colors });
     }

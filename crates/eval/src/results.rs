@@ -14,23 +14,21 @@ use std::path::Path;
 /// Bumped whenever a field changes meaning.
 pub const SCHEMA_VERSION: u32 = 1;
 
-/// Canonical method keys: the ratios and the viewer's ordering and colours rely on them.
+/// Keys the study itself gives meaning to. Everything else about a method (label, short
+/// label, colour, order, samples) travels with it in the results.
 pub mod keys {
-    /// PT stream alone (`n` spp).
-    pub const PT: &str = "pt";
-    /// CRN stream alone (`n` spp).
-    pub const CRN: &str = "crn";
-    /// `(PT + CRN) / 2`.
-    pub const AVERAGE: &str = "average";
-    pub const IDUW: &str = "iduw";
-    /// Classic control variates, PT treated as exact expectations.
-    pub const CV: &str = "cv";
-    /// Imperfect image-space control variates (Yang & Moon 2025).
-    pub const OURS: &str = "ours";
-    /// A real PT render with `2n` spp: the equal-total-samples baseline.
+    /// A real PT render with `2n` spp: the equal-total-samples baseline a study renders itself
+    /// (not an estimator). Ratios against it are unpaired.
     pub const PT_2N: &str = "pt2n";
-    /// The order the viewer and tables use for the known keys; others follow in file order.
-    pub const ORDER: [&str; 7] = [PT, CRN, AVERAGE, IDUW, CV, OURS, PT_2N];
+    /// The PT stream alone: the paper's PT(2n) column is half of its relMSE (the Markdown
+    /// summary's paper-convention column).
+    pub const PT: &str = "pt";
+}
+
+/// The headline ratios of scenes whose results predate the `headline` field: the paper's
+/// ours/IDUW, ours/CV and ours/PT(2n).
+pub fn paper_headline() -> Vec<(String, String)> {
+    [("ours", "iduw"), ("ours", "cv"), ("ours", keys::PT_2N)].iter().map(|(a, b)| (a.to_string(), b.to_string())).collect()
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -63,6 +61,13 @@ pub struct SceneResult {
     /// Human-readable warnings (e.g. a reference too noisy to rank the methods).
     #[serde(default)]
     pub warnings: Vec<String>,
+    /// The ratios (numerator, denominator) of method keys the tables and viewer headline.
+    #[serde(default = "paper_headline")]
+    pub headline: Vec<(String, String)>,
+    /// What the renders were made from and with (scene hash, camera, size, depths, traversal,
+    /// version), as (field, value) pairs.
+    #[serde(default)]
+    pub render: Vec<(String, String)>,
 }
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -94,6 +99,19 @@ pub struct MethodResult {
     pub name: String,
     /// Display label, e.g. "Ours (imperfect CV)".
     pub label: String,
+    /// Short label for ratio names and narrow headers (e.g. "IDUW"); the key when empty.
+    #[serde(default)]
+    pub short: String,
+    /// Colour in plots and the viewer, `#rrggbb`; a fallback colour when absent.
+    #[serde(default)]
+    pub colour: Option<String>,
+    /// Every parameter the estimator ran with, as (name, value).
+    #[serde(default)]
+    pub settings: Vec<(String, String)>,
+    /// What the estimator reported, averaged over seeds where numeric (the first seed's text
+    /// otherwise), as (name, value).
+    #[serde(default)]
+    pub diagnostics: Vec<(String, serde_json::Value)>,
     /// Total samples per pixel the method consumed (n for PT/CRN, 2n for the rest); 0 if unknown.
     pub spp_total: u32,
     pub relmse_mean: f64,
@@ -120,6 +138,9 @@ pub struct MethodResult {
     /// Part of `--ablations` (shown in a separate table).
     #[serde(default)]
     pub ablation: bool,
+    /// For an ablation: the key of the method it is a variant of.
+    #[serde(default)]
+    pub base: Option<String>,
 }
 
 /// Mean wall-clock seconds per seed spent in each stage of one method.
@@ -162,6 +183,10 @@ impl MethodResult {
         MethodResult {
             name: name.to_string(),
             label: label.to_string(),
+            short: String::new(),
+            colour: None,
+            settings: Vec::new(),
+            diagnostics: Vec::new(),
             spp_total,
             relmse_mean: stats.relmse_mean,
             relmse_se: stats.relmse_se,
@@ -173,6 +198,7 @@ impl MethodResult {
             image: None,
             error_map: None,
             ablation: false,
+            base: None,
         }
     }
 }
@@ -190,18 +216,30 @@ pub struct Ratio {
     pub se: Option<f64>,
 }
 
-/// The ratios the paper reports: ours/IDUW, ours/CV, ours/PT(2n).
-pub const HEADLINE_RATIOS: [(&str, &str); 3] =
-    [(keys::OURS, keys::IDUW), (keys::OURS, keys::CV), (keys::OURS, keys::PT_2N)];
+impl MethodResult {
+    /// The short label, or the key.
+    pub fn short_label(&self) -> &str {
+        if self.short.is_empty() {
+            &self.name
+        } else {
+            &self.short
+        }
+    }
+}
 
 impl SceneResult {
     pub fn method(&self, name: &str) -> Option<&MethodResult> {
         self.methods.iter().find(|m| m.name == name)
     }
 
+    /// The short label of method `key`, or the key when the scene does not have it.
+    pub fn short_label(&self, key: &str) -> String {
+        self.method(key).map(|m| m.short_label().to_string()).unwrap_or_else(|| key.to_string())
+    }
+
     /// The headline ratios among the methods present.
     pub fn ratios(&self) -> Vec<Ratio> {
-        HEADLINE_RATIOS.iter().filter_map(|(a, b)| self.ratio(a, b)).collect()
+        self.headline.iter().filter_map(|(a, b)| self.ratio(a, b)).collect()
     }
 
     pub fn ratio(&self, numerator: &str, denominator: &str) -> Option<Ratio> {
@@ -238,15 +276,30 @@ impl SceneResult {
         self.methods.iter().filter(|m| !m.ablation).map(|m| m.relmse_mean).filter(|v| v.is_finite()).reduce(f64::min)
     }
 
-    /// Methods in display order: the known keys first in [`keys::ORDER`], then the rest in file order.
+    /// Methods in display order: the order of the file, which is the order of the registry
+    /// that wrote it.
     pub fn ordered_methods(&self) -> Vec<&MethodResult> {
-        let mut out: Vec<&MethodResult> = keys::ORDER.iter().filter_map(|k| self.method(k)).collect();
-        out.extend(self.methods.iter().filter(|m| !keys::ORDER.contains(&m.name.as_str())));
-        out
+        self.methods.iter().collect()
     }
 }
 
 impl StudyResults {
+    /// Every scene's headline ratios, each once, in first-seen order.
+    pub fn headline(&self) -> Vec<(String, String)> {
+        let mut out: Vec<(String, String)> = Vec::new();
+        for pair in self.scenes.iter().flat_map(|s| s.headline.iter()) {
+            if !out.contains(pair) {
+                out.push(pair.clone());
+            }
+        }
+        out
+    }
+
+    /// The short label of method `key` in the first scene that has it, or the key.
+    pub fn short_label(&self, key: &str) -> String {
+        self.scenes.iter().find_map(|s| s.method(key)).map(|m| m.short_label().to_string()).unwrap_or_else(|| key.to_string())
+    }
+
     pub fn new(scenes: Vec<SceneResult>) -> Self {
         StudyResults {
             schema_version: SCHEMA_VERSION,
@@ -260,7 +313,7 @@ impl StudyResults {
     /// scenes' ratios carried through the logarithm (delta method, scenes fixed and
     /// independent): `G·√(Σ (seᵢ/Rᵢ)²)/K`; none unless every scene's ratio has one.
     pub fn geomean_ratios(&self) -> Vec<Ratio> {
-        HEADLINE_RATIOS
+        self.headline()
             .iter()
             .filter_map(|(a, b)| {
                 let ratios: Vec<Ratio> = self.scenes.iter().filter_map(|s| s.ratio(a, b)).collect();

@@ -2,7 +2,7 @@
 //!
 //! Numbers use one rule everywhere (terminal, Markdown, viewer): four significant digits,
 //! plain decimals from 1e-3 to 1e5, scientific notation outside. CSV keeps full precision.
-use crate::results::{keys, MethodResult, Ratio, SceneResult, StudyResults, HEADLINE_RATIOS};
+use crate::results::{keys, MethodResult, Ratio, SceneResult, StudyResults};
 use crate::EvalError;
 use std::path::Path;
 
@@ -46,23 +46,9 @@ pub fn fmt_ratio(r: &Ratio) -> String {
     }
 }
 
-/// Display name of a ratio's method key: `ours/IDUW` style.
-pub fn ratio_name(r: &Ratio) -> String {
-    format!("{}/{}", short_label(&r.numerator), short_label(&r.denominator))
-}
-
-/// Short display names of the canonical keys (used in ratio names and headers).
-pub fn short_label(key: &str) -> String {
-    match key {
-        keys::PT => "PT(n)".into(),
-        keys::CRN => "CRN(n)".into(),
-        keys::AVERAGE => "average".into(),
-        keys::IDUW => "IDUW".into(),
-        keys::CV => "CV".into(),
-        keys::OURS => "ours".into(),
-        keys::PT_2N => "PT(2n)".into(),
-        other => other.into(),
-    }
+/// Display name of a ratio in `scene`: `ours/IDUW` style, from the methods' short labels.
+pub fn ratio_name(r: &Ratio, scene: &SceneResult) -> String {
+    format!("{}/{}", scene.short_label(&r.numerator), scene.short_label(&r.denominator))
 }
 
 const HEADERS: [&str; 10] =
@@ -151,7 +137,7 @@ pub fn terminal_table(scene: &SceneResult) -> String {
     let ratios = scene.ratios();
     if !ratios.is_empty() {
         out += "\n";
-        out += &ratios.iter().map(|r| format!("{} = {}", ratio_name(r), fmt_ratio(r))).collect::<Vec<_>>().join("   ");
+        out += &ratios.iter().map(|r| format!("{} = {}", ratio_name(r, scene), fmt_ratio(r))).collect::<Vec<_>>().join("   ");
         out += "\n";
     }
     for w in &scene.warnings {
@@ -169,7 +155,10 @@ pub fn terminal_report(results: &StudyResults) -> String {
             out += &format!(
                 "\ngeometric mean over {}: {}\n",
                 geomean_scenes(results),
-                g.iter().map(|r| format!("{} = {}", ratio_name(r), fmt_ratio(r))).collect::<Vec<_>>().join("   ")
+                g.iter()
+                    .map(|r| format!("{}/{} = {}", results.short_label(&r.numerator), results.short_label(&r.denominator), fmt_ratio(r)))
+                    .collect::<Vec<_>>()
+                    .join("   ")
             );
         }
     }
@@ -180,7 +169,7 @@ pub fn terminal_report(results: &StudyResults) -> String {
 /// method's relMSE is 0 there, say) and so do not enter the geometric means.
 fn geomean_scenes(results: &StudyResults) -> String {
     let n = results.scenes.len();
-    let k = results.scenes.iter().filter(|s| HEADLINE_RATIOS.iter().any(|(a, b)| s.ratio(a, b).is_some())).count();
+    let k = results.scenes.iter().filter(|s| !s.ratios().is_empty()).count();
     if k == n {
         format!("{n} scenes")
     } else {
@@ -200,7 +189,7 @@ pub fn markdown_table(scene: &SceneResult) -> String {
     let ratios = scene.ratios();
     if !ratios.is_empty() {
         out += "\n";
-        out += &ratios.iter().map(|r| format!("{} = {}", ratio_name(r), fmt_ratio(r))).collect::<Vec<_>>().join(", ");
+        out += &ratios.iter().map(|r| format!("{} = {}", ratio_name(r, scene), fmt_ratio(r))).collect::<Vec<_>>().join(", ");
         out += "\n";
     }
     out
@@ -210,12 +199,14 @@ pub fn markdown_table(scene: &SceneResult) -> String {
 /// relMSE, the headline ratios and the paper's own PT(2n) convention (PT(n)/2), a geometric-mean
 /// row; then the ablations as relative changes of `ours`; then each scene's full table.
 pub fn markdown_summary(results: &StudyResults) -> String {
-    let methods = [keys::PT, keys::CRN, keys::AVERAGE, keys::PT_2N, keys::IDUW, keys::CV, keys::OURS];
+    let methods = main_method_keys(results);
+    let headline = results.headline();
+    let focus = headline.first().map(|(a, _)| a.clone());
     let mut out = String::new();
     let mut header: Vec<String> = vec!["scene".into()];
-    header.extend(methods.iter().map(|k| short_label(k)));
-    header.extend(HEADLINE_RATIOS.iter().map(|(a, b)| format!("{}/{}", short_label(a), short_label(b))));
-    header.push("ours/(PT(n)/2)".into());
+    header.extend(methods.iter().map(|k| results.short_label(k)));
+    header.extend(headline.iter().map(|(a, b)| format!("{}/{}", results.short_label(a), results.short_label(b))));
+    header.push(format!("{}/({}/2)", focus.as_deref().map(|f| results.short_label(f)).unwrap_or_default(), results.short_label(keys::PT)));
     header.push("ref. noise ÷ best".into());
     out += &md_row(&header);
     out += &format!("|{}\n", "---|".repeat(header.len()));
@@ -223,8 +214,8 @@ pub fn markdown_summary(results: &StudyResults) -> String {
     for s in &results.scenes {
         let mut row = vec![format!("{} ({}+{})", md_text(&s.name), s.spp_per_stream, s.spp_per_stream)];
         row.extend(methods.iter().map(|k| s.method(k).map(|m| fmt_num(m.relmse_mean)).unwrap_or_else(|| "–".into())));
-        row.extend(HEADLINE_RATIOS.iter().map(|(a, b)| s.ratio(a, b).map(|r| fmt_ratio(&r)).unwrap_or_else(|| "–".into())));
-        let paper = paper_pt2n_ratio(s);
+        row.extend(headline.iter().map(|(a, b)| s.ratio(a, b).map(|r| fmt_ratio(&r)).unwrap_or_else(|| "–".into())));
+        let paper = focus.as_deref().and_then(|f| paper_pt2n_ratio(s, f));
         if let Some(p) = paper {
             paper_logs.push(p.ln());
         }
@@ -236,7 +227,7 @@ pub fn markdown_summary(results: &StudyResults) -> String {
         let mut row = vec![format!("**geometric mean ({})**", geomean_scenes(results))];
         row.extend(methods.iter().map(|_| String::new()));
         let g = results.geomean_ratios();
-        row.extend(HEADLINE_RATIOS.iter().map(|(a, b)| {
+        row.extend(headline.iter().map(|(a, b)| {
             g.iter().find(|r| r.numerator == *a && r.denominator == *b).map(|r| format!("**{}**", fmt_ratio(r))).unwrap_or_default()
         }));
         row.push(if paper_logs.is_empty() {
@@ -247,18 +238,18 @@ pub fn markdown_summary(results: &StudyResults) -> String {
         row.push(String::new());
         out += &md_row(&row);
     }
-    let ablations = ablation_keys(results);
+    let ablations = ablation_keys(results, focus.as_deref().unwrap_or_default());
     if !ablations.is_empty() {
-        out += "\nAblations of ours: relMSE change against the default `ours` of the same scene and seeds.\n\n";
+        out += "\nAblations: relMSE change against the estimator each varies, with its study settings, on the same scene and seeds.\n\n";
         let mut header = vec!["scene".to_string()];
-        header.extend(ablations.iter().map(|(_, label)| md_text(label)));
+        header.extend(ablations.iter().map(|(_, label, _)| md_text(label)));
         out += &md_row(&header);
         out += &format!("|{}\n", "---|".repeat(header.len()));
         let mut logs = vec![Vec::new(); ablations.len()];
         for s in &results.scenes {
             let mut row = vec![md_text(&s.name)];
-            for (j, (key, _)) in ablations.iter().enumerate() {
-                let r = s.ratio(key, keys::OURS);
+            for (j, (key, _, base)) in ablations.iter().enumerate() {
+                let r = s.ratio(key, base);
                 if let Some(r) = &r {
                     logs[j].push(r.value.ln());
                 }
@@ -285,18 +276,30 @@ pub fn markdown_summary(results: &StudyResults) -> String {
     out
 }
 
-/// ours ÷ (PT(n)/2): the paper's PT(2n) column is half of PT(n)'s relMSE, not a render.
-fn paper_pt2n_ratio(scene: &SceneResult) -> Option<f64> {
-    let (ours, pt) = (scene.method(keys::OURS)?, scene.method(keys::PT)?);
-    (pt.relmse_mean > 0.0).then(|| ours.relmse_mean / (pt.relmse_mean / 2.0))
+/// focus ÷ (PT(n)/2): the paper's PT(2n) column is half of PT(n)'s relMSE, not a render.
+fn paper_pt2n_ratio(scene: &SceneResult, focus: &str) -> Option<f64> {
+    let (f, pt) = (scene.method(focus)?, scene.method(keys::PT)?);
+    (pt.relmse_mean > 0.0).then(|| f.relmse_mean / (pt.relmse_mean / 2.0))
 }
 
-/// Ablation method keys and labels in first-seen order over all scenes.
-fn ablation_keys(results: &StudyResults) -> Vec<(String, String)> {
-    let mut out: Vec<(String, String)> = Vec::new();
+/// Every scene's non-ablation method keys, each once, in first-seen order.
+fn main_method_keys(results: &StudyResults) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    for m in results.scenes.iter().flat_map(|s| s.methods.iter()).filter(|m| !m.ablation) {
+        if !out.contains(&m.name) {
+            out.push(m.name.clone());
+        }
+    }
+    out
+}
+
+/// Ablation method keys, labels and the key each varies (`focus` where the file does not
+/// say), in first-seen order over all scenes.
+fn ablation_keys(results: &StudyResults, focus: &str) -> Vec<(String, String, String)> {
+    let mut out: Vec<(String, String, String)> = Vec::new();
     for m in results.scenes.iter().flat_map(|s| s.methods.iter()).filter(|m| m.ablation) {
-        if !out.iter().any(|(k, _)| *k == m.name) {
-            out.push((m.name.clone(), m.label.clone()));
+        if !out.iter().any(|(k, _, _)| *k == m.name) {
+            out.push((m.name.clone(), m.label.clone(), m.base.clone().unwrap_or_else(|| focus.to_string())));
         }
     }
     out
@@ -487,11 +490,19 @@ mod tests {
                     image: None,
                     error_map: None,
                     ablation,
+                    base: ablation.then(|| "ours".into()),
+                    // The short labels travel with the results: the tables print these, not the keys.
+                    short: if k == "iduw" { "IDUW".into() } else { String::new() },
+                    colour: None,
+                    settings: Vec::new(),
+                    diagnostics: Vec::new(),
                 })
                 .collect(),
             convergence: Vec::new(),
             error_map_scale: None,
             warnings: Vec::new(),
+            headline: crate::results::paper_headline(),
+            render: Vec::new(),
         }
     }
 

@@ -7,7 +7,7 @@
 //! `cargo bench -p cvtrace-reconstruct --bench estimators`
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use cvtrace_reconstruct::synthetic::{RenderSpec, SoftShadowScene};
-use cvtrace_reconstruct::{build, ErrorEstimate, Input, Method, Options};
+use cvtrace_reconstruct::{Input, Overrides, Registry};
 use std::time::Duration;
 
 fn estimators(c: &mut Criterion) {
@@ -20,9 +20,10 @@ fn estimators(c: &mut Criterion) {
     group.sample_size(10);
     group.warm_up_time(Duration::from_secs(2));
     group.measurement_time(Duration::from_secs(15));
-    for m in Method::ALL {
-        let est = build(*m, &Options::default()).expect("default options");
-        group.bench_function(m.name(), |b| b.iter(|| est.reconstruct(&input).expect("reconstruct")));
+    let registry = Registry::builtin();
+    for spec in registry.specs() {
+        let est = registry.build(spec.name, &Overrides::default()).expect("default options");
+        group.bench_function(spec.name, |b| b.iter(|| est.run(&input).expect("reconstruct")));
     }
     group.finish();
 }
@@ -36,17 +37,16 @@ fn pass_one_thread(c: &mut Criterion) {
         SoftShadowScene::default().render(&RenderSpec { width: w, height: h, spp: 16, batches: 16, seed: 1 }).expect("synthetic streams");
     let input = Input::new(&set);
     let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("thread pool");
-    let mut options = Options::default();
-    options.ours.errors = ErrorEstimate::Variance;
-    options.ours.crn_floor = 0.0;
+    let options = Overrides::parse(["ours.errors=variance", "ours.crn_floor=0"]).expect("assignments");
+    let registry = Registry::builtin();
     let mut group = c.benchmark_group("pass_640x360_b16_one_thread");
     group.throughput(Throughput::Elements((w * h) as u64));
     group.sample_size(10);
     group.warm_up_time(Duration::from_secs(2));
     group.measurement_time(Duration::from_secs(10));
-    for m in [Method::Ours, Method::Cv] {
-        let est = build(m, &options).expect("options");
-        group.bench_function(m.name(), |b| b.iter(|| pool.install(|| est.reconstruct(&input).expect("reconstruct"))));
+    for name in ["ours", "cv"] {
+        let est = registry.build(name, &options).expect("options");
+        group.bench_function(name, |b| b.iter(|| pool.install(|| est.run(&input).expect("reconstruct"))));
     }
     group.finish();
 }

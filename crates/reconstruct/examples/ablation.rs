@@ -9,7 +9,7 @@
 //! cargo run --release -p cvtrace-reconstruct --example ablation            # full (a few minutes)
 //! cargo run --release -p cvtrace-reconstruct --example ablation -- --quick # 3 seeds, 1 spp level
 //! ```
-use cvtrace_reconstruct::estimators::{Cv, Iduw, Ours};
+use cvtrace_reconstruct::estimators::{ClassicCv, Iduw, ImperfectCv};
 use cvtrace_eval::{Reference, SeedAccumulator};
 use cvtrace_reconstruct::synthetic::{RenderSpec, SoftShadowScene};
 use cvtrace_reconstruct::*;
@@ -20,11 +20,13 @@ type Make = Box<dyn Fn() -> Box<dyn Estimator>>;
 
 /// The options the tables in docs/estimators.md were measured with: the defaults of that time,
 /// before the real scenes added the CRN floor and kept the centre of the PT error filter.
-fn table_options() -> Options {
-    let mut o = Options::default();
-    o.ours.crn_floor = 0.0;
-    o.ours.cbf.exclude_centre = true;
-    o
+fn table_options() -> Overrides {
+    Overrides::parse(["ours.crn_floor=0", "ours.cbf_exclude_centre=true"]).unwrap()
+}
+
+fn table_ours_options() -> ImperfectCvOptions {
+    let registry = Registry::builtin();
+    ImperfectCvOptions::from_params(&registry.params(registry.get("ours").unwrap(), &table_options()).unwrap())
 }
 
 struct Variant {
@@ -34,11 +36,11 @@ struct Variant {
     make: Make,
 }
 
-fn ours(f: impl Fn(&mut OursOptions) + 'static) -> Make {
+fn ours(f: impl Fn(&mut ImperfectCvOptions) + 'static) -> Make {
     Box::new(move || {
-        let mut o = table_options().ours;
+        let mut o = table_ours_options();
         f(&mut o);
-        Box::new(Ours::new(o).unwrap())
+        Box::new(ImperfectCv::new(o).unwrap())
     })
 }
 
@@ -52,8 +54,9 @@ fn main() {
 
     let mut v: Vec<Variant> = vec![];
     let mut add = |table: &'static str, label: String, batches: usize, make: Make| v.push(Variant { table, label, batches, make });
-    for m in Method::ALL {
-        add("methods", m.to_string(), 16, Box::new(move || build(*m, &table_options()).unwrap()));
+    for spec in estimators::BUILTIN {
+        let name = spec.name;
+        add("methods", name.to_string(), 16, Box::new(move || Box::new(build(name, &table_options()).unwrap())));
     }
     for b in [4usize, 8, 16, 32] {
         add("batches", format!("ours, B = {b}"), b, ours(|_| {}));
@@ -102,7 +105,7 @@ fn main() {
             "ridge",
             format!("cv, ridge {r}"),
             16,
-            Box::new(move || Box::new(Cv::new(CvOptions { ridge: r, ..Default::default() }).unwrap())),
+            Box::new(move || Box::new(ClassicCv::new(ClassicCvOptions { ridge: r, ..Default::default() }).unwrap())),
         );
     }
     for radius in [2usize, 3, 5, 8] {
@@ -157,8 +160,8 @@ fn main() {
                 }
                 let mut r = reference.clone();
                 r.pixels.iter_mut().for_each(|p| p.iter_mut().for_each(|v| *v *= scale));
-                for m in [Method::Iduw, Method::Ours] {
-                    let out = build(m, &table_options()).unwrap().reconstruct(&Input::new(&set)).unwrap();
+                for m in ["iduw", "ours"] {
+                    let out = build(m, &table_options()).unwrap().run(&Input::new(&set)).unwrap();
                     scaled
                         .entry((m.to_string(), (scale * 10.0) as u32))
                         .or_default()

@@ -19,28 +19,28 @@ const EDGES: [f64; 7] = [0.01, 0.03, 0.1, 0.3, 1.0, 3.0, f64::INFINITY];
 
 fn variants() -> Vec<(String, Box<dyn Estimator>)> {
     let mut v: Vec<(String, Box<dyn Estimator>)> = vec![];
-    for m in [Method::Pt, Method::Crn, Method::Iduw, Method::Ours] {
-        v.push((m.to_string(), build(m, &Options::default()).unwrap()));
+    for name in ["pt", "crn", "iduw", "ours"] {
+        v.push((name.to_string(), Box::new(build(name, &Overrides::default()).unwrap())));
     }
     for (name, f) in extra_variants() {
-        let mut o = OursOptions::default();
+        let mut o = ImperfectCvOptions::default();
         f(&mut o);
-        v.push((name, Box::new(estimators::Ours::new(o).unwrap())));
+        v.push((name, Box::new(estimators::ImperfectCv::new(o).unwrap())));
     }
     v
 }
 
-type Tweak = Box<dyn Fn(&mut OursOptions)>;
+type Tweak = Box<dyn Fn(&mut ImperfectCvOptions)>;
 
 fn extra_variants() -> Vec<(String, Tweak)> {
     let mut v: Vec<(String, Tweak)> = vec![];
     if let Ok(spec) = std::env::var("FLOORS") {
         for t in spec.split(',').filter(|s| !s.is_empty()) {
             let tau: f64 = t.parse().unwrap();
-            v.push((format!("ours common floor {t}"), Box::new(move |o: &mut OursOptions| o.crn_floor = tau)));
+            v.push((format!("ours common floor {t}"), Box::new(move |o: &mut ImperfectCvOptions| o.crn_floor = tau)));
             v.push((
                 format!("ours independent floor {t}"),
-                Box::new(move |o: &mut OursOptions| {
+                Box::new(move |o: &mut ImperfectCvOptions| {
                     o.crn_floor = tau;
                     o.crn_floor_mode = FloorMode::Independent;
                 }),
@@ -48,10 +48,10 @@ fn extra_variants() -> Vec<(String, Tweak)> {
         }
     }
     if std::env::var("CROSSFIT").is_ok() {
-        v.push(("ours cross-fit".into(), Box::new(|o: &mut OursOptions| o.cross_fit = true)));
+        v.push(("ours cross-fit".into(), Box::new(|o: &mut ImperfectCvOptions| o.cross_fit = true)));
         v.push((
             "ours cross-fit common floor 1".into(),
-            Box::new(|o: &mut OursOptions| {
+            Box::new(|o: &mut ImperfectCvOptions| {
                 o.cross_fit = true;
                 o.crn_floor = 1.0;
             }),

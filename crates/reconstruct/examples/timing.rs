@@ -1,36 +1,36 @@
 //! Times each estimator on one synthetic stream set (default 1280×720, B = 16):
 //! `cargo run --release -p cvtrace-reconstruct --example timing -- [width height batches methods]`.
 use cvtrace_reconstruct::synthetic::{RenderSpec, SoftShadowScene};
-use cvtrace_reconstruct::{build, Input, MethodChoice, Options};
+use cvtrace_reconstruct::{Input, Overrides, Registry};
 use std::time::Instant;
 
 fn main() {
     let a: Vec<String> = std::env::args().skip(1).collect();
     let arg = |i: usize, d: usize| a.get(i).and_then(|s| s.parse().ok()).unwrap_or(d);
     let (w, h, b) = (arg(0, 1280), arg(1, 720), arg(2, 16));
-    let methods: MethodChoice = a.get(3).map(|s| s.parse().unwrap()).unwrap_or(MethodChoice::All);
+    let registry = Registry::builtin();
+    let methods = registry.select(a.get(3).map(String::as_str).unwrap_or("all")).unwrap();
     let t = Instant::now();
     let set = SoftShadowScene::default().render(&RenderSpec { width: w, height: h, spp: b as u32, batches: b, seed: 1 }).unwrap();
     println!("rendered {w}x{h} B={b} in {:.2}s on {} threads", t.elapsed().as_secs_f64(), rayon::current_num_threads());
     if std::env::var_os("IDUW_SPLIT").is_some() {
         iduw_split(&set);
     }
-    for m in methods.methods() {
-        let e = build(m, &Options::default()).unwrap();
+    for spec in methods {
+        let e = registry.build(spec.name, &Overrides::default()).unwrap();
         let cpu0 = cpu_seconds();
-        let out = e.reconstruct(&Input::new(&set)).unwrap();
+        let out = e.run(&Input::new(&set)).unwrap();
         let s = out.diagnostics.seconds;
         let cpu = cpu_seconds().map(|c| c - cpu0.unwrap_or(0.0)).unwrap_or(f64::NAN);
         let prep = out.diagnostics.get("seconds_prepare").map(|v| format!("  (prepare {v:.3} s)")).unwrap_or_default();
-        println!("{:<8} {:>7.3} s wall {:>7.3} s cpu  {:>7.2} Mpix/s{prep}", m.name(), s, cpu, (w * h) as f64 / s / 1e6);
+        println!("{:<8} {:>7.3} s wall {:>7.3} s cpu  {:>7.2} Mpix/s{prep}", spec.name, s, cpu, (w * h) as f64 / s / 1e6);
     }
 }
 
 /// IDUW's cost split: the γ selection versus the final pass (fixed γ).
 fn iduw_split(set: &cvtrace_reconstruct::StreamSet) {
-    use cvtrace_reconstruct::{estimators::Iduw, Estimator, IduwOptions};
-    let fixed = Iduw::new(IduwOptions { gamma: Some(2.5), ..Default::default() }).unwrap();
-    let out = fixed.reconstruct(&Input::new(set)).unwrap();
+    let fixed = cvtrace_reconstruct::build("iduw", &Overrides::parse(["iduw.gamma=2.5"]).unwrap()).unwrap();
+    let out = fixed.run(&Input::new(set)).unwrap();
     println!("iduw-fixed {:>7.3} s wall (final pass only)", out.diagnostics.seconds);
 }
 

@@ -20,7 +20,7 @@ use crate::solve::{Form, Outcome, Workspace, MAX_BATCHES, MAX_K};
 use cvtrace_streams::{Image, Stream, StreamSet};
 use rayon::prelude::*;
 
-pub(crate) struct CvPass<'a> {
+pub struct CvPass<'a> {
     pub set: &'a StreamSet,
     pub selector: Selector<'a>,
     /// Largest set size the selector returns.
@@ -41,7 +41,7 @@ pub(crate) struct CvPass<'a> {
 
 /// Sums over pixel-channel solves.
 #[derive(Clone, Copy, Debug, Default)]
-pub(crate) struct PassStats {
+pub struct PassStats {
     pub solves: u64,
     pub centre_weight: f64,
     pub beta_sum: f64,
@@ -54,7 +54,7 @@ pub(crate) struct PassStats {
 
 impl PassStats {
     /// The shares every control-variate pass reports, per solved pixel-channel.
-    pub(crate) fn report(&self, d: &mut crate::Diagnostics) {
+    pub fn report(&self, d: &mut crate::Diagnostics) {
         let solves = self.solves.max(1) as f64;
         d.float("beta_sum_mean", self.beta_sum / solves)
             .float("regularised_share", self.regularised as f64 / solves)

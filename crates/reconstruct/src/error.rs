@@ -42,6 +42,21 @@ pub enum ReconError {
     #[error("{origin}: `{method}` needs the samples per pixel of each stream, but it is 0 (StreamMeta::spp / attribute cvtrace.spp); set it to the spp the streams were rendered with")]
     MissingSpp { origin: String, method: &'static str },
 
+    #[error("unknown estimator `{given}`; expected one of: {known}")]
+    UnknownMethod { given: String, known: String },
+
+    #[error("`{method}` has no parameter `{param}`; its parameters: {known} (`cvtrace reconstruct --help-method {method}`)")]
+    UnknownParam { method: String, param: String, known: String },
+
+    #[error("{}", param_message(.method, .param, .alias, .value, .why))]
+    InvalidParam { method: &'static str, param: &'static str, alias: Option<&'static str>, value: String, why: String },
+
+    #[error("`{given}`: a parameter is given as METHOD.PARAM=VALUE, e.g. ours.k=25")]
+    BadAssignment { given: String },
+
+    #[error("estimator `{method}` cannot be registered: {why}")]
+    BadSpec { method: String, why: String },
+
     #[error("invalid option --{option} {value}: {why}")]
     InvalidOption { option: &'static str, value: String, why: String },
 }
@@ -49,5 +64,13 @@ pub enum ReconError {
 impl ReconError {
     pub(crate) fn option(option: &'static str, value: impl ToString, why: impl Into<String>) -> Self {
         ReconError::InvalidOption { option, value: value.to_string(), why: why.into() }
+    }
+}
+
+/// `--k 0 (ours.k): why` where the parameter has a flag, `ours.window = 4: why` where not.
+fn param_message(method: &str, param: &str, alias: &Option<&str>, value: &str, why: &str) -> String {
+    match alias {
+        Some(a) => format!("invalid option --{a} {value} ({method}.{param}): {why}"),
+        None => format!("invalid parameter {method}.{param} = {value}: {why}"),
     }
 }

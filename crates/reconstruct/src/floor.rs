@@ -53,7 +53,7 @@ named_enum! {
 
 /// The floor of one pass: `τ`, the mode and the per-pixel `ṽ`.
 #[derive(Clone, Copy)]
-pub(crate) struct Floor<'a> {
+pub struct Floor<'a> {
     pub tau: f64,
     pub mode: FloorMode,
     pub values: &'a [[f32; 3]],

@@ -1,20 +1,25 @@
 //! Reconstruction of one image from two paired renders: PT (independent random numbers per
 //! pixel) and CRN (common random numbers: sample `s` of every pixel shares its random vector).
 //!
-//! Every method implements [`Estimator`]; [`build`] makes one from a [`Method`] and
-//! [`Options`]. The input is a borrowed [`cvtrace_streams::StreamSet`] (stream means, batch
-//! means, optional features) wrapped in an [`Input`], so a caller with buffers from any
-//! renderer can reconstruct without files:
+//! Every estimator is one file: an [`Estimator`] implementation and an [`EstimatorSpec`] that
+//! declares its name, label, parameters (with defaults, ranges and docs), what it reads and
+//! how many samples its output stands for. A [`Registry`] holds the specs a program knows
+//! ([`Registry::builtin`] has the six of this crate; another crate adds its own with
+//! [`Registry::register`]) and builds an [`Instance`] from a name and `method.param=value`
+//! [`Overrides`]. [`Instance::run`] checks the input against the declared needs, times the call
+//! and knows every setting in effect, so no estimator repeats that. The input is a borrowed
+//! [`cvtrace_streams::StreamSet`] (stream means, batch means, optional features) wrapped in an
+//! [`Input`], so a caller with buffers from any renderer can reconstruct without files:
 //!
 //! ```
-//! use cvtrace_reconstruct::{build, Input, Method, Options};
+//! use cvtrace_reconstruct::{build, Input, Overrides};
 //! use cvtrace_reconstruct::synthetic::{RenderSpec, SoftShadowScene};
 //!
 //! let set = SoftShadowScene::default()
 //!     .render(&RenderSpec { width: 32, height: 32, spp: 16, batches: 8, seed: 1 })
 //!     .unwrap();
-//! let ours = build(Method::Ours, &Options::default()).unwrap();
-//! let out = ours.reconstruct(&Input::new(&set)).unwrap();
+//! let ours = build("ours", &Overrides::default()).unwrap();
+//! let out = ours.run(&Input::new(&set)).unwrap();
 //! assert_eq!(out.image.width, 32);
 //! println!("{}", out.diagnostics);
 //! ```
@@ -22,18 +27,21 @@
 //! With buffers from another renderer, [`stream_set_from_batches`] builds the stream set:
 //!
 //! ```
-//! use cvtrace_reconstruct::{build, stream_set_from_batches, Image, Input, Method, Options};
+//! use cvtrace_reconstruct::{build, stream_set_from_batches, Image, Input, Overrides};
 //!
 //! // B = 4 batch means per stream, all of one size (here constant images).
 //! let batch = |v: f32| Image::from_fn(8, 8, |_, _| [v; 3]);
 //! let pt = vec![batch(0.9), batch(1.1), batch(1.0), batch(1.0)];
 //! let crn = vec![batch(0.8), batch(1.2), batch(1.05), batch(0.95)];
 //! let set = stream_set_from_batches(pt, crn, 16, None).unwrap();
-//! let out = build(Method::Iduw, &Options::default()).unwrap().reconstruct(&Input::new(&set)).unwrap();
+//! let iduw = build("iduw", &Overrides::parse(["iduw.window=5"]).unwrap()).unwrap();
+//! let out = iduw.run(&Input::new(&set)).unwrap();
 //! assert!(out.diagnostics.get("gamma").is_some());
 //! ```
 //!
-//! Methods and their defaults are documented, with measurements, in `docs/estimators.md`.
+//! The pieces the built-in estimators are made of are public in [`blocks`], for estimators
+//! of other crates. Methods and their defaults are documented, with measurements, in
+//! `docs/estimators.md`.
 
 // Numeric kernels index several parallel arrays by one loop variable; iterator chains would
 // hide that structure.
@@ -49,15 +57,16 @@ pub mod estimators;
 mod fast_exp;
 mod floor;
 mod input;
-mod method;
 mod named;
 mod panel;
 mod penalty;
 mod pt_error;
+mod registry;
 mod rng;
 mod selection;
 mod simd;
 mod solve;
+mod spec;
 pub mod synthetic;
 mod window;
 
@@ -66,12 +75,37 @@ pub use batch_stats::variance_of_mean;
 pub use cvtrace_streams::{Features, Image, Stream, StreamMeta, StreamSet};
 pub use diagnostics::{DiagValue, Diagnostics};
 pub use error::{ParseNameError, ReconError};
-pub use estimator::{Estimator, Output};
+pub use estimator::{Estimator, Instance, Output};
 pub use floor::{FloorMode, FloorSource};
-pub use estimators::{CvOptions, IduwOptions, OursOptions, GAMMA_GRID};
+pub use estimators::{ClassicCvOptions, IduwOptions, ImperfectCvOptions, GAMMA_GRID};
 pub use input::{stream_set_from_batches, BatchNeed, Input, Needs, MAX_VALUE};
-pub use method::{build, Method, MethodChoice, Options};
+pub use registry::{build, Overrides, Registry, RESERVED_NAMES};
 pub use penalty::Penalty;
 pub use pt_error::{CbfOptions, ErrorEstimate};
 pub use selection::{Selection, MAX_SEARCH_WINDOW};
 pub use solve::{MAX_BATCHES, MAX_K};
+pub use spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples, Value, Variant};
+
+
+/// The building blocks of the control-variate estimators, for estimators in other crates.
+///
+/// - [`Selector`](blocks::Selector): the `k` control-variate pixels of a centre pixel in its
+///   search window (k-NN by CRN colour, spatial window, random, G-buffer), deterministic.
+/// - [`BatchCube`](blocks::BatchCube) and [`variance_of_mean`](blocks::variance_of_mean),
+///   [`group_means`](blocks::group_means): batch deviations, covariances and sub-buffers.
+/// - [`Workspace`](blocks::Workspace): the small SPD solve of the coefficients
+///   `(W + s·D·Dᵀ) β = s·D·d_c`, directly or through Woodbury, with an adaptive ridge.
+/// - [`pt_errors`](blocks::pt_errors) and [`cross_bilateral`](blocks::cross_bilateral): PT
+///   error estimates and the cross-bilateral filter guided by the CRN image and features.
+/// - [`CvPass`](blocks::CvPass): the whole image pass of `ours` and `cv` (select, gather,
+///   solve, combine), parallel over rows and bit-identical for any thread count; its
+///   [`PassStats`](blocks::PassStats) report the shares of regularised and degenerate solves.
+pub mod blocks {
+    pub use crate::batch_stats::{group_means, variance_of_mean, BatchCube};
+    pub use crate::cv_pass::{CvPass, PassStats};
+    pub use crate::floor::{Floor, FloorMode, FloorSource};
+    pub use crate::penalty::Penalty;
+    pub use crate::pt_error::{cross_bilateral, pt_errors, CbfOptions, ErrorEstimate};
+    pub use crate::selection::{SelectScratch, Selection, Selector, MAX_SEARCH_WINDOW};
+    pub use crate::solve::{Form, Outcome, Workspace, MAX_BATCHES, MAX_K};
+}

@@ -58,8 +58,9 @@ pub struct CbfOptions {
 pub const MAX_RADIUS: usize = 15;
 
 impl Default for CbfOptions {
+    /// The filter of `ours`' declared defaults.
     fn default() -> Self {
-        CbfOptions { radius: 3, sigma_colour: 0.25, sigma_albedo: 0.1, sigma_normal: 0.2, exclude_centre: false }
+        crate::ImperfectCvOptions::default().cbf
     }
 }
 

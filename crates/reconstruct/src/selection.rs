@@ -27,7 +27,7 @@ pub const MAX_SEARCH_WINDOW: usize = 31;
 const MAX_CANDIDATES: usize = MAX_SEARCH_WINDOW * MAX_SEARCH_WINDOW;
 
 /// Per-thread candidate buffer, reused for every pixel.
-pub(crate) struct SelectScratch {
+pub struct SelectScratch {
     keys: Box<[u64; MAX_CANDIDATES]>,
 }
 
@@ -37,7 +37,7 @@ impl SelectScratch {
     }
 }
 
-pub(crate) struct Selector<'a> {
+pub struct Selector<'a> {
     kind: Selection,
     k: usize,
     search: usize,

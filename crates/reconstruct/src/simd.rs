@@ -284,16 +284,16 @@ mod tests {
 #[cfg(all(test, target_arch = "x86_64"))]
 mod dispatch_tests {
     use crate::synthetic::{RenderSpec, SoftShadowScene};
-    use crate::{build, FloorMode, Input, Method, Options, Penalty};
+    use crate::{build, Input, Overrides};
     use cvtrace_streams::Image;
 
-    fn images(runs: &[(Method, Options, usize)]) -> Vec<Image> {
+    fn images(runs: &[(&str, &[&str], usize)]) -> Vec<Image> {
         let scene = SoftShadowScene::default();
         runs.iter()
             .map(|(m, o, b)| {
                 let spec = RenderSpec { width: 23, height: 19, spp: 2 * *b as u32, batches: *b, seed: 40 + *b as u64 };
                 let set = scene.render(&spec).unwrap();
-                build(*m, o).unwrap().reconstruct(&Input::new(&set)).unwrap().image
+                build(m, &Overrides::parse(o.iter()).unwrap()).unwrap().run(&Input::new(&set)).unwrap().image
             })
             .collect()
     }
@@ -304,21 +304,16 @@ mod dispatch_tests {
             eprintln!("no AVX2 on this CPU: both runs would be portable");
             return;
         }
-        let with = |f: &dyn Fn(&mut Options)| {
-            let mut o = Options::default();
-            f(&mut o);
-            o
-        };
-        let runs = vec![
-            (Method::Ours, Options::default(), 16), // panel width 16, CBF errors, common floor
-            (Method::Ours, with(&|o| (o.ours.crn_floor_mode, o.ours.penalty) = (FloorMode::Independent, Penalty::Residual)), 8), // width 8
-            (Method::Ours, Options::default(), 24), // width 32
-            (Method::Ours, with(&|o| o.ours.k = 40), 36), // width 64
-            (Method::Ours, Options::default(), 32), // B ≥ k: the general f64 solve
-            (Method::Ours, with(&|o| o.ours.shared_coefficients = true), 16), // general, 3·B columns
-            (Method::Ours, with(&|o| o.ours.cross_fit = true), 16), // two halves, width 8
-            (Method::Cv, Options::default(), 16),
-            (Method::Iduw, Options::default(), 16), // γ criterion and output
+        let runs: Vec<(&str, &[&str], usize)> = vec![
+            ("ours", &[], 16), // panel width 16, CBF errors, common floor
+            ("ours", &["ours.crn_floor_mode=independent", "ours.penalty=residual"], 8), // width 8
+            ("ours", &[], 24),              // width 32
+            ("ours", &["ours.k=40"], 36),   // width 64
+            ("ours", &[], 32),              // B ≥ k: the general f64 solve
+            ("ours", &["ours.shared_coefficients=true"], 16), // general, 3·B columns
+            ("ours", &["ours.cross_fit=true"], 16), // two halves, width 8
+            ("cv", &[], 16),
+            ("iduw", &[], 16), // γ criterion and output
         ];
         let dispatched = images(&runs);
         let portable = super::force_portable(|| images(&runs));

@@ -11,36 +11,36 @@ fn set(b: usize) -> StreamSet {
     SoftShadowScene::default().render(&RenderSpec { width: 12, height: 8, spp: 2 * b as u32, batches: b, seed: 1 }).unwrap()
 }
 
-fn err(method: Method, options: &Options, input: &Input) -> String {
-    build(method, options).unwrap().reconstruct(input).unwrap_err().to_string()
+fn err(method: &str, assignments: &[&str], input: &Input) -> String {
+    build(method, &Overrides::parse(assignments).unwrap()).unwrap().run(input).unwrap_err().to_string()
 }
 
 #[test]
 fn batch_counts_that_do_not_fit() {
     let s6 = set(6);
     let input = Input::new(&s6).named("cbox.streams.exr", "-");
-    let e = err(Method::Iduw, &Options::default(), &input);
+    let e = err("iduw", &[], &input);
     assert!(e.contains("cbox.streams.exr") && e.contains("multiple of 4") && e.contains("6"), "{e}");
     let s1 = set(1);
-    let e = err(Method::Ours, &Options::default(), &Input::new(&s1).named("one.exr", "-"));
+    let e = err("ours", &[], &Input::new(&s1).named("one.exr", "-"));
     assert!(e.contains("one.exr") && e.contains("at least 2") && e.contains("--batches"), "{e}");
     let mut odd = set(4);
     odd.crn.batches.pop();
-    let e = err(Method::Cv, &Options::default(), &Input::new(&odd).named("odd.exr", "-"));
+    let e = err("cv", &[], &Input::new(&odd).named("odd.exr", "-"));
     assert!(e.contains("odd.exr") && e.contains("pt has 4") && e.contains("crn has 3"), "{e}");
     // Methods that only read the means do not care.
-    assert!(build(Method::Average, &Options::default()).unwrap().reconstruct(&Input::new(&odd)).is_ok());
+    assert!(build("average", &Overrides::default()).unwrap().run(&Input::new(&odd)).is_ok());
 }
 
 #[test]
 fn non_finite_values_name_the_channel_and_pixel() {
     let mut s = set(4);
     s.pt.batches[3].pixels[2 * 12 + 5][1] = f32::NAN;
-    let e = err(Method::Ours, &Options::default(), &Input::new(&s).named("nan.streams.exr", "-"));
+    let e = err("ours", &[], &Input::new(&s).named("nan.streams.exr", "-"));
     assert!(e.contains("nan.streams.exr") && e.contains("pt.b03.G") && e.contains("(5, 2)"), "{e}");
     // PT alone never reads batches, but it does read the mean.
     s.pt.mean.pixels[0][2] = f32::INFINITY;
-    let e = err(Method::Pt, &Options::default(), &Input::new(&s).named("nan.streams.exr", "-"));
+    let e = err("pt", &[], &Input::new(&s).named("nan.streams.exr", "-"));
     assert!(e.contains("pt.B") && e.contains("(0, 0)"), "{e}");
 }
 
@@ -48,7 +48,7 @@ fn non_finite_values_name_the_channel_and_pixel() {
 fn mismatched_sizes_are_named() {
     let mut s = set(4);
     s.crn.batches[1] = Image::new(11, 8);
-    let e = err(Method::Ours, &Options::default(), &Input::new(&s).named("s.exr", "-"));
+    let e = err("ours", &[], &Input::new(&s).named("s.exr", "-"));
     assert!(e.contains("s.exr") && e.contains("crn.b01") && e.contains("11x8") && e.contains("12x8"), "{e}");
 }
 
@@ -56,19 +56,15 @@ fn mismatched_sizes_are_named() {
 fn missing_features_and_reference() {
     let mut s = set(4);
     s.features = None;
-    let mut o = Options::default();
-    o.ours.select = Selection::Gbuffer;
-    let e = err(Method::Ours, &o, &Input::new(&s).named("nofeat.exr", "-"));
+    let e = err("ours", &["ours.select=gbuffer"], &Input::new(&s).named("nofeat.exr", "-"));
     assert!(e.contains("nofeat.exr") && e.contains("albedo") && e.contains("gbuffer"), "{e}");
-    let mut o = Options::default();
-    o.ours.errors = ErrorEstimate::Oracle;
-    let est = build(Method::Ours, &o).unwrap();
+    let est = build("ours", &Overrides::parse(["ours.errors=oracle"]).unwrap()).unwrap();
     assert!(est.needs().reference);
-    let e = est.reconstruct(&Input::new(&s)).unwrap_err().to_string();
+    let e = est.run(&Input::new(&s)).unwrap_err().to_string();
     assert!(e.contains("oracle") && e.contains("--reference"), "{e}");
     let mut zero = set(4);
     zero.meta.spp = 0;
-    let e = err(Method::Iduw, &Options::default(), &Input::new(&zero).named("nospp.exr", "-"));
+    let e = err("iduw", &[], &Input::new(&zero).named("nospp.exr", "-"));
     assert!(e.contains("nospp.exr") && e.contains("spp"), "{e}");
 }
 
@@ -80,9 +76,7 @@ fn reference_of_the_wrong_size_read_from_a_file() {
     let reference = read_rgb(&path).unwrap();
     let s = set(4);
     let name = path.display().to_string();
-    let mut o = Options::default();
-    o.ours.errors = ErrorEstimate::Oracle;
-    let e = err(Method::Ours, &o, &Input::new(&s).with_reference(&reference).named("cbox.streams.exr", &name));
+    let e = err("ours", &["ours.errors=oracle"], &Input::new(&s).with_reference(&reference).named("cbox.streams.exr", &name));
     assert!(e.contains("cbox.ref.exr") && e.contains("cbox.streams.exr") && e.contains("10x8") && e.contains("12x8"), "{e}");
 }
 
@@ -93,53 +87,41 @@ fn streams_read_from_a_file_are_named_in_errors() {
     set(6).write(&path, false).unwrap();
     let s = StreamSet::read(&path).unwrap();
     let name = path.display().to_string();
-    let e = err(Method::Iduw, &Options::default(), &Input::new(&s).named(&name, "-"));
+    let e = err("iduw", &[], &Input::new(&s).named(&name, "-"));
     assert!(e.contains("six.streams.exr") && e.contains("multiple of 4"), "{e}");
 }
 
 #[test]
 fn absurd_options_are_refused_before_any_work() {
-    let bad = |f: &dyn Fn(&mut Options), what: &str| {
-        let mut o = Options::default();
-        f(&mut o);
-        let m = if what == "iduw" {
-            Method::Iduw
-        } else if what == "cv" {
-            Method::Cv
-        } else {
-            Method::Ours
-        };
-        build(m, &o).err().map(|e| e.to_string()).unwrap_or_else(|| panic!("accepted {o:?}"))
+    let bad = |assignments: &[&str]| {
+        let o = Overrides::parse(assignments).unwrap();
+        Registry::builtin().check(&o).err().map(|e| e.to_string()).unwrap_or_else(|| panic!("accepted {o:?}"))
     };
-    let e = bad(&|o| o.ours.k = 0, "ours");
-    assert!(e.contains("--k 0"), "{e}");
-    let e = bad(
-        &|o| {
-            o.ours.k = 30;
-            o.ours.search_window = 5;
-        },
-        "ours",
-    );
+    let e = bad(&["ours.k=0"]);
+    assert!(e.contains("--k 0") && e.contains("ours.k"), "{e}");
+    let e = bad(&["ours.k=30", "ours.search_window=5"]);
     assert!(e.contains("--k 30") && e.contains("5x5") && e.contains("--search-window"), "{e}");
-    let e = bad(&|o| o.ours.k = 65, "ours");
+    let e = bad(&["ours.k=65"]);
     assert!(e.contains("64"), "{e}");
-    let e = bad(&|o| o.ours.search_window = 10, "ours");
+    let e = bad(&["ours.search_window=10"]);
     assert!(e.contains("--search-window 10") && e.contains("odd"), "{e}");
-    let e = bad(&|o| o.ours.ridge = -1.0, "ours");
+    let e = bad(&["ours.ridge=-1"]);
     assert!(e.contains("--ridge -1"), "{e}");
-    let e = bad(&|o| o.ours.cbf.radius = 0, "ours");
+    let e = bad(&["ours.cbf_radius=0"]);
     assert!(e.contains("cbf-radius"), "{e}");
-    let e = bad(&|o| o.iduw.window = 4, "iduw");
+    let e = bad(&["iduw.window=4"]);
     assert!(e.contains("--iduw-window 4"), "{e}");
-    let e = bad(&|o| o.iduw.gammas.clear(), "iduw");
-    assert!(e.contains("γ"), "{e}");
-    // cv's `k` counts neighbours; errors give --k as the command line counts it, centre included.
-    let e = bad(&|o| o.cv.k = 121, "cv");
+    let e = bad(&["iduw.gammas="]);
+    assert!(e.contains("iduw.gammas") && e.contains("at least one"), "{e}");
+    // cv's `k` counts the centre as ours' does (cv uses the k − 1 neighbours).
+    let e = bad(&["cv.k=122"]);
     assert!(e.contains("--k 122"), "{e}");
-    let e = bad(&|o| o.cv.k = 0, "cv");
-    assert!(e.contains("--k 1") && e.contains("at least one neighbour"), "{e}");
-    let e = bad(&|o| o.cv.ridge = f64::NAN, "cv");
+    let e = bad(&["cv.k=1"]);
+    assert!(e.contains("--k 1 (cv.k)") && e.contains("between 2"), "{e}");
+    let e = bad(&["cv.ridge=NaN"]);
     assert!(e.contains("--cv-ridge NaN"), "{e}");
+    // The typed options are checked as strictly as the parameters.
+    assert!(estimators::ClassicCv::new(ClassicCvOptions { neighbours: 0, ..Default::default() }).unwrap_err().to_string().contains("at least one neighbour"));
     let e = "lasso".parse::<Penalty>().unwrap_err().to_string();
     assert!(e.contains("lasso") && e.contains("avg"), "{e}");
     let e = "nearest".parse::<Selection>().unwrap_err().to_string();
@@ -149,7 +131,7 @@ fn absurd_options_are_refused_before_any_work() {
 #[test]
 fn too_many_batches_are_refused_with_a_fix() {
     let s = stream_set(4, 4, 65, 65, |_| 1.0, |b, _| b as f64 * 1e-3, |_, i| i as f64 * 1e-3);
-    let e = err(Method::Ours, &Options::default(), &Input::new(&s).named("many.exr", "-"));
+    let e = err("ours", &[], &Input::new(&s).named("many.exr", "-"));
     assert!(e.contains("many.exr") && e.contains("at most 64") && e.contains("merge"), "{e}");
 }
 
@@ -182,20 +164,20 @@ fn values_too_large_for_f32_squares_are_refused_by_the_methods_that_square_them(
     };
     let big = scaled(1e19);
     let input = Input::new(&big).named("huge.streams.exr", "-");
-    for m in [Method::Cv, Method::Ours] {
-        let e = err(m, &Options::default(), &input);
-        assert!(e.contains("huge.streams.exr") && e.contains("beyond ±1e18") && e.contains("scale the image down") && e.contains(m.name()), "{e}");
+    for m in ["cv", "ours"] {
+        let e = err(m, &[], &input);
+        assert!(e.contains("huge.streams.exr") && e.contains("beyond ±1e18") && e.contains("scale the image down") && e.contains(m), "{e}");
     }
     // The methods that do not square values take them.
-    for m in [Method::Pt, Method::Crn, Method::Average, Method::Iduw] {
-        assert!(build(m, &Options::default()).unwrap().reconstruct(&input).is_ok(), "{m}");
+    for m in ["pt", "crn", "average", "iduw"] {
+        assert!(build(m, &Overrides::default()).unwrap().run(&input).is_ok(), "{m}");
     }
     // Below the limit the images are the rescaled ones.
     let (one, k) = (set(4), 1e12f32);
     let large = scaled(k);
-    for m in [Method::Cv, Method::Ours] {
-        let a = build(m, &Options::default()).unwrap().reconstruct(&Input::new(&one)).unwrap().image;
-        let b = build(m, &Options::default()).unwrap().reconstruct(&Input::new(&large)).unwrap().image;
+    for m in ["cv", "ours"] {
+        let a = build(m, &Overrides::default()).unwrap().run(&Input::new(&one)).unwrap().image;
+        let b = build(m, &Overrides::default()).unwrap().run(&Input::new(&large)).unwrap().image;
         let top = a.pixels.iter().flatten().fold(0.0f32, |t, v| t.max(v.abs()));
         for (p, q) in a.pixels.iter().flatten().zip(b.pixels.iter().flatten()) {
             assert!((q / k - p).abs() <= 1e-4 * top, "{m}: {p} vs {}", q / k);
@@ -204,9 +186,7 @@ fn values_too_large_for_f32_squares_are_refused_by_the_methods_that_square_them(
     // An oracle reference is held to the same limit.
     let mut reference = Image::from_fn(12, 8, |_, _| [1.0; 3]);
     reference.pixels[13][2] = -3e18;
-    let mut o = Options::default();
-    o.ours.errors = ErrorEstimate::Oracle;
     let s = set(4);
-    let e = err(Method::Ours, &o, &Input::new(&s).with_reference(&reference).named("s.exr", "ref.exr"));
+    let e = err("ours", &["ours.errors=oracle"], &Input::new(&s).with_reference(&reference).named("s.exr", "ref.exr"));
     assert!(e.starts_with("ref.exr") && e.contains("pixel (1, 1)") && e.contains("-3e18"), "{e}");
 }

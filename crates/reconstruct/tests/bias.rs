@@ -2,7 +2,7 @@
 use cvtrace_eval::metrics::Reference;
 use cvtrace_eval::stats::SeedAccumulator;
 use cvtrace_reconstruct::synthetic::{RenderSpec, SoftShadowScene};
-use cvtrace_reconstruct::{build, Input, Method, Options};
+use cvtrace_reconstruct::{build, Input, Overrides};
 use cvtrace_streams::{Image, StreamSet};
 use std::sync::OnceLock;
 
@@ -67,7 +67,7 @@ fn bias(reference: &Reference, images: &[Image]) -> Bias {
 }
 
 /// One estimator's images over the seeds (each seed's stream set rendered once, shared).
-fn images(method: Method, options: &Options) -> (Reference, Vec<Image>) {
+fn images(method: &str, options: &Overrides) -> (Reference, Vec<Image>) {
     static SETS: OnceLock<(Image, Vec<StreamSet>)> = OnceLock::new();
     let (reference, sets) = SETS.get_or_init(|| {
         let scene = SoftShadowScene::default();
@@ -76,14 +76,14 @@ fn images(method: Method, options: &Options) -> (Reference, Vec<Image>) {
         (scene.reference(W, W), sets)
     });
     let est = build(method, options).unwrap();
-    (Reference::new(reference.clone(), "exact").unwrap(), sets.iter().map(|s| est.reconstruct(&Input::new(s)).unwrap().image).collect())
+    (Reference::new(reference.clone(), "exact").unwrap(), sets.iter().map(|s| est.run(&Input::new(s)).unwrap().image).collect())
 }
 
 #[test]
 fn average_is_unbiased() {
     // PT and CRN are unbiased (synthetic.rs tests), so their mean is: |bias²| < 5·sd under
     // zero bias. Resolution here: 5·sd ≈ 1e-4, i.e. a scale error of ≈ 1% of the pixel values.
-    let (reference, images) = images(Method::Average, &Options::default());
+    let (reference, images) = images("average", &Overrides::default());
     let b = bias(&reference, &images);
     assert!(b.bias2.abs() < 5.0 * b.sd0, "average: bias² {:.3e}, sd under zero bias {:.3e}", b.bias2, b.sd0);
 }
@@ -97,7 +97,7 @@ fn ours_bias_is_small_against_its_variance() {
     // estimate: bias² + 5·sd < 0.05 · variance, with sd the jackknife standard deviation over
     // seeds (conservative for this U-statistic; it is not the zero-bias sd, since the bias is
     // not zero). Measured when written: bias² 1.1% of the variance.
-    let (reference, images) = images(Method::Ours, &Options::default());
+    let (reference, images) = images("ours", &Overrides::default());
     let b = bias(&reference, &images);
     assert!(
         b.bias2 + 5.0 * b.sd_jack < 0.05 * b.variance,

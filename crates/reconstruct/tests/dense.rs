@@ -5,7 +5,7 @@ mod common;
 
 use common::dense::{set_of, variance_of_mean, Fit, Rule};
 use common::{msd, normal, stream_set_rgb};
-use cvtrace_reconstruct::{build, ErrorEstimate, Input, Method, Options, Penalty, Selection, StreamSet};
+use cvtrace_reconstruct::{build, Input, Overrides, StreamSet};
 use cvtrace_streams::Image;
 
 /// A smooth image with CRN noise half shared by all pixels (per batch and channel) and half
@@ -47,16 +47,13 @@ fn ours_matches_a_dense_solve_of_eq7_from_the_batches() {
     // ridge λ = 10⁻³ · mean diag(V_g + V_h), and the output f̄_c − Σ β_i (ḡ_i − h̄_i).
     // Tolerance 1e-5 relative: the panel solves in f32 (β within 10⁻⁶ of f64) and the inputs
     // are f32.
-    let mut options = Options::default();
-    let o = &mut options.ours;
-    (o.select, o.errors, o.penalty, o.crn_floor, o.shared_coefficients) =
-        (Selection::Window, ErrorEstimate::Variance, Penalty::None, 0.0, false);
+    let base = Overrides::parse(["ours.select=window", "ours.errors=variance", "ours.penalty=none", "ours.crn_floor=0", "ours.shared_coefficients=false"]).unwrap();
     // (B, k): panel widths 8, 16, 32 and 64, then B ≥ k (the general f64 solve).
     for (b, k) in [(4usize, 25usize), (16, 25), (24, 25), (36, 37), (32, 25)] {
-        options.ours.k = k;
+        let options = base.with("ours", &[("k", &k.to_string())]);
         let (w, h) = (17, 15);
         let set = random_set(w, h, b, 100 + b as u64, 0.2, 0.15);
-        let out = build(Method::Ours, &options).unwrap().reconstruct(&Input::new(&set)).unwrap().image;
+        let out = build("ours", &options).unwrap().run(&Input::new(&set)).unwrap().image;
         let s = 1.0 / (b * (b - 1)) as f64;
         for (x, y) in probes(w, h) {
             let c = y * w + x;
@@ -77,14 +74,13 @@ fn ours_matches_a_dense_solve_of_eq7_from_the_batches() {
 fn cv_matches_a_dense_solve_without_the_centre() {
     // V_h = 0, Ω' the k = 24 pixels nearest by CRN colour (default) or spatially, the centre
     // left out; (V_g + λ·I) β = V_fg with λ = 0.3 · mean diag(V_g) over Ω'.
-    for (rule, select) in [(Rule::Knn, Selection::Knn), (Rule::Window, Selection::Window)] {
-        let mut options = Options::default();
-        options.cv.select = select;
+    for (rule, select) in [(Rule::Knn, "knn"), (Rule::Window, "window")] {
+        let options = Overrides::default().with("cv", &[("select", select)]);
         // Panel width 16 (B = 16 < 24) and the general solve (B = 32).
         for b in [16usize, 32] {
             let (w, h) = (17, 15);
             let set = random_set(w, h, b, 300 + b as u64, 0.2, 0.15);
-            let out = build(Method::Cv, &options).unwrap().reconstruct(&Input::new(&set)).unwrap().image;
+            let out = build("cv", &options).unwrap().run(&Input::new(&set)).unwrap().image;
             let s = 1.0 / (b * (b - 1)) as f64;
             for (x, y) in probes(w, h) {
                 let c = y * w + x;
@@ -119,7 +115,7 @@ fn cv_removes_shared_crn_noise_that_pt_cannot() {
         |bb, i, ch| truth(i, ch) + 0.3 * normal(21, (bb * 3 + ch) as u64),
         |bb, i, ch| truth(i, ch) + 0.2 * normal(22, (bb * w * h * 3 + i * 3 + ch) as u64),
     );
-    let out = build(Method::Cv, &Options::default()).unwrap().reconstruct(&Input::new(&set)).unwrap().image;
+    let out = build("cv", &Overrides::default()).unwrap().run(&Input::new(&set)).unwrap().image;
     let truth_image = Image { width: w, height: h, pixels: (0..w * h).map(|i| std::array::from_fn(|ch| truth(i, ch) as f32)).collect() };
     let (e_cv, e_pt) = (msd(&out, &truth_image), msd(&set.pt.mean, &truth_image));
     assert!(e_cv < 0.2 * e_pt, "cv {e_cv:.3e} vs PT {e_pt:.3e}");

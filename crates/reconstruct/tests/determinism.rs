@@ -6,19 +6,9 @@ use cvtrace_streams::Image;
 fn run_on(threads: usize, set: &cvtrace_streams::StreamSet) -> Vec<Image> {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
     pool.install(|| {
-        let mut o = Options::default();
-        o.ours.select = Selection::Random;
-        let mut shared = Options::default();
-        shared.ours.shared_coefficients = true;
-        [
-            (Method::Ours, Options::default()),
-            (Method::Ours, o),
-            (Method::Ours, shared),
-            (Method::Cv, Options::default()),
-            (Method::Iduw, Options::default()),
-        ]
-        .iter()
-        .map(|(m, o)| build(*m, o).unwrap().reconstruct(&Input::new(set)).unwrap().image)
+        let runs: [(&str, &[&str]); 5] =
+            [("ours", &[]), ("ours", &["ours.select=random"]), ("ours", &["ours.shared_coefficients=true"]), ("cv", &[]), ("iduw", &[])];
+        runs.iter().map(|(m, o)| build(m, &Overrides::parse(o.iter()).unwrap()).unwrap().run(&Input::new(set)).unwrap().image)
         .collect()
     })
 }
@@ -40,7 +30,7 @@ fn borders_are_reconstructed_not_copied() {
     let (w, h) = (64, 64);
     let set = scene.render(&RenderSpec { width: w, height: h, spp: 32, batches: 16, seed: 12 }).unwrap();
     let reference = scene.reference(w, h);
-    let out = build(Method::Ours, &Options::default()).unwrap().reconstruct(&Input::new(&set)).unwrap().image;
+    let out = build("ours", &Overrides::default()).unwrap().run(&Input::new(&set)).unwrap().image;
     let ring = |im: &Image| {
         let px = (0..w * h).filter(|i| {
             let (x, y) = (i % w, i / w);

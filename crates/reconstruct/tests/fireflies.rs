@@ -4,8 +4,8 @@
 mod common;
 
 use common::{normal, stream_set};
-use cvtrace_reconstruct::estimators::Ours;
-use cvtrace_reconstruct::{Estimator, Input, OursOptions, StreamSet};
+use cvtrace_reconstruct::estimators::ImperfectCv;
+use cvtrace_reconstruct::{Estimator, Input, ImperfectCvOptions, StreamSet};
 
 const W: usize = 21;
 const TRUTH: f64 = 0.5;
@@ -32,16 +32,16 @@ fn set_with_firefly() -> StreamSet {
 }
 
 fn centre_output(exclude_centre: bool) -> (f64, f64) {
-    let mut o = OursOptions::default();
+    let mut o = ImperfectCvOptions::default();
     o.cbf.exclude_centre = exclude_centre;
     let set = set_with_firefly();
-    let out = Ours::new(o).unwrap().reconstruct(&Input::new(&set)).unwrap();
+    let out = ImperfectCv::new(o).unwrap().reconstruct(&Input::new(&set)).unwrap();
     (out.image.pixels[centre()][1] as f64, set.pt.mean.pixels[centre()][1] as f64)
 }
 
 #[test]
 fn a_firefly_pixel_is_not_trusted_by_default() {
-    assert!(!OursOptions::default().cbf.exclude_centre, "the default keeps the centre in its CBF estimate");
+    assert!(!ImperfectCvOptions::default().cbf.exclude_centre, "the default keeps the centre in its CBF estimate");
     let (out, pt) = centre_output(false);
     // The PT mean carries FIREFLY / BATCHES = 2.5 of error; the neighbours' PT values and the
     // CRN difference give the centre back to within a few of the neighbours' noise levels.

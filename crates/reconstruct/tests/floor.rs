@@ -4,8 +4,8 @@ mod common;
 
 use common::dense::{batch_mean, set_of, variance_of_mean, Fit, Rule};
 use common::{normal, stream_set, stream_set_rgb};
-use cvtrace_reconstruct::estimators::Ours;
-use cvtrace_reconstruct::{Estimator, ErrorEstimate, FloorMode, FloorSource, Input, OursOptions, Penalty, ReconError, Selection, StreamSet};
+use cvtrace_reconstruct::estimators::ImperfectCv;
+use cvtrace_reconstruct::{Estimator, ErrorEstimate, FloorMode, FloorSource, Input, ImperfectCvOptions, Penalty, ReconError, Selection, StreamSet};
 
 const W: usize = 21;
 const M: f64 = 0.8;
@@ -17,13 +17,13 @@ fn degenerate_set() -> StreamSet {
     stream_set(W, W, 16, 64, |_| 0.0, |_, _| 0.0, |b, _| if b % 2 == 0 { M + 0.3 } else { M - 0.3 })
 }
 
-fn ours(f: impl Fn(&mut OursOptions)) -> Ours {
-    let mut o = OursOptions::default();
+fn ours(f: impl Fn(&mut ImperfectCvOptions)) -> ImperfectCv {
+    let mut o = ImperfectCvOptions::default();
     f(&mut o);
-    Ours::new(o).unwrap()
+    ImperfectCv::new(o).unwrap()
 }
 
-fn centre_value(est: &Ours, set: &StreamSet) -> f64 {
+fn centre_value(est: &ImperfectCv, set: &StreamSet) -> f64 {
     let out = est.reconstruct(&Input::new(set)).unwrap();
     out.image.pixels[(W / 2) * W + W / 2][1] as f64
 }
@@ -206,16 +206,16 @@ fn cross_fit_applies_each_half_s_coefficients_to_the_other_half() {
 #[test]
 fn bad_floor_and_cross_fit_settings_are_rejected() {
     for tau in [-0.5, f64::NAN, f64::INFINITY] {
-        let e = Ours::new(OursOptions { crn_floor: tau, ..Default::default() }).unwrap_err();
+        let e = ImperfectCv::new(ImperfectCvOptions { crn_floor: tau, ..Default::default() }).unwrap_err();
         assert!(e.to_string().contains("--crn-floor"), "{e}");
     }
     assert!("sideways".parse::<FloorMode>().unwrap_err().to_string().contains("common, independent"));
     assert!("oracle".parse::<FloorSource>().unwrap_err().to_string().contains("pt, crn"));
     // Cross-fitting needs two equal halves of at least two batches each.
-    let est = ours(|o| o.cross_fit = true);
+    let est = cvtrace_reconstruct::build("ours", &cvtrace_reconstruct::Overrides::parse(["ours.cross_fit=true"]).unwrap()).unwrap();
     for (b, needle) in [(5usize, "even"), (2, "at least 4")] {
         let set = stream_set(8, 8, b, 16, |_| 1.0, |bb, i| 0.1 * normal(1, (bb * 64 + i) as u64), |bb, i| 0.1 * normal(2, (bb * 64 + i) as u64));
-        let e = est.reconstruct(&Input::new(&set)).unwrap_err();
+        let e = est.run(&Input::new(&set)).unwrap_err();
         assert!(matches!(e, ReconError::BatchCount { .. }) && e.to_string().contains(needle), "B = {b}: {e}");
     }
 }

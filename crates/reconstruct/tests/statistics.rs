@@ -7,7 +7,7 @@ mod common;
 use common::{msd, normal, stream_set};
 use cvtrace_reconstruct::control_variate::{combine, optimal_coefficients, predicted_variance};
 use cvtrace_reconstruct::synthetic::{RenderSpec, SoftShadowScene};
-use cvtrace_reconstruct::{build, DiagValue, Input, Method, Options};
+use cvtrace_reconstruct::{build, DiagValue, Input, Overrides};
 use cvtrace_streams::Image;
 
 /// Per-sample model: CRN vector g = μ + L·z (pixel 0 is the centre, f = g_0), PT values
@@ -130,9 +130,8 @@ fn follow(batches: usize, crn: f64, pt: f64, seed: u64) -> (f64, f64, f64) {
     // The two streams get different per-pixel variances here, which renders of one integrand
     // never have; the CRN floor's premise is Var(ḡ_i) = Var(h̄_i), so it is off for this test of
     // the solve (with it, the V_h-dominant case moves from CRN towards neighbouring PT values).
-    let mut options = Options::default();
-    options.ours.crn_floor = 0.0;
-    let out = build(Method::Ours, &options).unwrap().reconstruct(&Input::new(&set)).unwrap();
+    let options = Overrides::parse(["ours.crn_floor=0"]).unwrap();
+    let out = build("ours", &options).unwrap().run(&Input::new(&set)).unwrap();
     (msd(&out.image, &set.pt.mean), msd(&out.image, &set.crn.mean), centre_weight(&out))
 }
 
@@ -214,16 +213,16 @@ fn ours_beats_iduw_and_pt_at_2n_on_a_crn_correlated_scene() {
     let scene = SoftShadowScene::default();
     let (w, h) = (64, 64);
     let reference = scene.reference(w, h);
-    let ours = build(Method::Ours, &Options::default()).unwrap();
-    let iduw = build(Method::Iduw, &Options::default()).unwrap();
+    let ours = build("ours", &Overrides::default()).unwrap();
+    let iduw = build("iduw", &Overrides::default()).unwrap();
     let (mut r_pt2n, mut r_iduw) = (vec![], vec![]);
     for seed in 0..24 {
         let spec = RenderSpec { width: w, height: h, spp: 32, batches: 16, seed: 500 + seed };
         let set = scene.render(&spec).unwrap();
         let pt2n = Image::mean_of(&[set.pt.mean.clone(), scene.render_pt(&spec, 1).unwrap().mean]);
         let input = Input::new(&set);
-        let e_ours = rel_mse(&ours.reconstruct(&input).unwrap().image, &reference);
-        let e_iduw = rel_mse(&iduw.reconstruct(&input).unwrap().image, &reference);
+        let e_ours = rel_mse(&ours.run(&input).unwrap().image, &reference);
+        let e_iduw = rel_mse(&iduw.run(&input).unwrap().image, &reference);
         let e_pt2n = rel_mse(&pt2n, &reference);
         assert!(e_ours < e_pt2n && e_ours < e_iduw, "seed {seed}: ours {e_ours:.3e}, PT@2n {e_pt2n:.3e}, IDUW {e_iduw:.3e}");
         r_pt2n.push((e_ours / e_pt2n).ln());

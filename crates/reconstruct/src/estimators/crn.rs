@@ -1,23 +1,25 @@
 //! `crn`: the CRN stream mean alone (unbiased per pixel, errors shared by neighbours).
-use super::finish;
-use crate::{Diagnostics, Estimator, Input, Method, Needs, Output, ReconError};
-use std::time::Instant;
+use crate::spec::{EstimatorSpec, Samples};
+use crate::{Estimator, Input, Needs, Output, ReconError};
+
+pub static SPEC: EstimatorSpec = EstimatorSpec {
+    name: "crn",
+    label: "CRN (n)",
+    short: "CRN(n)",
+    summary: "The CRN stream mean alone: unbiased per pixel, with errors shared by neighbours.",
+    colour: [0xf2, 0x8e, 0x2b],
+    samples: Samples::OneStream,
+    params: &[],
+    needs: |_| Needs::MEANS,
+    build: |_| Ok(Box::new(Crn)),
+    variants: &[],
+};
 
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Crn;
 
 impl Estimator for Crn {
-    fn method(&self) -> Method {
-        Method::Crn
-    }
-
-    fn needs(&self) -> Needs {
-        Needs::MEANS
-    }
-
     fn reconstruct(&self, input: &Input) -> Result<Output, ReconError> {
-        let start = Instant::now();
-        input.check(self.name(), &self.needs())?;
-        Ok(finish(input.streams.crn.mean.clone(), Diagnostics::default(), start))
+        Ok(Output::image(input.streams.crn.mean.clone()))
     }
 }

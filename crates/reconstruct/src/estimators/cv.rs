@@ -3,21 +3,80 @@
 //! zero variance and return plain PT). `β` solves `(V_g + ridge) β = V_fg` from CRN batch
 //! covariances. Without `V_h` nothing guards against the PT noise it copies in, and with
 //! fewer batches than control variates `V_g` is singular, so the ridge is essential.
-use super::finish;
 use super::ours::check_selection;
 use crate::cv_pass::CvPass;
 use crate::input::BatchNeed;
 use crate::penalty::Penalty;
-use crate::selection::{Selection, Selector};
-use crate::solve::MAX_BATCHES;
-use crate::{Diagnostics, Estimator, Input, Method, Needs, Output, ReconError};
-use std::time::Instant;
+use crate::selection::{Selection, Selector, MAX_SEARCH_WINDOW};
+use crate::solve::{MAX_BATCHES, MAX_K};
+use crate::spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples};
+use crate::{Diagnostics, Estimator, Input, Needs, Output, ReconError};
+
+pub static SPEC: EstimatorSpec = EstimatorSpec {
+    name: "cv",
+    label: "CV (baseline)",
+    short: "CV",
+    summary: "Classic image-space control variates: the PT means taken as exact expectations of the CRN neighbours.",
+    colour: [0xb0, 0x7a, 0xe1],
+    samples: Samples::BothStreams,
+    params: &[
+        ParamSpec {
+            name: "select",
+            kind: ParamKind::Choice(Selection::NAMES),
+            default: "knn",
+            doc: "How the control-variate pixels are chosen in the search window.",
+            alias: Some("select"),
+        },
+        ParamSpec {
+            name: "k",
+            kind: ParamKind::Int { min: 2, max: MAX_K as i64 },
+            default: "25",
+            doc: "Pixels per set counted as in `ours`, centre included; `cv` leaves the centre out and uses the k − 1 neighbours.",
+            alias: Some("k"),
+        },
+        ParamSpec {
+            name: "search_window",
+            kind: ParamKind::Int { min: 1, max: MAX_SEARCH_WINDOW as i64 },
+            default: "11",
+            doc: "Side of the (odd) square window the pixels are chosen from.",
+            alias: Some("search-window"),
+        },
+        ParamSpec {
+            name: "ridge",
+            kind: ParamKind::Float(Bounds::at_least(0.0)),
+            default: "0.3",
+            doc: "Ridge, relative to the mean diagonal of V_g; essential with fewer batches than control variates.",
+            alias: Some("cv-ridge"),
+        },
+        ParamSpec {
+            name: "shared_coefficients",
+            kind: ParamKind::Bool,
+            default: "false",
+            doc: "One coefficient vector for all three channels instead of one per channel.",
+            alias: Some("shared-coefficients"),
+        },
+        ParamSpec { name: "seed", kind: ParamKind::Int { min: 0, max: i64::MAX }, default: "0", doc: "Seed of `select = random`.", alias: None },
+    ],
+    needs: |p| needs(p.choice("select")),
+    build: |p| Ok(Box::new(ClassicCv::new(ClassicCvOptions::from_params(p))?)),
+    variants: &[],
+};
+
+fn needs(select: Selection) -> Needs {
+    Needs {
+        batches: BatchNeed::Range { min: 2, max: MAX_BATCHES },
+        features: (select == Selection::Gbuffer).then_some("with --select gbuffer"),
+        reference: false,
+        spp: false,
+        bounded_values: true,
+    }
+}
 
 #[derive(Clone, Debug, PartialEq)]
-pub struct CvOptions {
+pub struct ClassicCvOptions {
     pub select: Selection,
-    /// Number of control variates, the centre not included.
-    pub k: usize,
+    /// Number of control variates: the neighbours, the centre not included.
+    pub neighbours: usize,
     pub search_window: usize,
     /// Ridge, relative to the mean diagonal of `V_g`.
     pub ridge: f64,
@@ -26,69 +85,55 @@ pub struct CvOptions {
     pub seed: u64,
 }
 
-impl Default for CvOptions {
+impl Default for ClassicCvOptions {
     fn default() -> Self {
-        CvOptions { select: Selection::Knn, k: 24, search_window: 11, ridge: 0.3, shared_coefficients: false, seed: 0 }
+        ClassicCvOptions::from_params(&Params::defaults(&SPEC))
     }
 }
 
-impl CvOptions {
+impl ClassicCvOptions {
+    /// The options of the declared parameters.
+    pub fn from_params(p: &Params) -> Self {
+        ClassicCvOptions {
+            select: p.choice("select"),
+            neighbours: p.usize("k") - 1,
+            search_window: p.usize("search_window"),
+            ridge: p.float("ridge"),
+            shared_coefficients: p.bool("shared_coefficients"),
+            seed: p.int("seed") as u64,
+        }
+    }
+
     pub fn validate(&self) -> Result<(), ReconError> {
-        // `k` here counts neighbours; on the command line (and in `ours`) it counts the centre too.
-        if self.k == 0 {
+        // The command line's `k` counts the centre too.
+        if self.neighbours == 0 {
             return Err(ReconError::option("k", 1, "cv needs at least one neighbour besides the centre: at least 2"));
         }
-        check_selection(self.k + 1, self.search_window, self.ridge, "cv-ridge")
+        check_selection(self.neighbours + 1, self.search_window, self.ridge, "cv-ridge")
     }
 }
 
+/// Classic control variates (the `cv` estimator).
 #[derive(Clone, Debug)]
-pub struct Cv {
-    options: CvOptions,
+pub struct ClassicCv {
+    options: ClassicCvOptions,
 }
 
-impl Cv {
-    pub fn new(options: CvOptions) -> Result<Self, ReconError> {
+impl ClassicCv {
+    pub fn new(options: ClassicCvOptions) -> Result<Self, ReconError> {
         options.validate()?;
-        Ok(Cv { options })
+        Ok(ClassicCv { options })
     }
 }
 
-impl Estimator for Cv {
-    fn method(&self) -> Method {
-        Method::Cv
-    }
-
-    fn needs(&self) -> Needs {
-        Needs {
-            batches: BatchNeed::Range { min: 2, max: MAX_BATCHES },
-            features: (self.options.select == Selection::Gbuffer).then_some("with --select gbuffer"),
-            reference: false,
-            spp: false,
-            bounded_values: true,
-        }
-    }
-
-    fn settings(&self) -> Vec<(&'static str, String)> {
-        let o = &self.options;
-        vec![
-            ("select", o.select.to_string()),
-            ("k", o.k.to_string()),
-            ("search_window", o.search_window.to_string()),
-            ("ridge", o.ridge.to_string()),
-            ("shared_coefficients", o.shared_coefficients.to_string()),
-        ]
-    }
-
+impl Estimator for ClassicCv {
     fn reconstruct(&self, input: &Input) -> Result<Output, ReconError> {
-        let start = Instant::now();
-        input.check(self.name(), &self.needs())?;
         let o = &self.options;
         let set = input.streams;
         let pass = CvPass {
             set,
-            selector: Selector::new(o.select, o.k, o.search_window, false, o.seed, set),
-            k: o.k,
+            selector: Selector::new(o.select, o.neighbours, o.search_window, false, o.seed, set),
+            k: o.neighbours,
             errors: None,
             penalty: Penalty::None,
             ridge: o.ridge,
@@ -101,6 +146,6 @@ impl Estimator for Cv {
         let mut d = Diagnostics::default();
         st.report(&mut d);
         d.int("batches", set.batch_count() as i64);
-        Ok(finish(image, d, start))
+        Ok(Output { image, diagnostics: d })
     }
 }

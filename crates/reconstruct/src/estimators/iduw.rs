@@ -12,23 +12,67 @@
 //! sub-buffers 0 vs 1, `m` = spp/4), `out^B` likewise from half B, and `P̄` is the window mean of
 //! the PT image. Our one deviation for CPU cost: on large images the criterion is evaluated on a
 //! regular sub-lattice of pixels (≥ 32k of them), an unbiased estimate of the image mean.
-use super::finish;
 use crate::batch_stats::group_means;
 use crate::input::BatchNeed;
 #[cfg(target_arch = "x86_64")]
 use crate::simd::Avx2;
 use crate::simd::{Portable, Simd};
 use crate::window::mirror;
-use crate::{Diagnostics, Estimator, Input, Method, Needs, Output, ReconError};
+use crate::spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples};
+use crate::{Diagnostics, Estimator, Input, Needs, Output, ReconError};
 use cvtrace_streams::Image;
 use rayon::prelude::*;
-use std::time::Instant;
 
 /// The γ grid of the public IDUW code.
 pub const GAMMA_GRID: [f32; 10] = [0.01, 0.025, 0.05, 0.1, 0.2, 0.5, 1.0, 1.5, 2.0, 2.5];
 const MAX_WINDOW: usize = 31;
 /// Pixels used for γ selection on large images (the lattice stride is chosen to keep about this many).
 const SELECTION_PIXELS: usize = 32_768;
+
+pub static SPEC: EstimatorSpec = EstimatorSpec {
+    name: "iduw",
+    label: "IDUW",
+    short: "IDUW",
+    summary: "Input-dependent uncorrelated weighting (Back et al. 2023): PT plus weighted CRN differences over a window, γ chosen per image.",
+    colour: [0x76, 0xb7, 0xf2],
+    samples: Samples::BothStreams,
+    params: &[
+        ParamSpec {
+            name: "window",
+            kind: ParamKind::Int { min: 3, max: MAX_WINDOW as i64 },
+            default: "15",
+            doc: "Side of the square window of neighbours (odd).",
+            alias: Some("iduw-window"),
+        },
+        ParamSpec {
+            name: "gammas",
+            kind: ParamKind::FloatList(Bounds::at_least(0.0)),
+            default: "0.01,0.025,0.05,0.1,0.2,0.5,1,1.5,2,2.5",
+            doc: "Candidate γ values of the per-image selection (the public code's grid).",
+            alias: None,
+        },
+        ParamSpec {
+            name: "gamma",
+            kind: ParamKind::AutoFloat(Bounds::at_least(0.0)),
+            default: "auto",
+            doc: "A fixed γ instead of choosing one from `gammas`.",
+            alias: Some("iduw-gamma"),
+        },
+        ParamSpec {
+            name: "selection_stride",
+            kind: ParamKind::Int { min: 0, max: 1 << 16 },
+            default: "0",
+            doc: "Stride of the pixel lattice the γ criterion is evaluated on; 0 picks one that keeps at least 32k pixels.",
+            alias: None,
+        },
+    ],
+    needs: |_| NEEDS,
+    build: |p| Ok(Box::new(Iduw::new(IduwOptions::from_params(p))?)),
+    variants: &[],
+};
+
+/// IDUW forms four sub-buffers of consecutive batches and weights by the spp of a half.
+const NEEDS: Needs = Needs { batches: BatchNeed::MultipleOf(4), features: None, reference: false, spp: true, bounded_values: false };
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct IduwOptions {
@@ -44,11 +88,21 @@ pub struct IduwOptions {
 
 impl Default for IduwOptions {
     fn default() -> Self {
-        IduwOptions { window: 15, gammas: GAMMA_GRID.to_vec(), gamma: None, selection_stride: 0 }
+        IduwOptions::from_params(&Params::defaults(&SPEC))
     }
 }
 
 impl IduwOptions {
+    /// The options of the declared parameters.
+    pub fn from_params(p: &Params) -> Self {
+        IduwOptions {
+            window: p.usize("window"),
+            gammas: p.float_list("gammas").iter().map(|&g| g as f32).collect(),
+            gamma: p.auto_float("gamma").map(|g| g as f32),
+            selection_stride: p.usize("selection_stride"),
+        }
+    }
+
     pub fn validate(&self) -> Result<(), ReconError> {
         if self.window < 3 || self.window.is_multiple_of(2) || self.window > MAX_WINDOW {
             return Err(ReconError::option("iduw-window", self.window, format!("must be odd, between 3 and {MAX_WINDOW}")));
@@ -263,10 +317,9 @@ impl Iduw {
         &self.options
     }
 
-    fn prepare(&self, input: &Input) -> Result<Prepared, ReconError> {
-        input.check(self.name(), &self.needs())?;
+    fn prepare(&self, input: &Input) -> Prepared {
         let set = input.streams;
-        Ok(Prepared { pt_subs: group_means(&set.pt, 4), crn_subs: group_means(&set.crn, 4), spp: set.meta.spp as f32 })
+        Prepared { pt_subs: group_means(&set.pt, 4), crn_subs: group_means(&set.crn, 4), spp: set.meta.spp as f32 }
     }
 
     fn geometry(&self, w: usize, h: usize) -> Geometry {
@@ -282,9 +335,10 @@ impl Iduw {
     }
 
     /// The selection criterion for every γ of the grid, as (γ, criterion) pairs, and the
-    /// number of pixels it was evaluated on.
+    /// number of pixels it was evaluated on. Checks the input as [`crate::Instance::run`] does.
     pub fn gamma_criteria(&self, input: &Input) -> Result<(Vec<(f32, f64)>, usize), ReconError> {
-        let p = self.prepare(input)?;
+        input.check(SPEC.name, &NEEDS)?;
+        let p = self.prepare(input);
         Ok(self.criteria(input, &p))
     }
 
@@ -333,28 +387,8 @@ impl Iduw {
 }
 
 impl Estimator for Iduw {
-    fn method(&self) -> Method {
-        Method::Iduw
-    }
-
-    fn needs(&self) -> Needs {
-        Needs { batches: BatchNeed::MultipleOf(4), features: None, reference: false, spp: true, bounded_values: false }
-    }
-
-    fn settings(&self) -> Vec<(&'static str, String)> {
-        let o = &self.options;
-        let grid = o.gammas.iter().map(|g| g.to_string()).collect::<Vec<_>>().join(",");
-        vec![
-            ("window", o.window.to_string()),
-            ("gammas", grid),
-            ("gamma_fixed", o.gamma.map(|g| g.to_string()).unwrap_or_else(|| "no".into())),
-            ("selection_stride", o.selection_stride.to_string()),
-        ]
-    }
-
     fn reconstruct(&self, input: &Input) -> Result<Output, ReconError> {
-        let start = Instant::now();
-        let p = self.prepare(input)?;
+        let p = self.prepare(input);
         let set = input.streams;
         let (w, h) = (set.width, set.height);
         let mut d = Diagnostics::default();
@@ -393,6 +427,6 @@ impl Estimator for Iduw {
         d.float("gamma", gamma as f64)
             .float("neighbour_weight_mean", wsum.iter().sum::<f64>() / (3 * w * h) as f64)
             .int("window", win as i64);
-        Ok(finish(image, d, start))
+        Ok(Output { image, diagnostics: d })
     }
 }

@@ -1,24 +1,19 @@
-//! One file per reconstruction method.
-mod average;
-mod crn;
-mod cv;
-mod iduw;
-mod ours;
-mod pt;
+//! The built-in estimators, one file each: the implementation and its [`EstimatorSpec`].
+pub mod average;
+pub mod crn;
+pub mod cv;
+pub mod iduw;
+pub mod ours;
+pub mod pt;
 
 pub use average::Average;
 pub use crn::Crn;
-pub use cv::{Cv, CvOptions};
+pub use cv::{ClassicCv, ClassicCvOptions};
 pub use iduw::{Iduw, IduwOptions, GAMMA_GRID};
-pub use ours::{Ours, OursOptions};
+pub use ours::{ImperfectCv, ImperfectCvOptions};
 pub use pt::Pt;
 
-use crate::{Diagnostics, Output};
-use cvtrace_streams::Image;
-use std::time::Instant;
+use crate::spec::EstimatorSpec;
 
-/// Wraps an image and diagnostics with the time since `start`.
-pub(crate) fn finish(image: Image, mut diagnostics: Diagnostics, start: Instant) -> Output {
-    diagnostics.seconds = start.elapsed().as_secs_f64();
-    Output { image, diagnostics }
-}
+/// The built-in specs in the order of tables and the viewer.
+pub static BUILTIN: [&EstimatorSpec; 6] = [&pt::SPEC, &crn::SPEC, &average::SPEC, &iduw::SPEC, &cv::SPEC, &ours::SPEC];

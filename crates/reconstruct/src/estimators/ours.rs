@@ -5,20 +5,62 @@
 //! covariances and `V_h` the (penalised) PT error estimates. Because the centre is in the
 //! set, the estimator ranges over PT (`β = e_c`), CRN (`β = 0`) and every blend of
 //! neighbours in between. See docs/estimators.md for the defaults and their measurements.
-use super::finish;
 use crate::batch_stats::variance_of_mean;
 use crate::cv_pass::CvPass;
 use crate::floor::{Floor, FloorMode, FloorSource};
 use crate::input::BatchNeed;
 use crate::penalty::Penalty;
-use crate::pt_error::{cross_bilateral, pt_errors, CbfOptions, ErrorEstimate};
+use crate::pt_error::{cross_bilateral, pt_errors, CbfOptions, ErrorEstimate, MAX_RADIUS};
 use crate::selection::{Selection, Selector, MAX_SEARCH_WINDOW};
 use crate::solve::{MAX_BATCHES, MAX_K};
-use crate::{Diagnostics, Estimator, Input, Method, Needs, Output, ReconError};
+use crate::spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples, Variant};
+use crate::{Diagnostics, Estimator, Input, Needs, Output, ReconError};
 use std::time::Instant;
 
+const fn param(name: &'static str, kind: ParamKind, default: &'static str, doc: &'static str, alias: Option<&'static str>) -> ParamSpec {
+    ParamSpec { name, kind, default, doc, alias }
+}
+
+pub static SPEC: EstimatorSpec = EstimatorSpec {
+    name: "ours",
+    label: "Ours",
+    short: "ours",
+    summary: "Imperfect image-space control variates (Yang & Moon 2025): CRN corrected by a weighted set of PT−CRN differences, the PT errors modelled, the centre in the set.",
+    colour: [0x59, 0xd9, 0x8e],
+    samples: Samples::BothStreams,
+    params: &[
+        param("select", ParamKind::Choice(Selection::NAMES), "knn", "How the set Ω_c is chosen in the search window (gbuffer needs features).", Some("select")),
+        param("k", ParamKind::Int { min: 1, max: MAX_K as i64 }, "25", "|Ω_c|, the centre included.", Some("k")),
+        param("search_window", ParamKind::Int { min: 1, max: MAX_SEARCH_WINDOW as i64 }, "11", "Side of the (odd) square window the k pixels are chosen from.", Some("search-window")),
+        param("errors", ParamKind::Choice(ErrorEstimate::NAMES), "cbf", "Where the PT error estimates V_h come from (oracle needs a reference).", Some("errors")),
+        param("penalty", ParamKind::Choice(Penalty::NAMES), "avg", "The symmetric penalty on neighbours' error estimates.", Some("penalty")),
+        param("ridge", ParamKind::Float(Bounds::at_least(0.0)), "0.001", "Ridge, relative to the mean diagonal of V_g + V_h.", Some("ridge")),
+        param("shared_coefficients", ParamKind::Bool, "false", "One β for all three channels (minimising the summed variance) instead of one per channel.", Some("shared-coefficients")),
+        param("cbf_radius", ParamKind::Int { min: 1, max: MAX_RADIUS as i64 }, "3", "Radius in pixels of the cross-bilateral filter of the PT variances (errors = cbf).", Some("cbf-radius")),
+        param("cbf_sigma_colour", ParamKind::Float(Bounds::positive()), "0.25", "Tolerance of the filter's relative CRN colour difference.", Some("cbf-sigma-colour")),
+        param("cbf_sigma_albedo", ParamKind::Float(Bounds::positive()), "0.1", "Tolerance of the filter's albedo difference.", Some("cbf-sigma-albedo")),
+        param("cbf_sigma_normal", ParamKind::Float(Bounds::positive()), "0.2", "Tolerance of the filter's shading-normal difference.", Some("cbf-sigma-normal")),
+        param("cbf_exclude_centre", ParamKind::Bool, "false", "Leave a pixel's own variance out of its filtered estimate (kept by default, so that a firefly pixel is not trusted).", Some("cbf-exclude-centre")),
+        param("seed", ParamKind::Int { min: 0, max: i64::MAX }, "0", "Seed of `select = random`.", None),
+        param("crn_floor", ParamKind::Float(Bounds::at_least(0.0)), "0.05", "τ of the floor on the CRN covariance, as a fraction of the floor's variance (0 = off).", Some("crn-floor")),
+        param("crn_floor_mode", ParamKind::Choice(FloorMode::NAMES), "common", "Shape of the floor: common (noise shared by the set) or independent (diagonal).", Some("crn-floor-mode")),
+        param("crn_floor_source", ParamKind::Choice(FloorSource::NAMES), "pt", "The floor's variance: pt (the PT error estimates) or crn (filtered CRN variance).", Some("crn-floor-source")),
+        param("cross_fit", ParamKind::Bool, "false", "Estimate β on one half of the CRN batches and apply it to the other half (and vice versa); needs an even batch count ≥ 4.", Some("cross-fit")),
+    ],
+    needs: |p| needs(&ImperfectCvOptions::from_params(p)),
+    build: |p| Ok(Box::new(ImperfectCv::new(ImperfectCvOptions::from_params(p))?)),
+    variants: &[
+        Variant { key: "ours-no-penalty", label: "Ours, no penalty (CBF errors)", params: &[("penalty", "none")] },
+        Variant { key: "ours-oracle", label: "Ours, oracle errors", params: &[("errors", "oracle")] },
+        Variant { key: "ours-oracle-no-penalty", label: "Ours, oracle errors, no penalty", params: &[("errors", "oracle"), ("penalty", "none")] },
+        Variant { key: "ours-window", label: "Ours, 5×5 window selection", params: &[("select", "window"), ("search_window", "5")] },
+        Variant { key: "ours-random", label: "Ours, random selection", params: &[("select", "random")] },
+        Variant { key: "ours-gbuffer", label: "Ours, G-buffer selection", params: &[("select", "gbuffer")] },
+    ],
+};
+
 #[derive(Clone, Debug, PartialEq)]
-pub struct OursOptions {
+pub struct ImperfectCvOptions {
     /// How `Ω_c` is chosen.
     pub select: Selection,
     /// `|Ω_c|`, the centre included.
@@ -50,23 +92,46 @@ pub struct OursOptions {
     pub cross_fit: bool,
 }
 
-impl Default for OursOptions {
+impl Default for ImperfectCvOptions {
     fn default() -> Self {
-        OursOptions {
-            select: Selection::Knn,
-            k: 25,
-            search_window: 11,
-            errors: ErrorEstimate::Cbf,
-            penalty: Penalty::Avg,
-            ridge: 1e-3,
-            shared_coefficients: false,
-            cbf: CbfOptions::default(),
-            seed: 0,
-            crn_floor: 0.05,
-            crn_floor_mode: FloorMode::Common,
-            crn_floor_source: FloorSource::Pt,
-            cross_fit: false,
+        ImperfectCvOptions::from_params(&Params::defaults(&SPEC))
+    }
+}
+
+impl ImperfectCvOptions {
+    /// The options of the declared parameters.
+    pub fn from_params(p: &Params) -> Self {
+        ImperfectCvOptions {
+            select: p.choice("select"),
+            k: p.usize("k"),
+            search_window: p.usize("search_window"),
+            errors: p.choice("errors"),
+            penalty: p.choice("penalty"),
+            ridge: p.float("ridge"),
+            shared_coefficients: p.bool("shared_coefficients"),
+            cbf: CbfOptions {
+                radius: p.usize("cbf_radius"),
+                sigma_colour: p.float("cbf_sigma_colour") as f32,
+                sigma_albedo: p.float("cbf_sigma_albedo") as f32,
+                sigma_normal: p.float("cbf_sigma_normal") as f32,
+                exclude_centre: p.bool("cbf_exclude_centre"),
+            },
+            seed: p.int("seed") as u64,
+            crn_floor: p.float("crn_floor"),
+            crn_floor_mode: p.choice("crn_floor_mode"),
+            crn_floor_source: p.choice("crn_floor_source"),
+            cross_fit: p.bool("cross_fit"),
         }
+    }
+}
+
+fn needs(o: &ImperfectCvOptions) -> Needs {
+    Needs {
+        batches: BatchNeed::Range { min: if o.cross_fit { 4 } else { 2 }, max: MAX_BATCHES },
+        features: (o.select == Selection::Gbuffer).then_some("with --select gbuffer"),
+        reference: o.errors == ErrorEstimate::Oracle,
+        spp: false,
+        bounded_values: true,
     }
 }
 
@@ -92,7 +157,7 @@ pub(crate) fn check_selection(k: usize, search_window: usize, ridge: f64, ridge_
     Ok(())
 }
 
-impl OursOptions {
+impl ImperfectCvOptions {
     pub fn validate(&self) -> Result<(), ReconError> {
         check_selection(self.k, self.search_window, self.ridge, "ridge")?;
         if !(self.crn_floor >= 0.0 && self.crn_floor.is_finite()) {
@@ -102,65 +167,32 @@ impl OursOptions {
     }
 }
 
+/// Imperfect image-space control variates (the `ours` estimator).
 #[derive(Clone, Debug)]
-pub struct Ours {
-    options: OursOptions,
+pub struct ImperfectCv {
+    options: ImperfectCvOptions,
 }
 
-impl Ours {
-    pub fn new(options: OursOptions) -> Result<Self, ReconError> {
+impl ImperfectCv {
+    pub fn new(options: ImperfectCvOptions) -> Result<Self, ReconError> {
         options.validate()?;
-        Ok(Ours { options })
+        Ok(ImperfectCv { options })
     }
 
-    pub fn options(&self) -> &OursOptions {
+    pub fn options(&self) -> &ImperfectCvOptions {
         &self.options
     }
 }
 
-impl Estimator for Ours {
-    fn method(&self) -> Method {
-        Method::Ours
-    }
-
-    fn needs(&self) -> Needs {
-        Needs {
-            batches: BatchNeed::Range { min: if self.options.cross_fit { 4 } else { 2 }, max: MAX_BATCHES },
-            features: (self.options.select == Selection::Gbuffer).then_some("with --select gbuffer"),
-            reference: self.options.errors == ErrorEstimate::Oracle,
-            spp: false,
-            bounded_values: true,
-        }
-    }
-
-    fn settings(&self) -> Vec<(&'static str, String)> {
-        let o = &self.options;
-        vec![
-            ("select", o.select.to_string()),
-            ("k", o.k.to_string()),
-            ("search_window", o.search_window.to_string()),
-            ("errors", o.errors.to_string()),
-            ("penalty", o.penalty.to_string()),
-            ("ridge", o.ridge.to_string()),
-            ("shared_coefficients", o.shared_coefficients.to_string()),
-            ("cbf_radius", o.cbf.radius.to_string()),
-            ("seed", o.seed.to_string()),
-            ("crn_floor", o.crn_floor.to_string()),
-            ("crn_floor_mode", o.crn_floor_mode.to_string()),
-            ("crn_floor_source", o.crn_floor_source.to_string()),
-            ("cross_fit", o.cross_fit.to_string()),
-        ]
-    }
-
+impl Estimator for ImperfectCv {
     fn reconstruct(&self, input: &Input) -> Result<Output, ReconError> {
         let start = Instant::now();
-        input.check(self.name(), &self.needs())?;
         let o = &self.options;
         let set = input.streams;
         if o.cross_fit && set.batch_count() % 2 == 1 {
             return Err(ReconError::BatchCount {
                 origin: input.streams_name.to_string(),
-                method: self.name(),
+                method: SPEC.name,
                 requirement: "an even number of".into(),
                 found: set.batch_count(),
                 hint: "cross-fitting splits the batches into two equal halves; re-render with an even --batches or drop --cross-fit".into(),
@@ -194,6 +226,6 @@ impl Estimator for Ours {
         d.float("set_size_mean", st.set_size as f64 / st.pixels.max(1) as f64)
             .int("batches", set.batch_count() as i64)
             .float("seconds_prepare", t_prepare);
-        Ok(finish(image, d, start))
+        Ok(Output { image, diagnostics: d })
     }
 }
