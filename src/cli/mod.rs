@@ -8,21 +8,10 @@ pub mod study;
 pub mod throughput;
 
 use anyhow::{bail, Result};
-use cvtrace_reconstruct::Registry;
-use std::sync::OnceLock;
 use cvtrace_streams::input_file::{regular_file, NotAFile};
 use std::path::{Component, Path, PathBuf};
 
-/// The estimators this program knows: the built-in ones, then those of other crates, each
-/// added by one line here. Their order is the order of tables and the viewer.
-pub fn registry() -> &'static Registry {
-    static REGISTRY: OnceLock<Registry> = OnceLock::new();
-    REGISTRY.get_or_init(|| {
-        let mut r = Registry::builtin();
-        r.register(&cvtrace_ivw::SPEC).expect("cvtrace-ivw's name is free");
-        r
-    })
-}
+pub use cvtrace::registry;
 
 /// True if both paths exist and are the same file: the same device and inode, so links, hard
 /// links and `./` spellings all count; a path that does not exist yet is no other file.

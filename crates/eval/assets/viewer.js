@@ -41,7 +41,9 @@
     return e;
   }
 
-  const SHORT = { pt: "PT(n)", crn: "CRN(n)", average: "average", iduw: "IDUW", cv: "CV", ours: "ours", pt2n: "PT(2n)" };
+  // Short labels travel with the results (each method's `short`); the key stands in where absent.
+  const SHORT = {};
+  for (const scene of D.results.scenes) for (const m of scene.methods) if (m.short && !(m.name in SHORT)) SHORT[m.name] = m.short;
   const short = (k) => SHORT[k] || k;
 
   // ---- synchronised zoom and pan ----------------------------------------------------------
@@ -272,6 +274,8 @@
     // Tables full width, then the headline ratios beside the convergence plot.
     section.appendChild(el("h3", { text: "Error over " + scene.seeds + (scene.seeds === 1 ? " seed" : " seeds") }));
     section.appendChild(el("div", { class: "table-wrap" }, resultsTable(scene, view, main, ablations)));
+    const provenance = provenanceBlock(scene);
+    if (provenance) section.appendChild(provenance);
     const left = el("div", {});
     const ratios = view.ratios || [];
     if (ratios.length) {
@@ -286,7 +290,7 @@
             r.se !== null && r.se !== undefined ? el("small", {}, " ± ", el("span", { text: fmt(r.se), "data-key": key + "/se" })) : null)));
       }
       left.appendChild(ratioBox);
-      left.appendChild(el("p", { class: "note", text: "Below 1: ours has the lower error at equal total samples. ± is a delta-method standard error over paired seeds." }));
+      left.appendChild(el("p", { class: "note", text: "Below 1: " + short(ratios[0].numerator) + " has the lower error at equal total samples. ± is a delta-method standard error over paired seeds." }));
     }
     const right = el("div", { class: "plot" });
     right.appendChild(el("h3", { text: "Convergence" }));
@@ -329,10 +333,25 @@
     for (const g of st.grids) g.style.gridTemplateColumns = "repeat(" + cols + ", minmax(0, 1fr))";
   }
 
+  // What produced the numbers: every method's settings and diagnostics, and the renders'
+  // provenance, folded away under the table.
+  function provenanceBlock(scene) {
+    const rows = scene.methods.filter((m) => (m.settings || []).length || (m.diagnostics || []).length);
+    if (!rows.length && !(scene.render || []).length) return null;
+    const pairs = (list) => list.map(([k, v]) => k + " = " + (typeof v === "number" ? fmt(v) : v)).join(", ");
+    const table = el("table", { class: "results settings" });
+    table.appendChild(el("thead", {}, el("tr", {}, el("th", { text: "Method" }), el("th", { text: "settings" }), el("th", { text: "diagnostics (mean over seeds)" }))));
+    const body = el("tbody");
+    for (const m of rows) body.appendChild(el("tr", { "data-method": m.name }, el("td", { text: m.label }), el("td", { text: pairs(m.settings || []) }), el("td", { text: pairs(m.diagnostics || []) })));
+    table.appendChild(body);
+    const details = el("details", { class: "provenance" }, el("summary", { text: "Settings, diagnostics and render provenance" }), table);
+    if ((scene.render || []).length) details.appendChild(el("p", { class: "note", text: "Renders: " + pairs(scene.render) }));
+    return details;
+  }
+
+  // The order of the results file, which is the order of the registry that wrote it.
   function orderedMethods(scene) {
-    const ORDER = ["pt", "crn", "average", "iduw", "cv", "ours", "pt2n"];
-    const known = ORDER.map((k) => scene.methods.find((m) => m.name === k)).filter(Boolean);
-    return known.concat(scene.methods.filter((m) => ORDER.indexOf(m.name) < 0));
+    return scene.methods.slice();
   }
 
   // Main methods, then ablations under a group row, in one table so the columns line up.

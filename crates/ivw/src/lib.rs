@@ -11,7 +11,7 @@
 //! pixel, never its correlation with neighbours, so it is a baseline between `average`
 //! (`w = ½`) and the control variates.
 //!
-//! Register it with `registry.register(&cvtrace_ivw::SPEC)`.
+//! Register it with `registry.register(&cvtrace_ivw::SPEC)` (cvtrace does in `src/lib.rs`).
 use cvtrace_reconstruct::blocks::{self, CbfOptions};
 use cvtrace_reconstruct::{
     BatchNeed, Bounds, Diagnostics, Estimator, EstimatorSpec, Image, Input, Needs, Output, ParamKind, ParamSpec, Params, ReconError,

@@ -75,6 +75,24 @@ impl EstimatorSpec {
     }
 }
 
+impl EstimatorSpec {
+    /// The parameter table of docs/estimators.md, between its markers.
+    pub fn markdown(&self) -> String {
+        let mut s = format!("<!-- parameters of {}: generated from its spec; a test fails when they differ -->\n", self.name);
+        if self.params.is_empty() {
+            s += &format!("`{}` has no parameters.\n", self.name);
+        } else {
+            s += "| parameter | default | type, range | flag | meaning |\n|---|---|---|---|---|\n";
+            for p in self.params {
+                let flag = p.alias.map(|a| format!("`--{a}`")).unwrap_or_default();
+                s += &format!("| `{}.{}` | `{}` | {} | {flag} | {} |\n", self.name, p.name, p.default, p.kind, p.doc.replace('|', "\\|"));
+            }
+        }
+        s += &format!("<!-- end of the parameters of {} -->\n", self.name);
+        s
+    }
+}
+
 /// How many samples per pixel an estimator's output uses, in units of one stream's `n`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Samples {
