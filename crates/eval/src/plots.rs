@@ -23,7 +23,10 @@ struct Line {
     points: Vec<(f64, f64, Option<f64>)>,
 }
 
-fn lines(points: &[ConvergencePoint], style_of: &dyn Fn(&str, usize) -> (String, [u8; 3])) -> Vec<Line> {
+/// A method key and its legend position to its legend label and colour.
+pub type StyleOf<'a> = &'a dyn Fn(&str, usize) -> (String, [u8; 3]);
+
+fn lines(points: &[ConvergencePoint], style_of: StyleOf) -> Vec<Line> {
     // First-appearance order of methods, so the legend follows the results file.
     let mut order: Vec<String> = Vec::new();
     let mut by_method: BTreeMap<String, Vec<(f64, f64, Option<f64>)>> = BTreeMap::new();
@@ -66,7 +69,7 @@ fn plot_err(e: impl std::fmt::Display) -> EvalError {
 pub fn convergence_svg(
     points: &[ConvergencePoint],
     title: &str,
-    style_of: &dyn Fn(&str, usize) -> (String, [u8; 3]),
+    style_of: StyleOf,
 ) -> Result<String, EvalError> {
     let valid: Vec<ConvergencePoint> =
         points.iter().filter(|p| p.spp_total > 0 && p.relmse > 0.0 && p.relmse.is_finite()).cloned().collect();

@@ -31,6 +31,12 @@ pub struct SelectScratch {
     keys: Box<[u64; MAX_CANDIDATES]>,
 }
 
+impl Default for SelectScratch {
+    fn default() -> Self {
+        SelectScratch::new()
+    }
+}
+
 impl SelectScratch {
     pub fn new() -> Self {
         SelectScratch { keys: Box::new([0; MAX_CANDIDATES]) }
