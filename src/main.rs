@@ -2,6 +2,7 @@
 mod cli;
 
 use clap::{Parser, Subcommand};
+use std::io::{IsTerminal, Write};
 
 #[derive(Parser)]
 #[command(name = "cvtrace", version, about = "Embree path tracer with paired PT/CRN streams and image-space control-variate reconstruction")]
@@ -32,6 +33,22 @@ enum Command {
 
 const MAX_THREADS: usize = 1024;
 
+/// `--log`: a level, or comma-separated directives each naming a level (`cvtrace=debug`). A bare
+/// word that is no level would parse as a target and silently log nothing.
+fn log_filter(text: &str) -> Result<tracing_subscriber::EnvFilter, String> {
+    let is_level = |s: &str| s.trim().parse::<tracing_subscriber::filter::LevelFilter>().is_ok();
+    if text.trim().is_empty() || !text.split(',').all(|d| is_level(d) || d.split_once('=').is_some_and(|(_, l)| is_level(l))) {
+        return Err("not a log level".into());
+    }
+    tracing_subscriber::EnvFilter::try_new(text).map_err(|e| e.to_string())
+}
+
+/// `error: …` on stderr, never failing: with stderr closed there is no one to tell.
+fn say_error(message: &str) {
+    use std::io::Write;
+    let _ = writeln!(std::io::stderr(), "error: {message}");
+}
+
 /// Address space that `threads` worker threads take: each one's stack (Rust's default of 2 MiB,
 /// or RUST_MIN_STACK) with its guard page and signal stack, glibc's malloc arenas (64 MiB each,
 /// up to 8 per core), and 128 MiB for the rest of the process.
@@ -46,19 +63,27 @@ fn main() -> std::process::ExitCode {
     let filter = match tracing_subscriber::EnvFilter::try_from_default_env() {
         Ok(f) => f,
         // A directive that does not parse would be dropped with a note, and the run go on silent.
-        Err(_) => match tracing_subscriber::EnvFilter::try_new(&cli.log) {
+        Err(_) => match log_filter(&cli.log) {
             Ok(f) => f,
             Err(e) => {
-                eprintln!("error: --log {:?}: {e} (expected a level such as warn or info, or directives such as cvtrace=debug)", cli.log);
+                say_error(&format!("--log {:?}: {e} (expected a level: off, error, warn, info, debug, trace; or directives such as cvtrace=debug)", cli.log));
                 return std::process::ExitCode::from(2);
             }
         },
     };
-    tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).with_target(false).init();
+    // Colour codes only for a terminal; a log line that cannot be written (a closed pipe) is
+    // dropped without a word, so that logging never ends the work.
+    tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .with_ansi(std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none())
+        .log_internal_errors(false)
+        .init();
     if let Some(n) = cli.threads {
         // Far more threads than cores only costs memory (and at 10⁵ the pool never starts).
         if n == 0 || n > MAX_THREADS {
-            eprintln!("error: --threads {n}: must be between 1 and {MAX_THREADS}");
+            say_error(&format!("--threads {n}: must be between 1 and {MAX_THREADS}"));
             return std::process::ExitCode::from(2);
         }
         // `render` and `study` start as many render threads again (cli::render). A thread that
@@ -67,15 +92,15 @@ fn main() -> std::process::ExitCode {
         let threads = if matches!(cli.command, Command::Render(_) | Command::Study(_)) { 2 * n } else { n };
         let bytes = threads_bytes(threads as u64);
         if !usize::try_from(bytes).is_ok_and(|b| Vec::<u8>::new().try_reserve_exact(b).is_ok()) {
-            eprintln!(
-                "error: --threads {n}: cannot start {threads} worker threads: with their stacks the process needs about {:.1} GiB of address space, which cannot be reserved here (`ulimit -v`)",
+            say_error(&format!(
+                "--threads {n}: cannot start {threads} worker threads: with their stacks the process needs about {:.1} GiB of address space, which cannot be reserved here (`ulimit -v`)",
                 bytes as f64 / (1u64 << 30) as f64
-            );
+            ));
             return std::process::ExitCode::from(2);
         }
         // Under a process limit they may still not all start.
         if let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(n).build_global() {
-            eprintln!("error: --threads {n}: cannot start {n} worker threads: {e}");
+            say_error(&format!("--threads {n}: cannot start {n} worker threads: {e}"));
             return std::process::ExitCode::from(2);
         }
     }
@@ -83,7 +108,7 @@ fn main() -> std::process::ExitCode {
     // interrupted run leaves no half files (finished outputs and checkpoints stay).
     if let Err(e) = ctrlc::set_handler(|| {
         cvtrace_streams::atomic::remove_pending_temporaries();
-        eprintln!("interrupted");
+        let _ = writeln!(std::io::stderr(), "interrupted");
         std::process::exit(130);
     }) {
         tracing::warn!("no signal handler: an interrupted run may leave temporary files ({e})");
@@ -103,7 +128,7 @@ fn main() -> std::process::ExitCode {
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            say_error(&format!("{e:#}"));
             std::process::ExitCode::FAILURE
         }
     }

@@ -58,7 +58,7 @@ pub fn run(args: CompareArgs) -> Result<()> {
     }
     let scene = compare_files(&args.reference, &images)?;
     let results = StudyResults::new(vec![scene]);
-    print!("{}", table::terminal_report(&results));
+    crate::cli::say!("{}", table::terminal_report(&results).trim_end_matches('\n'));
     // The CSV and the JSON are one set: if the second cannot be written, the first is taken back.
     let mut written = cvtrace_streams::atomic::OutputSet::new();
     if let Some(p) = &args.csv {

@@ -1,4 +1,14 @@
 //! One file per subcommand.
+
+/// `println!` that never panics: with stdout closed (`| head -1`) the text is dropped and the
+/// command goes on writing its files.
+macro_rules! say {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout(), $($arg)*);
+    }};
+}
+pub(crate) use say;
 pub mod compare;
 pub mod estimator_args;
 pub mod reconstruct;

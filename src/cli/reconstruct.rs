@@ -87,13 +87,13 @@ fn targets(args: &ReconstructArgs, output: &Path) -> Result<Vec<Target>> {
 
 /// `--list`: one line per registered estimator.
 fn list() {
-    println!("{:<10} {:<24} {:<6} {:<44} summary", "name", "label", "spp", "reads (defaults)");
+    crate::cli::say!("{:<10} {:<24} {:<6} {:<44} summary", "name", "label", "spp", "reads (defaults)");
     for spec in registry().specs() {
         let needs = (spec.needs)(&cvtrace_reconstruct::Params::defaults(spec));
         let spp = spec.samples.describe().split(' ').next().unwrap_or("");
-        println!("{:<10} {:<24} {:<6} {:<44} {}", spec.name, spec.label, spp, needs.describe(), spec.summary);
+        crate::cli::say!("{:<10} {:<24} {:<6} {:<44} {}", spec.name, spec.label, spp, needs.describe(), spec.summary);
     }
-    println!("\n`cvtrace reconstruct --help-method NAME` lists an estimator's parameters; set them with --param NAME.PARAM=VALUE.");
+    crate::cli::say!("\n`cvtrace reconstruct --help-method NAME` lists an estimator's parameters; set them with --param NAME.PARAM=VALUE.");
 }
 
 pub fn run(args: ReconstructArgs) -> Result<()> {
@@ -102,7 +102,7 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
         return Ok(());
     }
     if let Some(name) = &args.help_method {
-        print!("{}", registry().get(name)?.help());
+        crate::cli::say!("{}", registry().get(name)?.help().trim_end_matches('\n'));
         return Ok(());
     }
     let (Some(input_path), Some(output)) = (args.input.clone(), args.output.clone()) else {
@@ -245,10 +245,10 @@ fn write_output(path: &Path, args: &ReconstructArgs, source: &Path, estimator: &
 
 fn print_summary(rows: &[(&str, Option<f64>, cvtrace_reconstruct::Diagnostics)]) {
     let width = rows.iter().map(|(name, _, _)| name.len()).max().unwrap_or(0).max(8);
-    println!("{:<width$} {:>12} {:>9}  diagnostics", "method", "relMSE", "seconds");
+    crate::cli::say!("{:<width$} {:>12} {:>9}  diagnostics", "method", "relMSE", "seconds");
     for (name, rel, diag) in rows {
         let rel = rel.map(|r| format!("{r:.6}")).unwrap_or_else(|| "-".into());
         let extra: Vec<String> = diag.entries.iter().map(|(k, v)| format!("{k}={v}")).collect();
-        println!("{name:<width$} {rel:>12} {:>9.3}  {}", diag.seconds, extra.join(" "));
+        crate::cli::say!("{name:<width$} {rel:>12} {:>9.3}  {}", diag.seconds, extra.join(" "));
     }
 }

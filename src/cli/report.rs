@@ -131,11 +131,11 @@ pub fn run(args: ReportArgs) -> Result<()> {
         cvtrace_streams::atomic::check_writable(md, args.force)?;
     }
     let index = write_report(&results, &root, &args.output, &ReportOptions { title: args.title.clone(), overwrite: args.force })?;
-    println!("report: {}", index.display());
+    crate::cli::say!("report: {}", index.display());
     if let Some(md) = &args.markdown {
         let text = cvtrace_eval::table::markdown_summary(&results);
         cvtrace_streams::atomic::write_atomically(md, args.force, |tmp| std::fs::write(tmp, &text))?;
-        println!("summary: {}", md.display());
+        crate::cli::say!("summary: {}", md.display());
     }
     Ok(())
 }

@@ -424,8 +424,8 @@ fn study_in_folder(
     let results = StudyResults::new(vec![scene]);
     results.write_json(&args.output.join("results.json"), true)?;
     table::write_csv(&results, &args.output.join("results.csv"), true)?;
-    print!("{}", table::terminal_report(&results));
-    println!("study written to {} (make a viewer with: cvtrace report {} -o report/)", args.output.display(), args.output.display());
+    crate::cli::say!("{}", table::terminal_report(&results).trim_end_matches('\n'));
+    crate::cli::say!("study written to {} (make a viewer with: cvtrace report {} -o report/)", args.output.display(), args.output.display());
     Ok(())
 }
 
