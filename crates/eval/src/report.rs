@@ -91,7 +91,7 @@ pub fn write_report(
     }
     let earlier = earlier_report_files(out_dir);
     let created = !out_dir.exists();
-    std::fs::create_dir_all(out_dir).map_err(|e| EvalError::io(out_dir, e))?;
+    cvtrace_streams::atomic::create_dir_all(out_dir)?;
     // Interrupted while filling a folder it made, the report takes the folder away again.
     let _partial = created.then(|| cvtrace_streams::atomic::remove_folder_on_interrupt(out_dir));
     let written = write_viewer(results, source_dir, out_dir, options, &index, &earlier);
@@ -201,13 +201,13 @@ fn write_viewer(
     for (src, dst) in &copies {
         let dst = out_dir.join(dst);
         if let Some(dir) = dst.parent() {
-            std::fs::create_dir_all(dir).map_err(|e| EvalError::io(dir, e))?;
+            cvtrace_streams::atomic::create_dir_all(dir)?;
         }
         write_atomically(&dst, true, |tmp| std::fs::copy(src, tmp).map(|_| ()))?;
     }
     let mut scenes = Vec::new();
     for (scene, (slug, plot_rel)) in out.scenes.iter().zip(plots) {
-        std::fs::create_dir_all(out_dir.join("plots")).map_err(|e| EvalError::io(out_dir.join("plots"), e))?;
+        cvtrace_streams::atomic::create_dir_all(&out_dir.join("plots"))?;
         let plot = write_convergence_svg(scene, &out_dir.join(&plot_rel), true)?.then_some(plot_rel);
         if plot.is_none() {
             files.remove(&format!("plots/{slug}.svg"));

@@ -169,7 +169,15 @@ pub fn remove_pending_temporaries() {
     for p in list.drain(..) {
         // Folders are registered only by [`remove_folder_on_interrupt`], for folders this run made.
         if std::fs::symlink_metadata(&p).is_ok_and(|m| m.is_dir()) {
-            let _ = std::fs::remove_dir_all(p);
+            // A writer that was past its registration may still move one finished file in
+            // while the folder goes (then removing it fails, not empty); every later step of
+            // it waits on the list, which stays locked: a few tries get the folder.
+            for _ in 0..100 {
+                if std::fs::remove_dir_all(&p).is_ok() || !p.exists() {
+                    break;
+                }
+                std::thread::sleep(std::time::Duration::from_millis(2));
+            }
         } else {
             let _ = std::fs::remove_file(p);
         }
@@ -183,6 +191,14 @@ pub fn remove_pending_temporaries() {
 /// drop the guard once the folder is complete. Never for a folder the user had.
 pub struct FolderOnInterrupt {
     _registered: PendingTemp,
+}
+
+/// `std::fs::create_dir_all` that never runs after [`remove_pending_temporaries`]: it waits for
+/// the process to end instead. Without it a command filling a folder on interrupt could make
+/// the folder again, just after the handler removed it, and leave half of it behind.
+pub fn create_dir_all(dir: &Path) -> Result<(), StreamError> {
+    let _no_interrupt_meanwhile = pending();
+    std::fs::create_dir_all(dir).map_err(|e| StreamError::Io { path: dir.to_path_buf(), error: e })
 }
 
 pub fn remove_folder_on_interrupt(folder: &Path) -> FolderOnInterrupt {
