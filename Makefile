@@ -8,8 +8,11 @@ SPP    ?= 8,16,32
 BATCHES ?= 8
 SEEDS  ?= 4
 REF_SPP ?= 4096
+# The scene's committed reference when it has one (the bundled scenes do; the study checks that it
+# is a reference of the same image), else one rendered once into $(OUT).
+REF    ?= $(or $(wildcard $(dir $(SCENE))scene.ref.exr),$(OUT)/reference.exr)
 
-.PHONY: setup build demo study test test-debian13 bench compare-mitsuba clean-demo
+.PHONY: setup build install demo study test test-debian13 bench compare-mitsuba clean-demo
 
 setup:
 	@bash scripts/setup.sh
@@ -17,11 +20,15 @@ setup:
 build: setup
 	$(CARGO) build --release --locked
 
-# A small study of the default scene, end to end: a reference (rendered once, then reused),
+# `cvtrace` on the PATH (~/.cargo/bin), for the commands of the README.
+install: setup
+	$(CARGO) install --path . --locked
+
+# A small study of the default scene, end to end: the committed reference (or one rendered once),
 # paired streams over seeds and spp values, every estimator, the tables and the HTML viewer.
 demo: build
 	$(BIN) study $(SCENE) --spp $(SPP) --seeds $(SEEDS) --batches $(BATCHES) \
-		--reference $(OUT)/reference.exr --reference-spp $(REF_SPP) -o $(OUT)/study
+		--reference $(REF) --reference-spp $(REF_SPP) -o $(OUT)/study
 	$(BIN) report $(OUT)/study -o $(OUT)/report --force
 	@echo "demo: open $(OUT)/report/index.html"
 
