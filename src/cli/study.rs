@@ -7,8 +7,9 @@
 //! a file written atomically, so an interrupted study keeps its finished seeds and only
 //! re-runs the (cheap) reconstructions.
 use crate::cli::reconstruct::{read_input, EstimatorArgs};
-use crate::cli::render::{self as render_cli, RenderArgs, RenderIdentity, ViewArgs};
+use crate::cli::render::{open_session, TerminalProgress, ViewArgs};
 use anyhow::{bail, Context, Result};
+use cvtrace::session::{Job, ReferenceJob, RenderSession, StreamJob};
 use cvtrace_eval::falsecolor::{scale_for_maps, write_false_color_png};
 use cvtrace_eval::reference_noise::{from_variance_image, too_noisy_warning};
 use cvtrace_eval::results::{keys, ConvergencePoint, MethodResult, ReferenceInfo, SceneResult, StageTimes, StudyResults};
@@ -18,7 +19,8 @@ use cvtrace_render::Sidecar;
 use cvtrace_reconstruct::{build, ErrorEstimate, Estimator, Input, Method, Options, Penalty, Selection};
 use cvtrace_streams::exr_io::{read_rgb, take_rgb, AttrValue, ExrChannels};
 use cvtrace_streams::preview::write_png;
-use cvtrace_streams::{Features, Image, Stream, StreamMeta, StreamSet};
+use cvtrace_streams::provenance::describe_all;
+use cvtrace_streams::{Features, Image, Provenance, Stream, StreamMeta, StreamSet};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -187,10 +189,12 @@ pub fn run(args: StudyArgs) -> Result<()> {
     if crate::cli::same_output(&args.reference, &args.output) {
         bail!("{}: given as both --reference and -o; the reference is a file, the study a folder", args.output.display());
     }
-    // Loading the scene once tells what every render of this study records about itself (so a
-    // finished one is only reused if it matches), and a scene that does not load fails here,
-    // before the study folder is made.
-    let planned = render_cli::planned_identity(&render_args(&args, spps[0], Some(args.batches), args.seed, &args.output, false))?;
+    // One session renders everything (the BVH is built once, at the first render). Loading the
+    // scene tells what every render of this study records about itself (so a finished one is
+    // only reused if it matches), and a scene that does not load fails here, before the study
+    // folder is made.
+    let session = open_session(&args.scene, &args.view.session_options()?)?;
+    let planned = session.plan(&stream_job(&args, spps[0], args.seed, &args.output))?.provenance;
     let options = args.options.to_options();
     let list = entries(&options, args.ablations)?;
     check_needs_before_rendering(&list, &spps, args.batches)?;
@@ -200,9 +204,10 @@ pub fn run(args: StudyArgs) -> Result<()> {
     // the study folder is made; one the study renders always matches.
     let existing = if args.reference.exists() {
         crate::cli::check_input_file(&args.reference)?;
-        let mismatch = render_cli::reference_mismatches(&args.reference, &planned)?;
+        let mut mismatch = planned.differences(&Provenance::read_header(&args.reference)?);
+        mismatch.retain(|d| d.field.changes_the_image());
         if !mismatch.is_empty() {
-            bail!("{}: not a reference of this study's image ({})", args.reference.display(), mismatch.join(", "));
+            bail!("{}: not a reference of this study's image ({})", args.reference.display(), describe_all(&mismatch, "in the file"));
         }
         Some(read_reference(&args)?)
     } else {
@@ -227,7 +232,7 @@ pub fn run(args: StudyArgs) -> Result<()> {
     // The folders this run makes: if it fails before anything is written in them, they go again.
     let made: Vec<PathBuf> = args.output.ancestors().take_while(|p| !p.as_os_str().is_empty() && !p.exists()).map(Path::to_path_buf).collect();
     std::fs::create_dir_all(&args.output).with_context(|| format!("{}: cannot create the study folder", args.output.display()))?;
-    let result = study_in_folder(&args, &planned, &list, &spps, existing, reference_spp);
+    let result = study_in_folder(&args, &session, &list, &spps, existing, reference_spp);
     if result.is_err() {
         // Only empty ones: a finished render or checkpoint stays for the next run.
         for dir in spps.iter().map(|&n| spp_dir(&args.output, n)).chain(made) {
@@ -262,7 +267,7 @@ fn read_reference(args: &StudyArgs) -> Result<(Reference, Option<u32>)> {
 /// `reference_spp`), then every spp value and seed, then the tables and images.
 fn study_in_folder(
     args: &StudyArgs,
-    planned: &RenderIdentity,
+    session: &RenderSession,
     list: &[Entry],
     spps: &[u32],
     existing: Option<(Reference, Option<u32>)>,
@@ -276,7 +281,8 @@ fn study_in_folder(
         Some(r) => r,
         None => {
             tracing::info!("{} does not exist: rendering a {reference_spp} spp reference first", args.reference.display());
-            render_cli::run(render_args(args, reference_spp, None, REFERENCE_SEED, &args.reference, true))?;
+            let job = ReferenceJob::replacing(args.reference.clone(), args.view.view(), reference_spp, REFERENCE_SEED);
+            session.render(&Job::Reference(job), &TerminalProgress::default())?;
             read_reference(args)?
         }
     };
@@ -285,7 +291,7 @@ fn study_in_folder(
     let mut main = None;
     for (si, &n) in spps.iter().enumerate() {
         let last = si + 1 == spps.len();
-        let r = run_spp(args, planned, list, &reference, n, last)?;
+        let r = run_spp(args, session, list, &reference, n, last)?;
         for (e, acc) in list.iter().zip(&r.accs) {
             if e.ablation {
                 continue;
@@ -383,7 +389,7 @@ struct SppRun<'r> {
 
 fn run_spp<'r>(
     args: &StudyArgs,
-    planned: &RenderIdentity,
+    session: &RenderSession,
     list: &[Entry],
     reference: &'r Reference,
     n: u32,
@@ -400,8 +406,9 @@ fn run_spp<'r>(
         let seed = args.seed + i;
         let streams_path = dir.join(format!("seed-{i:03}.streams.exr"));
         let pt2n_path = dir.join(format!("seed-{i:03}.pt2n.exr"));
-        let t_streams = ensure_rendered(render_args(args, n, Some(args.batches), seed, &streams_path, false), planned)?;
-        let t_pt2n = ensure_rendered(render_args(args, 2 * n, None, seed + PT2N_SEED_OFFSET, &pt2n_path, true), planned)?;
+        let t_streams = ensure_rendered(session, stream_job(args, n, seed, &streams_path))?;
+        let pt2n = ReferenceJob::replacing(pt2n_path.clone(), args.view.view(), 2 * n, seed + PT2N_SEED_OFFSET);
+        let t_pt2n = ensure_rendered(session, Job::Reference(pt2n))?;
         let set = read_input(&streams_path)?;
         if set.meta.non_finite_samples > 0 {
             tracing::warn!("{}: {} NaN or infinite samples were replaced by zero", streams_path.display(), set.meta.non_finite_samples);
@@ -438,23 +445,22 @@ fn run_spp<'r>(
     Ok(SppRun { accs, times, first_images, pt_variance })
 }
 
-/// Renders `args.output` unless a finished file is already there; returns the render's seconds
-/// (recorded in a sidecar so that resumed studies still report real times). A finished file
-/// rendered with other settings is an error, not silently reused.
-/// Renders `args` unless its output is already there, finished (with its timing file) and the
-/// same render: `planned`, the study's identity, with this render's seed, spp and batches.
-fn ensure_rendered(args: RenderArgs, planned: &RenderIdentity) -> Result<f64> {
-    let path = args.output.clone();
+/// Renders `job` unless its output is already there, finished (with its timing file) and the
+/// same render; returns the render's seconds (recorded in a sidecar so that resumed studies
+/// still report real times). A finished file rendered with other settings is an error, not
+/// silently reused.
+fn ensure_rendered(session: &RenderSession, job: Job) -> Result<f64> {
+    let path = job.output().to_path_buf();
     let timing = path.with_extension("seconds");
     if path.exists() {
         if let Some(t) = std::fs::read_to_string(&timing).ok().and_then(|s| s.trim().parse::<f64>().ok()) {
-            let spp = args.spp.expect("study renders give --spp");
-            let differences = render_cli::recorded_differences(&path, &planned.with_seed(args.seed), spp, args.batches)?;
+            let planned = session.plan(&job)?.provenance;
+            let differences = planned.differences(&Provenance::read_header(&path)?);
             if !differences.is_empty() {
                 bail!(
                     "{}: this finished render differs from what the study asks for ({}); use another -o or delete the folder's renders",
                     path.display(),
-                    differences.join(", ")
+                    describe_all(&differences, "in the file")
                 );
             }
             tracing::info!("reusing {}", path.display());
@@ -462,27 +468,16 @@ fn ensure_rendered(args: RenderArgs, planned: &RenderIdentity) -> Result<f64> {
         }
     }
     let t = Instant::now();
-    render_cli::run(args)?;
+    session.render(&job, &TerminalProgress::default())?;
     let secs = t.elapsed().as_secs_f64();
     cvtrace_streams::atomic::write_atomically(&timing, true, |tmp| std::fs::write(tmp, format!("{secs}\n")))?;
     Ok(secs)
 }
 
-fn render_args(args: &StudyArgs, spp: u32, batches: Option<u32>, seed: u64, output: &Path, reference: bool) -> RenderArgs {
-    RenderArgs {
-        scene: args.scene.clone(),
-        output: output.to_path_buf(),
-        spp: Some(spp),
-        batches,
-        seed,
-        // Unset size and path limits are resolved by `render` from the scene's sidecar.
-        view: args.view.clone(),
-        reference,
-        pass_spp: if reference { spp.clamp(1, 256) } else { 64 },
-        force: true,
-        extend: false,
-        stop_after_passes: None,
-    }
+/// The stream file of seed `seed` with `spp` samples per stream, replacing `output`. Unset
+/// size and path limits come from the scene's sidecar.
+fn stream_job(args: &StudyArgs, spp: u32, seed: u64, output: &Path) -> Job {
+    Job::Streams(StreamJob { output: output.to_path_buf(), view: args.view.view(), spp: Some(spp), batches: args.batches, seed, overwrite: true })
 }
 
 /// Adds this seed's per-pixel variance of the PT mean (batch variance / B) / seeds.
