@@ -194,7 +194,8 @@ pub fn run(args: StudyArgs) -> Result<()> {
     // only reused if it matches), and a scene that does not load fails here, before the study
     // folder is made.
     let session = open_session(&args.scene, &args.view.session_options()?)?;
-    let planned = session.plan(&stream_job(&args, spps[0], args.seed, &args.output))?.provenance;
+    // Counts aside: they differ between the study's renders.
+    let planned = session.plan(&stream_job(&args, spps[0], args.seed, &args.output))?.provenance.without_counts();
     let options = args.options.to_options();
     let list = entries(&options, args.ablations)?;
     check_needs_before_rendering(&list, &spps, args.batches)?;

@@ -170,6 +170,14 @@ impl Provenance {
         }
     }
 
+    /// The recorded fields as (name, value) pairs in [`Field::ALL`] order, for reports.
+    pub fn fields(&self) -> Vec<(&'static str, String)> {
+        Field::ALL
+            .iter()
+            .filter_map(|&f| Some((f.name(), self.value(f)?)))
+            .collect()
+    }
+
     /// The fields in which `recorded` (a file's record) differs from `self` (the render asked
     /// for now), in [`Field::ALL`] order. A value absent on either side is not compared.
     pub fn differences(&self, recorded: &Provenance) -> Vec<Difference> {
@@ -373,6 +381,25 @@ mod tests {
         assert_eq!(a[ATTR_BATCHES], AttrValue::Int(4));
         assert_eq!(a[ATTR_SEED], AttrValue::Text((1u64 << 40).to_string()));
         assert_eq!(a[ATTR_TRAVERSAL], AttrValue::Text("robust".into()));
+        let names: Vec<&str> = p
+            .without_counts()
+            .fields()
+            .into_iter()
+            .map(|(k, _)| k)
+            .collect();
+        assert_eq!(
+            names,
+            [
+                "size",
+                "seed",
+                "max depth",
+                "rr depth",
+                "scene hash",
+                "camera",
+                "traversal"
+            ]
+        );
+        assert_eq!(p.fields()[0], ("size", "32x24".to_string()));
         assert_eq!(
             Provenance::from_attributes(32, 24, &a, Path::new("f.exr")).unwrap(),
             p
