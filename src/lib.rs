@@ -1,9 +1,14 @@
-//! cvtrace's root library: the Embree ray-casting backend, and the estimators the program knows.
+//! cvtrace's root library: the Embree ray-casting backend, the render session built on it, and
+//! the estimators the program knows.
 //!
 //! Everything that touches Embree lives in [`embree`]; the path tracer itself
 //! (crates/render) only sees the [`cvtrace_render::Intersector`] trait, which
-//! [`EmbreeScene`] implements.
+//! [`EmbreeScene`] implements. [`session::RenderSession`] loads a scene and builds its BVH
+//! once, then renders stream files, references and plain PT images of it.
 pub mod embree;
+pub mod study_source;
+pub mod session;
+pub mod throughput;
 
 use cvtrace_reconstruct::Registry;
 use std::sync::OnceLock;

@@ -86,7 +86,7 @@ fn main() -> std::process::ExitCode {
             say_error(&format!("--threads {n}: must be between 1 and {MAX_THREADS}"));
             return std::process::ExitCode::from(2);
         }
-        // `render` and `study` start as many render threads again (cli::render). A thread that
+        // `render` and `study` start as many render threads again (the render session's pool). A thread that
         // gets its stack but not its signal stack aborts the process: so all the stacks must
         // fit in the address space (`ulimit -v`) before any thread starts.
         let threads = if matches!(cli.command, Command::Render(_) | Command::Study(_)) { 2 * n } else { n };

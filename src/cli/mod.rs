@@ -15,7 +15,6 @@ pub mod reconstruct;
 pub mod render;
 pub mod report;
 pub mod study;
-pub mod throughput;
 
 use anyhow::{bail, Result};
 use cvtrace_streams::input_file::{regular_file, NotAFile};

@@ -5,29 +5,26 @@
 //! against the reference: relMSE mean ± standard error, bias² and variance over seeds, time
 //! per stage. A missing reference is rendered first. The folder is resumable: every render is
 //! a file written atomically, so an interrupted study keeps its finished seeds and only
-//! re-runs the (cheap) reconstructions.
+//! re-runs the (cheap) reconstructions. The protocol is `cvtrace_study`'s; the renders come
+//! from `cvtrace::study_source`; this file checks the flags and prints.
 use crate::cli::estimator_args::EstimatorArgs;
-use crate::cli::reconstruct::read_input;
 use crate::cli::registry;
-use crate::cli::render::{self as render_cli, RenderArgs, RenderIdentity, ViewArgs};
+use crate::cli::render::{open_session, TerminalProgress, ViewArgs};
 use anyhow::{bail, Context, Result};
-use cvtrace_eval::falsecolor::{scale_for_maps, write_false_color_png};
-use cvtrace_eval::reference_noise::{from_variance_image, too_noisy_warning};
-use cvtrace_eval::results::{keys, ConvergencePoint, MethodResult, ReferenceInfo, SceneResult, StageTimes, StudyResults};
-use cvtrace_eval::{table, Reference, SeedAccumulator};
+use cvtrace::session::{Job, Progress, ReferenceJob, RenderSession};
+use cvtrace::study_source::RenderSource;
+use cvtrace_eval::results::ReferenceInfo;
+use cvtrace_eval::{table, Reference};
 use cvtrace_render::render::MAX_SPP;
 use cvtrace_render::Sidecar;
-use cvtrace_reconstruct::{DiagValue, Diagnostics, Input, Instance, Overrides, Samples};
-use cvtrace_streams::exr_io::{read_rgb, take_rgb, AttrValue, ExrChannels};
-use cvtrace_streams::preview::write_png;
-use cvtrace_streams::{Features, Image, Stream, StreamMeta, StreamSet};
+use cvtrace_streams::exr_io::{take_rgb, AttrValue, ExrChannels};
+use cvtrace_streams::provenance::describe_all;
+use cvtrace_streams::Provenance;
+use cvtrace_study::{SceneInfo, Study, PT2N_SEED_OFFSET};
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 /// More seeds than this is a typo, not a study: each seed writes two renders.
 const MAX_SEEDS: u32 = 10_000;
-/// Seed offset of the PT(2n) renders, so they never share random numbers with a stream.
-const PT2N_SEED_OFFSET: u64 = 1 << 32;
 /// Seed of a reference rendered by the study (distinct from every stream seed).
 const REFERENCE_SEED: u64 = 0x7265_6665_7265_6e63;
 /// Reference spp when neither --reference-spp nor the scene's sidecar gives one.
@@ -76,134 +73,6 @@ pub struct StudyArgs {
     pub options: EstimatorArgs,
 }
 
-/// One column of the study: a key, labels and colour, how to make the image, how many samples
-/// it stands for, and for an ablation the key of the estimator it varies.
-struct Entry {
-    key: String,
-    label: String,
-    short: String,
-    colour: [u8; 3],
-    samples: Samples,
-    source: Source,
-    base: Option<String>,
-}
-
-enum Source {
-    /// An estimator on the stream set.
-    Estimator(Instance),
-    /// The real PT render with 2n spp.
-    Pt2n,
-}
-
-/// Every estimator's requirements, checked on a 1×1 stand-in of the streams the study will
-/// render (features, a reference, `batches` batches, each spp value): a study that could not
-/// finish fails before its first render, not after the last.
-fn check_needs_before_rendering(list: &[Entry], spps: &[u32], batches: u32) -> Result<()> {
-    let pixel = Image::new(1, 1);
-    let stream = || Stream::from_batches(vec![pixel.clone(); batches as usize]);
-    for &spp in spps {
-        let features = Features { albedo: pixel.clone(), normal: pixel.clone(), depth: vec![0.0] };
-        let meta = StreamMeta { spp, ..Default::default() };
-        let set = StreamSet { width: 1, height: 1, pt: stream(), crn: stream(), features: Some(features), meta };
-        let input = Input::new(&set).named("the streams this study renders", "the reference").with_reference(&pixel);
-        for e in list {
-            if let Source::Estimator(est) = &e.source {
-                input.check(est.name(), &est.needs()).with_context(|| format!("--spp {spp} --batches {batches}"))?;
-            }
-        }
-    }
-    Ok(())
-}
-
-/// Colour of the study's own PT(2n) render.
-const PT_2N_COLOUR: [u8; 3] = [0xc8, 0xc0, 0xbc];
-
-/// Every registered estimator, the PT(2n) render, then (with `ablations`) every variant the
-/// estimators declare, each with the study's parameters plus its own.
-fn entries(overrides: &Overrides, ablations: bool) -> Result<Vec<Entry>> {
-    let mut list = Vec::new();
-    let entry = |key: &str, label: &str, spec: &'static cvtrace_reconstruct::EstimatorSpec, instance: Instance, base: Option<String>| Entry {
-        key: key.into(),
-        label: label.into(),
-        short: spec.short.into(),
-        colour: spec.colour,
-        samples: spec.samples,
-        source: Source::Estimator(instance),
-        base,
-    };
-    for spec in registry().specs() {
-        list.push(entry(spec.name, spec.label, spec, registry().build(spec.name, overrides)?, None));
-    }
-    list.push(Entry {
-        key: keys::PT_2N.into(),
-        label: "PT (2n)".into(),
-        short: "PT(2n)".into(),
-        colour: PT_2N_COLOUR,
-        samples: Samples::BothStreams,
-        source: Source::Pt2n,
-        base: None,
-    });
-    if ablations {
-        for spec in registry().specs() {
-            for v in spec.variants {
-                let instance = registry().build(spec.name, &overrides.with(spec.name, v.params))?;
-                list.push(entry(v.key, v.label, spec, instance, Some(spec.name.into())));
-            }
-        }
-    }
-    Ok(list)
-}
-
-/// `--headline` as (numerator, denominator) keys of the study's columns.
-fn headline(args: &StudyArgs, list: &[Entry]) -> Result<Vec<(String, String)>> {
-    args.headline
-        .iter()
-        .map(|r| {
-            let (a, b) = r.split_once('/').with_context(|| format!("--headline {r}: give NUMERATOR/DENOMINATOR, e.g. ours/iduw"))?;
-            for k in [a, b] {
-                if !list.iter().any(|e| e.key == k) {
-                    let keys: Vec<&str> = list.iter().map(|e| e.key.as_str()).collect();
-                    bail!("--headline {r}: `{k}` is not a column of this study; its columns: {}", keys.join(", "));
-                }
-            }
-            Ok((a.to_string(), b.to_string()))
-        })
-        .collect()
-}
-
-/// Diagnostics summed over seeds: numbers averaged, text kept from the first seed.
-#[derive(Default)]
-struct DiagnosticsMean {
-    entries: Vec<(String, Option<f64>, DiagValue)>,
-    seeds: usize,
-}
-
-impl DiagnosticsMean {
-    fn add(&mut self, d: &Diagnostics) {
-        for (name, v) in &d.entries {
-            match self.entries.iter_mut().find(|(n, _, _)| n == name) {
-                Some((_, sum, _)) => *sum = sum.zip(v.as_f64()).map(|(s, x)| s + x),
-                None => self.entries.push((name.to_string(), v.as_f64(), v.clone())),
-            }
-        }
-        self.seeds += 1;
-    }
-
-    fn finish(&self) -> Vec<(String, serde_json::Value)> {
-        let n = self.seeds.max(1) as f64;
-        self.entries
-            .iter()
-            .map(|(name, sum, first)| {
-                let v = match sum {
-                    Some(s) => serde_json::Number::from_f64(s / n).map(serde_json::Value::Number).unwrap_or(serde_json::Value::Null),
-                    None => serde_json::Value::String(first.to_string()),
-                };
-                (name.clone(), v)
-            })
-            .collect()
-    }
-}
-
 pub fn run(args: StudyArgs) -> Result<()> {
     let mut spps = args.spp.clone();
     spps.sort_unstable();
@@ -245,24 +114,36 @@ pub fn run(args: StudyArgs) -> Result<()> {
     if crate::cli::same_output(&args.reference, &args.output) {
         bail!("{}: given as both --reference and -o; the reference is a file, the study a folder", args.output.display());
     }
-    // Loading the scene once tells what every render of this study records about itself (so a
-    // finished one is only reused if it matches), and a scene that does not load fails here,
-    // before the study folder is made.
-    let planned = render_cli::planned_identity(&render_args(&args, spps[0], Some(args.batches), args.seed, &args.output, false))?;
+    // One session renders everything (the BVH is built once, at the first render). Loading the
+    // scene tells what every render of this study records about itself (so a finished one is
+    // only reused if it matches), and a scene that does not load fails here, before the study
+    // folder is made.
+    let session = open_session(&args.scene, &args.view.session_options()?)?;
+    let probe = RenderSource::new(&session, args.output.clone(), args.view.view(), args.seed, Box::new(progress));
+    // Counts aside: they differ between the study's renders.
+    let planned = session.plan(&probe.stream_job(spps[0], args.batches, args.seed, &args.output))?.provenance.without_counts();
     let overrides = args.options.overrides()?;
     registry().check(&overrides)?;
-    let list = entries(&overrides, args.ablations)?;
-    let headline = headline(&args, &list)?;
-    check_needs_before_rendering(&list, &spps, args.batches)?;
+    let columns = cvtrace_study::columns(registry(), &overrides, args.ablations)?;
+    let study = Study {
+        columns: &columns,
+        spps: spps.clone(),
+        seeds: args.seeds,
+        first_seed: args.seed,
+        batches: args.batches,
+        headline: cvtrace_study::headline(&args.headline, &columns)?,
+    };
+    study.check_needs()?;
     // A given reference of another scene, view or path length is the ground truth of another
     // image. Seed, spp and rr depth may differ (the expectation does not), and so may the
     // traversal. A given reference is read and checked, and a missing one's settings, before
     // the study folder is made; one the study renders always matches.
     let existing = if args.reference.exists() {
         crate::cli::check_input_file(&args.reference)?;
-        let mismatch = render_cli::reference_mismatches(&args.reference, &planned)?;
+        let mut mismatch = planned.differences(&Provenance::read_header(&args.reference)?);
+        mismatch.retain(|d| d.field.changes_the_image());
         if !mismatch.is_empty() {
-            bail!("{}: not a reference of this study's image ({})", args.reference.display(), mismatch.join(", "));
+            bail!("{}: not a reference of this study's image ({})", args.reference.display(), describe_all(&mismatch, "in the file"));
         }
         Some(read_reference(&args)?)
     } else {
@@ -287,14 +168,30 @@ pub fn run(args: StudyArgs) -> Result<()> {
     // The folders this run makes: if it fails before anything is written in them, they go again.
     let made: Vec<PathBuf> = args.output.ancestors().take_while(|p| !p.as_os_str().is_empty() && !p.exists()).map(Path::to_path_buf).collect();
     std::fs::create_dir_all(&args.output).with_context(|| format!("{}: cannot create the study folder", args.output.display()))?;
-    let result = study_in_folder(&args, &planned, &list, &headline, &spps, existing, reference_spp);
+    // Two studies in one folder would render the same files twice and race over them: the
+    // claim comes before anything else is made in it, and a study that does not get it
+    // removes only what it made itself.
+    let claim = cvtrace_streams::output_lock::OutputLock::acquire(&args.output.join(".cvtrace-study.lock"), &args.output);
+    let (result, made_spp_dirs) = match claim {
+        Ok(_claim) => {
+            let mut source = probe;
+            let result = study_in_folder(&args, &session, &planned, &study, &mut source, existing, reference_spp);
+            (result, source.made_folders().to_vec())
+        }
+        Err(e) => (Err(e.into()), Vec::new()),
+    };
     if result.is_err() {
         // Only empty ones: a finished render or checkpoint stays for the next run.
-        for dir in spps.iter().map(|&n| spp_dir(&args.output, n)).chain(made) {
+        for dir in made_spp_dirs.into_iter().chain(made) {
             let _ = std::fs::remove_dir(dir);
         }
     }
     result
+}
+
+/// A progress bar on the terminal for each render.
+fn progress() -> Box<dyn Progress> {
+    Box::new(TerminalProgress::default())
 }
 
 /// The reference at `--reference`: its image, its sample count, and a check that its seed is
@@ -318,252 +215,37 @@ fn read_reference(args: &StudyArgs) -> Result<(Reference, Option<u32>)> {
     Ok((reference, reference_spp))
 }
 
-/// The study in its folder, which exists: the reference (`existing`, or rendered with
-/// `reference_spp`), then every spp value and seed, then the tables and images.
+/// The study in its folder, which exists and is this run's: the reference (`existing`, or
+/// rendered with `reference_spp`), then every spp value and seed, then the tables and images.
 fn study_in_folder(
     args: &StudyArgs,
-    planned: &RenderIdentity,
-    list: &[Entry],
-    headline: &[(String, String)],
-    spps: &[u32],
+    session: &RenderSession,
+    planned: &Provenance,
+    study: &Study,
+    source: &mut RenderSource,
     existing: Option<(Reference, Option<u32>)>,
     reference_spp: u32,
 ) -> Result<()> {
-    // Two studies in one folder would render the same files twice and race over them.
-    let _claim = cvtrace_streams::output_lock::OutputLock::acquire(&args.output.join(".cvtrace-study.lock"), &args.output)?;
-
     // The reference: reuse the file, or render it (resumable through render's checkpoint).
     let (reference, reference_spp) = match existing {
         Some(r) => r,
         None => {
             tracing::info!("{} does not exist: rendering a {reference_spp} spp reference first", args.reference.display());
-            render_cli::run(render_args(args, reference_spp, None, REFERENCE_SEED, &args.reference, true))?;
+            let job = ReferenceJob::replacing(args.reference.clone(), args.view.view(), reference_spp, REFERENCE_SEED);
+            session.render(&Job::Reference(job), &TerminalProgress::default())?;
             read_reference(args)?
         }
     };
-
-    let mut convergence = Vec::new();
-    let mut main = None;
-    for (si, &n) in spps.iter().enumerate() {
-        let last = si + 1 == spps.len();
-        let r = run_spp(args, planned, list, &reference, n, last)?;
-        for (e, acc) in list.iter().zip(&r.accs) {
-            if e.base.is_some() {
-                continue;
-            }
-            let s = acc.finish()?;
-            convergence.push(ConvergencePoint { method: e.key.clone(), spp_total: e.samples.total(n), relmse: s.relmse_mean, relmse_se: s.relmse_se });
-        }
-        if last {
-            main = Some(r);
-        }
-    }
-    let main = main.expect("at least one spp value");
-    let n = *spps.last().unwrap();
-
-    // Images of the first seed and false-colour maps of the mean relMSE over seeds.
-    let maps: Vec<Vec<f32>> = main.accs.iter().map(|a| a.mean_rel_mse_map()).collect();
-    let scale = scale_for_maps(&maps.iter().map(|m| m.as_slice()).collect::<Vec<_>>());
-    let mut methods = Vec::new();
-    for (i, e) in list.iter().enumerate() {
-        let stats = main.accs[i].finish()?;
-        let mut m = MethodResult::from_stats(&e.key, &e.label, e.samples.total(n), &stats);
-        m.time_seconds = main.times[i];
-        m.ablation = e.base.is_some();
-        m.base = e.base.clone();
-        m.short = e.short.clone();
-        m.colour = Some(cvtrace_eval::palette::hex(e.colour));
-        if let Source::Estimator(est) = &e.source {
-            m.settings = est.settings().into_iter().map(|(k, v)| (k.to_string(), v)).collect();
-        }
-        m.diagnostics = main.diagnostics[i].finish();
-        let image = format!("{}.png", e.key);
-        write_png(&args.output.join(&image), &main.first_images[i], 0.0, true)?;
-        m.image = Some(image);
-        let map = format!("{}.relmse.png", e.key);
-        write_false_color_png(&args.output.join(&map), &maps[i], reference.width(), reference.height(), &scale, true)?;
-        m.error_map = Some(map);
-        methods.push(m);
-    }
-    write_png(&args.output.join("reference.png"), &reference.image, 0.0, true)?;
-
-    // The reference's own noise, from the PT streams' batch variance scaled to its spp.
-    let noise = match (reference_spp, &main.pt_variance) {
-        (Some(rspp), Some(var)) if rspp > 0 => {
-            let scale = n as f32 / rspp as f32;
-            let v = Image { width: var.width, height: var.height, pixels: var.pixels.iter().map(|p| p.map(|x| x * scale)).collect() };
-            Some(from_variance_image(&reference, &v, "reference noise")?)
-        }
-        _ => None,
-    };
-    let name = study_name(args);
-    let mut scene = SceneResult {
-        name,
-        width: reference.width(),
-        height: reference.height(),
-        spp_per_stream: n,
-        seeds: args.seeds,
-        reference: ReferenceInfo {
-            path: ReferenceInfo::path_of(&args.reference),
-            spp: reference_spp,
-            image: Some("reference.png".into()),
-            noise,
-        },
-        methods,
-        convergence: if spps.len() > 1 { convergence } else { Vec::new() },
-        error_map_scale: Some(scale),
-        warnings: Vec::new(),
-        headline: headline.to_vec(),
+    let scene = SceneInfo {
+        name: study_name(args),
+        reference: ReferenceInfo { path: ReferenceInfo::path_of(&args.reference), spp: reference_spp, image: None, noise: None },
+        // The seed differs between the renders; it is in each file.
         render: planned.fields().into_iter().filter(|(k, _)| *k != "seed").map(|(k, v)| (k.to_string(), v)).collect(),
     };
-    let too_noisy = noise.zip(scene.best_relmse()).and_then(|(noise, best)| too_noisy_warning(noise.relmse, best));
-    for w in reference.unusable_warning().into_iter().chain(too_noisy) {
-        tracing::warn!("{w}");
-        scene.warnings.push(w);
-    }
-    let results = StudyResults::new(vec![scene]);
-    results.write_json(&args.output.join("results.json"), true)?;
-    table::write_csv(&results, &args.output.join("results.csv"), true)?;
+    let results = study.run(source, &reference, scene, &args.output)?;
     crate::cli::say!("{}", table::terminal_report(&results).trim_end_matches('\n'));
     crate::cli::say!("study written to {} (make a viewer with: cvtrace report {} -o report/)", args.output.display(), args.output.display());
     Ok(())
-}
-
-/// The folder of the renders with `n` spp per stream.
-fn spp_dir(study: &Path, n: u32) -> PathBuf {
-    study.join(format!("spp{n:05}"))
-}
-
-struct SppRun<'r> {
-    accs: Vec<SeedAccumulator<'r>>,
-    times: Vec<StageTimes>,
-    first_images: Vec<Image>,
-    diagnostics: Vec<DiagnosticsMean>,
-    /// Per-pixel variance of the PT stream mean (from its batches), averaged over seeds.
-    pt_variance: Option<Image>,
-}
-
-fn run_spp<'r>(
-    args: &StudyArgs,
-    planned: &RenderIdentity,
-    list: &[Entry],
-    reference: &'r Reference,
-    n: u32,
-    keep_images: bool,
-) -> Result<SppRun<'r>> {
-    let dir = spp_dir(&args.output, n);
-    std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
-    let mut accs: Vec<SeedAccumulator> = list.iter().map(|e| SeedAccumulator::new(reference, e.key.clone())).collect();
-    let mut times = vec![StageTimes::default(); list.len()];
-    let mut first_images = Vec::new();
-    let mut diagnostics: Vec<DiagnosticsMean> = list.iter().map(|_| DiagnosticsMean::default()).collect();
-    let mut pt_variance: Option<Image> = None;
-    let seeds = args.seeds as f64;
-    for i in 0..args.seeds as u64 {
-        let seed = args.seed + i;
-        let streams_path = dir.join(format!("seed-{i:03}.streams.exr"));
-        let pt2n_path = dir.join(format!("seed-{i:03}.pt2n.exr"));
-        let t_streams = ensure_rendered(render_args(args, n, Some(args.batches), seed, &streams_path, false), planned)?;
-        let t_pt2n = ensure_rendered(render_args(args, 2 * n, None, seed + PT2N_SEED_OFFSET, &pt2n_path, true), planned)?;
-        let set = read_input(&streams_path)?;
-        if set.meta.non_finite_samples > 0 {
-            tracing::warn!("{}: {} NaN or infinite samples were replaced by zero", streams_path.display(), set.meta.non_finite_samples);
-        }
-        if !set.pt.mean.same_size(&reference.image) {
-            bail!(
-                "{}: reference is {}x{} but the renders are {}x{}; render the reference at the study's size",
-                reference.label, reference.width(), reference.height(), set.width, set.height
-            );
-        }
-        accumulate_variance(&mut pt_variance, &set, args.seeds);
-        let pt2n = read_rgb(&pt2n_path)?;
-        let streams_name = streams_path.display().to_string();
-        let input = Input::new(&set).named(&streams_name, &reference.label).with_reference(&reference.image);
-        for (k, e) in list.iter().enumerate() {
-            let (img, t) = match &e.source {
-                Source::Estimator(est) => {
-                    let out = est.run(&input)?;
-                    diagnostics[k].add(&out.diagnostics);
-                    // An estimator of one stream needs only that stream: half the pair's render time.
-                    let render = e.samples.render_share() * t_streams;
-                    (out.image, StageTimes { render, reconstruct: out.diagnostics.seconds })
-                }
-                Source::Pt2n => (pt2n.clone(), StageTimes { render: t_pt2n, reconstruct: 0.0 }),
-            };
-            accs[k].add_labelled(&img, &format!("{} ({streams_name})", e.key))?;
-            times[k].render += t.render / seeds;
-            times[k].reconstruct += t.reconstruct / seeds;
-            if keep_images && i == 0 {
-                first_images.push(img);
-            }
-        }
-        tracing::info!("spp {n}, seed {} of {}: done", i + 1, args.seeds);
-    }
-    Ok(SppRun { accs, times, first_images, diagnostics, pt_variance })
-}
-
-/// Renders `args.output` unless a finished file is already there; returns the render's seconds
-/// (recorded in a sidecar so that resumed studies still report real times). A finished file
-/// rendered with other settings is an error, not silently reused.
-/// Renders `args` unless its output is already there, finished (with its timing file) and the
-/// same render: `planned`, the study's identity, with this render's seed, spp and batches.
-fn ensure_rendered(args: RenderArgs, planned: &RenderIdentity) -> Result<f64> {
-    let path = args.output.clone();
-    let timing = path.with_extension("seconds");
-    if path.exists() {
-        if let Some(t) = std::fs::read_to_string(&timing).ok().and_then(|s| s.trim().parse::<f64>().ok()) {
-            let spp = args.spp.expect("study renders give --spp");
-            let differences = render_cli::recorded_differences(&path, &planned.with_seed(args.seed), spp, args.batches)?;
-            if !differences.is_empty() {
-                bail!(
-                    "{}: this finished render differs from what the study asks for ({}); use another -o or delete the folder's renders",
-                    path.display(),
-                    differences.join(", ")
-                );
-            }
-            tracing::info!("reusing {}", path.display());
-            return Ok(t);
-        }
-    }
-    let t = Instant::now();
-    render_cli::run(args)?;
-    let secs = t.elapsed().as_secs_f64();
-    cvtrace_streams::atomic::write_atomically(&timing, true, |tmp| std::fs::write(tmp, format!("{secs}\n")))?;
-    Ok(secs)
-}
-
-fn render_args(args: &StudyArgs, spp: u32, batches: Option<u32>, seed: u64, output: &Path, reference: bool) -> RenderArgs {
-    RenderArgs {
-        scene: args.scene.clone(),
-        output: output.to_path_buf(),
-        spp: Some(spp),
-        batches,
-        seed,
-        // Unset size and path limits are resolved by `render` from the scene's sidecar.
-        view: args.view.clone(),
-        reference,
-        pass_spp: if reference { spp.clamp(1, 256) } else { 64 },
-        force: true,
-        extend: false,
-        stop_after_passes: None,
-    }
-}
-
-/// Adds this seed's per-pixel variance of the PT mean (batch variance / B) / seeds.
-fn accumulate_variance(acc: &mut Option<Image>, set: &StreamSet, seeds: u32) {
-    let b = set.pt.batches.len();
-    if b < 2 {
-        return;
-    }
-    let acc = acc.get_or_insert_with(|| Image::new(set.width, set.height));
-    let norm = 1.0 / ((b - 1) as f64 * b as f64 * seeds as f64);
-    for (i, out) in acc.pixels.iter_mut().enumerate() {
-        let m = set.pt.mean.pixels[i];
-        for c in 0..3 {
-            let ss: f64 = set.pt.batches.iter().map(|im| (im.pixels[i][c] as f64 - m[c] as f64).powi(2)).sum();
-            out[c] += (ss * norm) as f32;
-        }
-    }
 }
 
 /// The scene's name in the results: `--name`, else from the scene's file.

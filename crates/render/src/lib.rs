@@ -12,6 +12,7 @@
 //! progressive PT-only references. Nothing here depends on Embree.
 pub mod bsdf;
 pub mod camera;
+pub mod checkpoint;
 pub mod film;
 pub mod gltf_import;
 pub mod integrator;

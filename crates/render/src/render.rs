@@ -55,6 +55,11 @@ pub enum RenderError {
     Camera(String),
     #[error("reference accumulator does not match: {0}")]
     ReferenceMismatch(String),
+    /// A reference checkpoint that cannot be continued (the message names the file and why).
+    #[error("{0}; delete it to start the reference over")]
+    Checkpoint(String),
+    #[error(transparent)]
+    File(#[from] cvtrace_streams::StreamError),
 }
 
 impl RenderSettings {

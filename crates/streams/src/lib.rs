@@ -16,8 +16,10 @@ pub mod input_file;
 pub mod iduw_layout;
 pub mod output_lock;
 pub mod preview;
+pub mod provenance;
 pub mod stream_set;
 
 pub use error::StreamError;
 pub use image::Image;
+pub use provenance::Provenance;
 pub use stream_set::{Features, Stream, StreamMeta, StreamSet};

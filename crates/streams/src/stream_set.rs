@@ -39,9 +39,10 @@ pub struct StreamMeta {
     pub version: String,
     /// Samples that were NaN or infinite, replaced by zero, over both streams.
     pub non_finite_samples: u64,
-    /// Renderer settings that shaped the samples beyond the fields above (cvtrace records
-    /// `traversal`), stored as `cvtrace.<key>` text attributes; other `cvtrace.*` text
-    /// attributes of a file read back land here too.
+    /// Renderer settings that shaped the samples beyond the fields above, stored as
+    /// `cvtrace.<key>` text attributes; other `cvtrace.*` text attributes of a file read back
+    /// land here too (cvtrace's own renderer records a [`crate::Provenance`], whose text
+    /// fields, such as `traversal`, read back here).
     pub settings: BTreeMap<String, String>,
 }
 
@@ -164,6 +165,12 @@ impl StreamSet {
 
     /// Writes the stream file atomically (refusing to replace an existing file unless `overwrite`).
     pub fn write(&self, path: &Path, overwrite: bool) -> Result<(), StreamError> {
+        self.to_exr(path)?.write(path, overwrite)
+    }
+
+    /// The file's channels and header, validated (`path` names it in errors), for a writer
+    /// that adds attributes of its own (a renderer's [`crate::Provenance`]) before writing.
+    pub fn to_exr(&self, path: &Path) -> Result<ExrChannels, StreamError> {
         self.validate(path)?;
         let mut ch = ExrChannels::new(self.width, self.height);
         for (name, s) in [("pt", &self.pt), ("crn", &self.crn)] {
@@ -191,7 +198,7 @@ impl StreamSet {
         for (k, v) in &m.settings {
             a.insert(format!("{ATTR_PREFIX}{k}"), AttrValue::Text(v.clone()));
         }
-        ch.write(path, overwrite)
+        Ok(ch)
     }
 
     /// Reads and validates a stream file. Features are optional; everything else is required.
