@@ -39,7 +39,10 @@ study: build
 
 # CVTRACE_REQUIRE_TOOLS: setup installed oiiotool, idiff and chromium, so the tests that use them
 # fail rather than skip if one is missing.
+# The gates first: formatting (rustfmt.toml) and clippy with warnings as errors.
 test: setup
+	$(CARGO) fmt --all --check
+	$(CARGO) clippy --workspace --all-targets --locked -- -D warnings
 	CVTRACE_REQUIRE_TOOLS=1 $(CARGO) test --workspace --locked
 
 # The same tests inside a Debian 13 root (debootstrap; needs root and deb.debian.org), where

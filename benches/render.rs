@@ -160,18 +160,23 @@ fn embree_rays(c: &mut Criterion) {
     g.bench_function("intersect_primary_coherent", |b| b.iter(|| coherent.iter().filter(|r| tracer.intersect(r).is_some()).count()));
     // The renderer's camera-ray batches: 16 jittered samples per pixel, 64 rays per call.
     let mut st = 7u64;
-    let jittered: Vec<Ray> = (0..SIDE * SIDE).map(|i| {
-        let p = i / 16;
-        frame.ray(p % SIDE, p / SIDE, Vec2::new(splitmix(&mut st), splitmix(&mut st)))
-    }).collect();
+    let jittered: Vec<Ray> = (0..SIDE * SIDE)
+        .map(|i| {
+            let p = i / 16;
+            frame.ray(p % SIDE, p / SIDE, Vec2::new(splitmix(&mut st), splitmix(&mut st)))
+        })
+        .collect();
     let mut hits = vec![None; 64];
     g.bench_function("intersect_camera_16spp_one_by_one", |b| b.iter(|| jittered.iter().filter(|r| tracer.intersect(r).is_some()).count()));
     g.bench_function("intersect_camera_16spp_batches_of_64", |b| {
         b.iter(|| {
-            jittered.chunks(64).map(|c| {
-                tracer.intersect_coherent(c, &mut hits[..c.len()]);
-                hits.iter().filter(|h| h.is_some()).count()
-            }).sum::<usize>()
+            jittered
+                .chunks(64)
+                .map(|c| {
+                    tracer.intersect_coherent(c, &mut hits[..c.len()]);
+                    hits.iter().filter(|h| h.is_some()).count()
+                })
+                .sum::<usize>()
         })
     });
     g.bench_function("intersect_random_incoherent", |b| b.iter(|| incoherent.iter().filter(|r| tracer.intersect(r).is_some()).count()));
@@ -196,7 +201,10 @@ fn embree_rays(c: &mut Criterion) {
 
 /// The Cornell box as plain Embree triangles (robust), to compare with the default quads.
 fn device_triangles(scene: &Scene) -> EmbreeScene {
-    Device::new().unwrap().build_scene(scene.positions(), scene.triangles(), &BuildOptions { quads: false, ..BuildOptions::default() }).unwrap()
+    Device::new()
+        .unwrap()
+        .build_scene(scene.positions(), scene.triangles(), &BuildOptions { quads: false, ..BuildOptions::default() })
+        .unwrap()
 }
 
 criterion_group!(benches, path_tracer, embree_rays);

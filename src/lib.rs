@@ -6,8 +6,8 @@
 //! [`EmbreeScene`] implements. [`session::RenderSession`] loads a scene and builds its BVH
 //! once, then renders stream files, references and plain PT images of it.
 pub mod embree;
-pub mod study_source;
 pub mod session;
+pub mod study_source;
 pub mod throughput;
 
 use cvtrace_reconstruct::Registry;

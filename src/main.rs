@@ -5,7 +5,11 @@ use clap::{Parser, Subcommand};
 use std::io::{IsTerminal, Write};
 
 #[derive(Parser)]
-#[command(name = "cvtrace", version, about = "Embree path tracer with paired PT/CRN streams and image-space control-variate reconstruction")]
+#[command(
+    name = "cvtrace",
+    version,
+    about = "Embree path tracer with paired PT/CRN streams and image-space control-variate reconstruction"
+)]
 struct Cli {
     /// Worker threads (default: all cores). Results are bit-identical for any count.
     #[arg(long, global = true)]
@@ -66,7 +70,10 @@ fn main() -> std::process::ExitCode {
         Err(_) => match log_filter(&cli.log) {
             Ok(f) => f,
             Err(e) => {
-                say_error(&format!("--log {:?}: {e} (expected a level: off, error, warn, info, debug, trace; or directives such as cvtrace=debug)", cli.log));
+                say_error(&format!(
+                    "--log {:?}: {e} (expected a level: off, error, warn, info, debug, trace; or directives such as cvtrace=debug)",
+                    cli.log
+                ));
                 return std::process::ExitCode::from(2);
             }
         },

@@ -11,8 +11,7 @@ use crate::embree::{set_flush_denormals, BuildOptions, Device, EmbreeError, Embr
 use crate::throughput::PhaseClock;
 use cvtrace_render::checkpoint::{self, checkpoint_path};
 use cvtrace_render::{
-    render_reference_pass, render_streams, Camera, ReferenceAccum, RenderDefaults, RenderError,
-    RenderSettings, Scene, SceneError,
+    render_reference_pass, render_streams, Camera, ReferenceAccum, RenderDefaults, RenderError, RenderSettings, Scene, SceneError,
 };
 use cvtrace_streams::atomic::{check_extension, check_writable};
 use cvtrace_streams::exr_io::{write_rgb, AttrValue};
@@ -171,10 +170,7 @@ impl Job {
                 check_writable(&j.output, j.overwrite || j.extend)?;
                 let checkpoint = checkpoint_path(&j.output);
                 if checkpoint.is_dir() {
-                    return Err(SessionError::Invalid(format!(
-                        "{}: the checkpoint path is a directory",
-                        checkpoint.display()
-                    )));
+                    return Err(SessionError::Invalid(format!("{}: the checkpoint path is a directory", checkpoint.display())));
                 }
                 // The checkpoint is replaced after every pass, so its location must be writable too.
                 check_writable(&checkpoint, true)?;
@@ -197,11 +193,7 @@ pub enum ReferenceOutcome {
     /// The output holds `spp` samples per pixel.
     Finished { spp: u32 },
     /// Stopped as asked after `passes` passes; the checkpoint holds `samples_done` samples.
-    Stopped {
-        passes: u32,
-        samples_done: u32,
-        spp: u32,
-    },
+    Stopped { passes: u32, samples_done: u32, spp: u32 },
 }
 
 /// Where a render reports its progress (a terminal progress bar, or nothing).
@@ -280,12 +272,7 @@ impl RenderSession {
         );
         if let Some(view) = options.camera {
             let c = scene.camera().clone();
-            let camera = Camera {
-                eye: view.eye,
-                target: view.target,
-                vfov_deg: view.vfov_deg,
-                ..c
-            };
+            let camera = Camera { eye: view.eye, target: view.target, vfov_deg: view.vfov_deg, ..c };
             camera.validate().map_err(SessionError::Camera)?;
             scene.set_camera(camera);
         }
@@ -318,21 +305,8 @@ impl RenderSession {
             Job::Reference(j) => (&j.view, j.spp, 1, j.seed, true),
         };
         let size = image_size(view, self.scene.render_defaults(), self.scene.camera());
-        let settings = resolve_settings(
-            view,
-            spp,
-            batches,
-            seed,
-            reference,
-            self.scene.render_defaults(),
-            size,
-        );
-        settings
-            .validate()
-            .map_err(|cause| SessionError::Settings {
-                scene: self.path.clone(),
-                cause,
-            })?;
+        let settings = resolve_settings(view, spp, batches, seed, reference, self.scene.render_defaults(), size);
+        settings.validate().map_err(|cause| SessionError::Settings { scene: self.path.clone(), cause })?;
         check_memory(job, &settings)?;
         let c = self.scene.camera();
         let provenance = Provenance {
@@ -342,19 +316,13 @@ impl RenderSession {
             max_depth: Some(settings.max_depth),
             rr_depth: Some(settings.rr_depth),
             scene_hash: Some(self.scene_hash.clone()),
-            camera: Some(format!(
-                "eye {} target {} up {} vfov {}",
-                c.eye, c.target, c.up, c.vfov_deg
-            )),
+            camera: Some(format!("eye {} target {} up {} vfov {}", c.eye, c.target, c.up, c.vfov_deg)),
             traversal: Some(self.traversal.name().into()),
             spp: Some(settings.spp),
             batches: (!reference).then_some(settings.batches),
             version: Some(VERSION.into()),
         };
-        Ok(Plan {
-            settings,
-            provenance,
-        })
+        Ok(Plan { settings, provenance })
     }
 
     /// Renders `job` (a reference job that is not told to stop always finishes).
@@ -366,11 +334,7 @@ impl RenderSession {
     }
 
     /// Renders the stream file of `job`.
-    pub fn render_streams(
-        &self,
-        job: &StreamJob,
-        progress: &dyn Progress,
-    ) -> Result<(), SessionError> {
+    pub fn render_streams(&self, job: &StreamJob, progress: &dyn Progress) -> Result<(), SessionError> {
         let whole = Job::Streams(job.clone());
         whole.check_outputs()?;
         let plan = self.plan(&whole)?;
@@ -389,9 +353,7 @@ impl RenderSession {
         );
         progress.start(total, 0);
         let clock = PhaseClock::start();
-        let result = engine
-            .pool
-            .install(|| render_streams(&self.scene, &engine.tracer, s, &|k| progress.advance(k)));
+        let result = engine.pool.install(|| render_streams(&self.scene, &engine.tracer, s, &|k| progress.advance(k)));
         progress.finish();
         let mut set = result?;
         clock.log_rate("render", total);
@@ -406,15 +368,9 @@ impl RenderSession {
 
     /// Renders (or resumes, or extends) the reference of `job`. The output is claimed for the
     /// whole render: a second process on it fails at once.
-    pub fn render_reference(
-        &self,
-        job: &ReferenceJob,
-        progress: &dyn Progress,
-    ) -> Result<ReferenceOutcome, SessionError> {
+    pub fn render_reference(&self, job: &ReferenceJob, progress: &dyn Progress) -> Result<ReferenceOutcome, SessionError> {
         if job.pass_spp == 0 {
-            return Err(SessionError::Invalid(
-                "--pass-spp must be at least 1".into(),
-            ));
+            return Err(SessionError::Invalid("--pass-spp must be at least 1".into()));
         }
         let whole = Job::Reference(job.clone());
         whole.check_outputs()?;
@@ -436,22 +392,12 @@ impl RenderSession {
                         a.samples_done
                     )));
                 }
-                tracing::info!(
-                    "resuming from {} at {} of {} spp",
-                    checkpoint.display(),
-                    a.samples_done,
-                    s.spp
-                );
+                tracing::info!("resuming from {} at {} of {} spp", checkpoint.display(), a.samples_done, s.spp);
                 a
             }
             None if job.extend => {
                 let a = checkpoint::load_finished(&job.output, &plan.provenance, s)?;
-                tracing::info!(
-                    "extending {} from {} to {} spp",
-                    job.output.display(),
-                    a.samples_done,
-                    s.spp
-                );
+                tracing::info!("extending {} from {} to {} spp", job.output.display(), a.samples_done, s.spp);
                 a
             }
             None => ReferenceAccum::new(s),
@@ -473,13 +419,9 @@ impl RenderSession {
         let start_samples = accum.samples_done;
         let mut passes = 0;
         while accum.samples_done < s.spp {
-            let range =
-                accum.samples_done..accum.samples_done.saturating_add(job.pass_spp).min(s.spp);
-            let r = engine.pool.install(|| {
-                render_reference_pass(&self.scene, &engine.tracer, s, &mut accum, range, &|k| {
-                    progress.advance(k)
-                })
-            });
+            let range = accum.samples_done..accum.samples_done.saturating_add(job.pass_spp).min(s.spp);
+            let r =
+                engine.pool.install(|| render_reference_pass(&self.scene, &engine.tracer, s, &mut accum, range, &|k| progress.advance(k)));
             if let Err(e) = r {
                 progress.finish();
                 return Err(e.into());
@@ -488,9 +430,7 @@ impl RenderSession {
             let done = accum.samples_done >= s.spp;
             if !done {
                 let mut saved = Ok(());
-                progress.suspend(&mut || {
-                    saved = save_checkpoint(&checkpoint, &accum, &plan.provenance)
-                });
+                progress.suspend(&mut || saved = save_checkpoint(&checkpoint, &accum, &plan.provenance));
                 if let Err(e) = saved {
                     progress.finish();
                     return Err(e);
@@ -498,58 +438,31 @@ impl RenderSession {
             }
             if !done && job.stop_after_passes.is_some_and(|n| passes >= n) {
                 progress.finish();
-                return Ok(ReferenceOutcome::Stopped {
-                    passes,
-                    samples_done: accum.samples_done,
-                    spp: s.spp,
-                });
+                return Ok(ReferenceOutcome::Stopped { passes, samples_done: accum.samples_done, spp: s.spp });
             }
         }
         progress.finish();
-        clock.log_rate(
-            "render",
-            pixels * (accum.samples_done - start_samples) as u64,
-        );
+        clock.log_rate("render", pixels * (accum.samples_done - start_samples) as u64);
 
         let t = Instant::now();
         // The provenance (scene hash and camera included) lets a later --extend check what it continues.
-        let provenance = Provenance {
-            spp: Some(accum.samples_done),
-            ..plan.provenance.clone()
-        };
+        let provenance = Provenance { spp: Some(accum.samples_done), ..plan.provenance.clone() };
         let mut attributes = provenance.attributes();
         attributes.extend([
-            (
-                "cvtrace.scene",
-                AttrValue::Text(self.path.to_string_lossy().into_owned()),
-            ),
-            (
-                "cvtrace.nonFiniteSamples",
-                AttrValue::Text(accum.non_finite_samples.to_string()),
-            ),
+            ("cvtrace.scene", AttrValue::Text(self.path.to_string_lossy().into_owned())),
+            ("cvtrace.nonFiniteSamples", AttrValue::Text(accum.non_finite_samples.to_string())),
         ]);
-        if let Err(e) = write_rgb(
-            &job.output,
-            &accum.mean(),
-            &attributes,
-            job.overwrite || job.extend,
-        ) {
+        if let Err(e) = write_rgb(&job.output, &accum.mean(), &attributes, job.overwrite || job.extend) {
             // Keep the finished work: the next run with the same settings only has to write.
             let _ = save_checkpoint(&checkpoint, &accum, &plan.provenance);
             return Err(e.into());
         }
         tracing::info!("wrote {} in {:.1} ms", job.output.display(), ms(t));
         if checkpoint.exists() {
-            std::fs::remove_file(&checkpoint).map_err(|e| {
-                SessionError::Invalid(format!(
-                    "{}: could not remove the finished checkpoint: {e}",
-                    checkpoint.display()
-                ))
-            })?;
+            std::fs::remove_file(&checkpoint)
+                .map_err(|e| SessionError::Invalid(format!("{}: could not remove the finished checkpoint: {e}", checkpoint.display())))?;
         }
-        Ok(ReferenceOutcome::Finished {
-            spp: accum.samples_done,
-        })
+        Ok(ReferenceOutcome::Finished { spp: accum.samples_done })
     }
 
     /// The BVH and render threads, made on the first call.
@@ -558,14 +471,9 @@ impl RenderSession {
             return Ok(engine);
         }
         let t = Instant::now();
-        let build = BuildOptions {
-            robust: self.traversal == Traversal::Robust,
-            ..BuildOptions::default()
-        };
+        let build = BuildOptions { robust: self.traversal == Traversal::Robust, ..BuildOptions::default() };
         let tracer = Device::new()
-            .and_then(|device| {
-                device.build_scene(self.scene.positions(), self.scene.triangles(), &build)
-            })
+            .and_then(|device| device.build_scene(self.scene.positions(), self.scene.triangles(), &build))
             .map_err(SessionError::Bvh)?;
         self.bvh_builds.fetch_add(1, Ordering::Relaxed);
         tracing::info!(
@@ -583,27 +491,15 @@ impl RenderSession {
             .thread_name(|i| format!("cvtrace-render-{i}"))
             .start_handler(|_| set_flush_denormals())
             .build()
-            .map_err(|e| SessionError::Threads {
-                threads,
-                message: e.to_string(),
-            })?;
+            .map_err(|e| SessionError::Threads { threads, message: e.to_string() })?;
         Ok(self.engine.get_or_init(|| Engine { tracer, pool }))
     }
 }
 
-fn save_checkpoint(
-    path: &Path,
-    accum: &ReferenceAccum,
-    provenance: &Provenance,
-) -> Result<(), SessionError> {
+fn save_checkpoint(path: &Path, accum: &ReferenceAccum, provenance: &Provenance) -> Result<(), SessionError> {
     let t = Instant::now();
     checkpoint::save(path, accum, provenance)?;
-    tracing::debug!(
-        "checkpoint {} ({} spp) written in {:.1} ms",
-        path.display(),
-        accum.samples_done,
-        ms(t)
-    );
+    tracing::debug!("checkpoint {} ({} spp) written in {:.1} ms", path.display(), accum.samples_done, ms(t));
     Ok(())
 }
 
@@ -612,16 +508,8 @@ fn save_checkpoint(
 /// half-way aborts the process after all the rendering.
 fn check_memory(job: &Job, s: &RenderSettings) -> Result<(), SessionError> {
     let (needed, what, advice) = match job {
-        Job::Reference(j) => (
-            s.reference_memory_estimate(j.extend || s.spp > j.pass_spp),
-            String::new(),
-            "",
-        ),
-        Job::Streams(_) => (
-            s.stream_memory_estimate(),
-            format!(" --batches {}", s.batches),
-            " or with fewer --batches",
-        ),
+        Job::Reference(j) => (s.reference_memory_estimate(j.extend || s.spp > j.pass_spp), String::new(), ""),
+        Job::Streams(_) => (s.stream_memory_estimate(), format!(" --batches {}", s.batches), " or with fewer --batches"),
     };
     if !can_allocate(needed) {
         return Err(SessionError::Invalid(format!(
@@ -674,11 +562,8 @@ pub fn resolve_settings(
 /// The render size: the view's wins (if either side is given, the scene's size is not used);
 /// else the scene's default size; a missing side follows the camera's aspect ratio.
 pub fn image_size(view: &View, defaults: &RenderDefaults, camera: &Camera) -> (u32, u32) {
-    let (width, height) = if view.width.is_some() || view.height.is_some() {
-        (view.width, view.height)
-    } else {
-        (defaults.width, defaults.height)
-    };
+    let (width, height) =
+        if view.width.is_some() || view.height.is_some() { (view.width, view.height) } else { (defaults.width, defaults.height) };
     let aspect = camera.width.max(1) as f64 / camera.height.max(1) as f64;
     let from_aspect = |v: f64| v.round().clamp(1.0, u32::MAX as f64) as u32;
     match (width, height) {
@@ -698,20 +583,12 @@ mod tests {
     use super::*;
 
     fn view(width: Option<u32>, height: Option<u32>) -> View {
-        View {
-            width,
-            height,
-            ..View::default()
-        }
+        View { width, height, ..View::default() }
     }
 
     #[test]
     fn missing_side_follows_the_camera_aspect() {
-        let cam = Camera {
-            width: 640,
-            height: 480,
-            ..Camera::default()
-        };
+        let cam = Camera { width: 640, height: 480, ..Camera::default() };
         let none = RenderDefaults::default();
         assert_eq!(image_size(&view(None, None), &none, &cam), (256, 192));
         assert_eq!(image_size(&view(Some(320), None), &none, &cam), (320, 240));
@@ -721,57 +598,26 @@ mod tests {
 
     #[test]
     fn flags_override_the_scene_size_which_overrides_the_built_in_one() {
-        let cam = Camera {
-            width: 640,
-            height: 480,
-            ..Camera::default()
-        };
-        let scene = RenderDefaults {
-            width: Some(320),
-            height: Some(180),
-            ..Default::default()
-        };
+        let cam = Camera { width: 640, height: 480, ..Camera::default() };
+        let scene = RenderDefaults { width: Some(320), height: Some(180), ..Default::default() };
         assert_eq!(image_size(&view(None, None), &scene, &cam), (320, 180));
         // A flag for either side replaces the scene's size (the other side follows the aspect).
         assert_eq!(image_size(&view(Some(64), None), &scene, &cam), (64, 48));
         assert_eq!(image_size(&view(None, Some(30)), &scene, &cam), (40, 30));
-        let only_width = RenderDefaults {
-            width: Some(100),
-            ..Default::default()
-        };
+        let only_width = RenderDefaults { width: Some(100), ..Default::default() };
         assert_eq!(image_size(&view(None, None), &only_width, &cam), (100, 75));
     }
 
     #[test]
     fn spp_and_depths_come_from_flags_then_the_sidecar_then_built_ins() {
-        let v = |max_depth: Option<i32>| View {
-            max_depth,
-            ..View::default()
-        };
-        let d = RenderDefaults {
-            spp: Some(96),
-            reference_spp: Some(8192),
-            max_depth: Some(7),
-            rr_depth: Some(3),
-            ..Default::default()
-        };
+        let v = |max_depth: Option<i32>| View { max_depth, ..View::default() };
+        let d = RenderDefaults { spp: Some(96), reference_spp: Some(8192), max_depth: Some(7), rr_depth: Some(3), ..Default::default() };
         let s = resolve_settings(&v(None), None, 16, 0, false, &d, (1, 1));
         assert_eq!((s.spp, s.max_depth, s.rr_depth), (96, 7, 3));
-        assert_eq!(
-            resolve_settings(&v(None), None, 1, 0, true, &d, (1, 1)).spp,
-            8192
-        );
+        assert_eq!(resolve_settings(&v(None), None, 1, 0, true, &d, (1, 1)).spp, 8192);
         let s = resolve_settings(&v(Some(-1)), Some(5), 1, 0, true, &d, (1, 1));
         assert_eq!((s.spp, s.max_depth), (5, -1));
-        let s = resolve_settings(
-            &v(None),
-            None,
-            16,
-            0,
-            false,
-            &RenderDefaults::default(),
-            (1, 1),
-        );
+        let s = resolve_settings(&v(None), None, 16, 0, false, &RenderDefaults::default(), (1, 1));
         assert_eq!((s.spp, s.max_depth, s.rr_depth), (64, -1, 5));
     }
 
@@ -779,16 +625,11 @@ mod tests {
     fn scene_hash_ignores_render_defaults_but_not_lights() {
         let scene = cvtrace_render::testing::cornell_box();
         let mut with_defaults = scene.clone();
-        with_defaults.set_render_defaults(RenderDefaults {
-            reference_spp: Some(8192),
-            width: Some(320),
-            ..Default::default()
-        });
+        with_defaults.set_render_defaults(RenderDefaults { reference_spp: Some(8192), width: Some(320), ..Default::default() });
         assert_eq!(scene_hash(&scene), scene_hash(&with_defaults));
         let plane = |env: Option<f32>| {
             let mut p = cvtrace_render::testing::plane_parts(0.5, 1.0);
-            p.environment =
-                env.map(|c| cvtrace_render::Environment::constant(Vec3A::splat(c)).unwrap());
+            p.environment = env.map(|c| cvtrace_render::Environment::constant(Vec3A::splat(c)).unwrap());
             Scene::from_parts(p).unwrap()
         };
         assert_ne!(scene_hash(&plane(None)), scene_hash(&plane(Some(1.0))));

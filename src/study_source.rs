@@ -30,7 +30,13 @@ pub fn spp_dir(study: &Path, n: u32) -> PathBuf {
 }
 
 impl<'a> RenderSource<'a> {
-    pub fn new(session: &'a RenderSession, folder: PathBuf, view: View, first_seed: u64, progress: Box<dyn Fn() -> Box<dyn Progress> + 'a>) -> Self {
+    pub fn new(
+        session: &'a RenderSession,
+        folder: PathBuf,
+        view: View,
+        first_seed: u64,
+        progress: Box<dyn Fn() -> Box<dyn Progress> + 'a>,
+    ) -> Self {
         RenderSource { session, folder, view, first_seed, progress, made: Vec::new() }
     }
 
@@ -45,7 +51,8 @@ impl<'a> RenderSource<'a> {
     }
 
     fn file(&mut self, n: u32, seed: u64, suffix: &str) -> Result<PathBuf, SourceError> {
-        let i = seed.checked_sub(self.first_seed).ok_or_else(|| format!("seed {seed} is before the study's first seed {}", self.first_seed))?;
+        let i =
+            seed.checked_sub(self.first_seed).ok_or_else(|| format!("seed {seed} is before the study's first seed {}", self.first_seed))?;
         let dir = spp_dir(&self.folder, n);
         if !dir.exists() {
             std::fs::create_dir(&dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
@@ -94,7 +101,8 @@ impl Source for RenderSource<'_> {
     fn pt(&mut self, spp: u32, seed: u64) -> Result<Rendered<Image>, SourceError> {
         // Named after the streams it is compared with, as the study asks for it: `2n` spp, the
         // streams' seed plus the offset.
-        let stream_seed = seed.checked_sub(cvtrace_study::PT2N_SEED_OFFSET).ok_or_else(|| format!("seed {seed}: not the seed of a PT(2n) image"))?;
+        let stream_seed =
+            seed.checked_sub(cvtrace_study::PT2N_SEED_OFFSET).ok_or_else(|| format!("seed {seed}: not the seed of a PT(2n) image"))?;
         let path = self.file(spp / 2, stream_seed, "pt2n.exr")?;
         let seconds = self.ensure_rendered(Job::Reference(ReferenceJob::replacing(path.clone(), self.view, spp, seed)))?;
         Ok(Rendered { value: read_rgb(&path)?, seconds, name: path.display().to_string() })

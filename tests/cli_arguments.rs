@@ -61,8 +61,14 @@ fn refused_by(dir: &Path, program: &str, args: &[&str], needles: &[&str]) {
 fn inputs(dir: &Path) {
     let s = scene();
     let sp = s.to_str().unwrap();
-    ok(&cvtrace(dir, &[&["--log", "warn", "render", sp, "--spp", "8", "--batches", "4", "--seed", "3", "-o", "s.streams.exr"][..], SMALL].concat()));
-    ok(&cvtrace(dir, &[&["--log", "warn", "render", sp, "--reference", "--spp", "16", "--seed", "99", "-o", "ref.exr"][..], SMALL].concat()));
+    ok(&cvtrace(
+        dir,
+        &[&["--log", "warn", "render", sp, "--spp", "8", "--batches", "4", "--seed", "3", "-o", "s.streams.exr"][..], SMALL].concat(),
+    ));
+    ok(&cvtrace(
+        dir,
+        &[&["--log", "warn", "render", sp, "--reference", "--spp", "16", "--seed", "99", "-o", "ref.exr"][..], SMALL].concat(),
+    ));
 }
 
 fn render_args<'a>(sp: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
@@ -84,7 +90,11 @@ fn render_refuses_counts_its_files_cannot_record() {
     refused(d, &render_args(sp, &["--reference", "--spp", "4294967295", "-o", "x.ref.exr"]), &["spp 4294967295"]);
     refused(d, &render_args(sp, &["--reference", "--rr-depth", "4294967295", "-o", "x.ref.exr"]), &["rr_depth 4294967295"]);
     // The largest values that fit still render.
-    ok(&cvtrace(d, &[&["--log", "warn"][..], &render_args(sp, &["--spp", "2", "--batches", "2", "--rr-depth", "2147483647", "-o", "y.streams.exr"])].concat()));
+    ok(&cvtrace(
+        d,
+        &[&["--log", "warn"][..], &render_args(sp, &["--spp", "2", "--batches", "2", "--rr-depth", "2147483647", "-o", "y.streams.exr"])]
+            .concat(),
+    ));
 }
 
 #[test]
@@ -106,7 +116,22 @@ fn render_too_large_for_memory_fails_before_rendering() {
     refused_by(
         d,
         "sh",
-        &["-c", "ulimit -v 3000000 && exec \"$0\" \"$@\"", bin, "render", sp, "--reference", "--width", "8192", "--height", "8192", "--spp", "1", "-o", "x.ref.exr"],
+        &[
+            "-c",
+            "ulimit -v 3000000 && exec \"$0\" \"$@\"",
+            bin,
+            "render",
+            sp,
+            "--reference",
+            "--width",
+            "8192",
+            "--height",
+            "8192",
+            "--spp",
+            "1",
+            "-o",
+            "x.ref.exr",
+        ],
         &["--width 8192 --height 8192", "GiB of memory"],
     );
 }
@@ -121,7 +146,11 @@ fn reference_only_flags_and_narrow_cameras_are_refused() {
     refused(d, &render_args(sp, &["--spp", "8", "--batches", "4", "--pass-spp", "3", "-o", "x.streams.exr"]), &["--reference"]);
     refused(d, &render_args(sp, &["--spp", "8", "--batches", "4", "--stop-after-passes", "1", "-o", "x.streams.exr"]), &["--reference"]);
     // 0 passes stopped after one pass and left a checkpoint, no reference.
-    refused(d, &render_args(sp, &["--reference", "--spp", "8", "--pass-spp", "2", "--stop-after-passes", "0", "-o", "x.ref.exr"]), &["--stop-after-passes 0"]);
+    refused(
+        d,
+        &render_args(sp, &["--reference", "--spp", "8", "--pass-spp", "2", "--stop-after-passes", "0", "-o", "x.ref.exr"]),
+        &["--stop-after-passes 0"],
+    );
     // A field of view so narrow that every ray is the viewing direction rendered a flat image
     // (a denormal one reads as 0 once the render flushes denormals).
     for (fov, why) in [("1e-30", "too narrow"), ("0.000001", "too narrow"), ("1e-45", "outside (0, 180)")] {
@@ -161,7 +190,10 @@ fn reconstruct_checks_every_option_given() {
     refused(d, &run(&["--method", "ours", "--iduw-gamma=-1"]), &["--iduw-gamma -1"]);
     // `cv` counts neighbours (k − 1): its error named `--k 1` for `--k 0`.
     refused(d, &run(&["--method", "cv", "--k", "0"]), &["--k 0"]);
-    ok(&cvtrace(d, &["--log", "warn", "reconstruct", "s.streams.exr", "--method", "pt", "--k", "9", "--search-window", "3", "-o", "x.exr"]));
+    ok(&cvtrace(
+        d,
+        &["--log", "warn", "reconstruct", "s.streams.exr", "--method", "pt", "--k", "9", "--search-window", "3", "-o", "x.exr"],
+    ));
 }
 
 #[test]
@@ -187,8 +219,11 @@ fn study_arguments_that_would_wrap_or_fail_late_are_refused_first() {
     let sp = s.to_str().unwrap();
     // The study's arguments with the flags of `changes` (flag, value pairs) replaced or added.
     let study = |changes: &[&'static str]| -> Vec<String> {
-        let mut args: Vec<String> =
-            ["study", sp, "--reference", "ref.exr", "--spp", "8", "--batches", "4", "--seeds", "1", "-o", "st"].iter().chain(SMALL).map(|a| a.to_string()).collect();
+        let mut args: Vec<String> = ["study", sp, "--reference", "ref.exr", "--spp", "8", "--batches", "4", "--seeds", "1", "-o", "st"]
+            .iter()
+            .chain(SMALL)
+            .map(|a| a.to_string())
+            .collect();
         for pair in changes.chunks(2) {
             match args.iter().position(|a| a == pair[0]) {
                 Some(i) => args[i + 1] = pair[1].to_string(),
@@ -230,7 +265,11 @@ fn report_markdown_never_replaces_the_reports_or_the_studys_files() {
     inputs(d);
     let s = scene();
     let sp = s.to_str().unwrap();
-    ok(&cvtrace(d, &[&["--log", "warn", "study", sp, "--reference", "ref.exr", "--spp", "8", "--batches", "4", "--seeds", "1", "-o", "st"][..], SMALL].concat()));
+    ok(&cvtrace(
+        d,
+        &[&["--log", "warn", "study", sp, "--reference", "ref.exr", "--spp", "8", "--batches", "4", "--seeds", "1", "-o", "st"][..], SMALL]
+            .concat(),
+    ));
     ok(&cvtrace(d, &["--log", "warn", "report", "st", "-o", "rep"]));
     let page = std::fs::read(d.join("rep/index.html")).unwrap();
     let csv = std::fs::read(d.join("st/results.csv")).unwrap();
@@ -269,7 +308,11 @@ fn threads_that_cannot_start_and_unparsable_log_filters_are_errors() {
     refused_by(
         d,
         "sh",
-        &[&["-c", "ulimit -v 4000000 && exec \"$0\" \"$@\"", bin, "--threads", "961"][..], &render_args(sp, &["--spp", "8", "--batches", "4", "-o", "x.streams.exr"])].concat(),
+        &[
+            &["-c", "ulimit -v 4000000 && exec \"$0\" \"$@\"", bin, "--threads", "961"][..],
+            &render_args(sp, &["--spp", "8", "--batches", "4", "-o", "x.streams.exr"]),
+        ]
+        .concat(),
         &["--threads 961", "cannot start 1922 worker threads"],
     );
     // An unparsable filter was dropped with a note, and the run went on without any log.

@@ -28,7 +28,8 @@ fn renders_and_reconstructions_finish_with_their_output_closed() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let s = scene();
-    let render = [&["--log", "info", "render", s.to_str().unwrap(), "--spp", "8", "--batches", "4", "-o", "s.streams.exr"][..], SMALL].concat();
+    let render =
+        [&["--log", "info", "render", s.to_str().unwrap(), "--spp", "8", "--batches", "4", "-o", "s.streams.exr"][..], SMALL].concat();
     let status = with_closed_pipes(d, &render);
     assert!(status.success(), "render: {status}");
     assert!(d.join("s.streams.exr").is_file());
@@ -56,12 +57,20 @@ fn log_lines_to_a_file_carry_no_colour_codes_and_unknown_levels_are_refused() {
     let log = String::from_utf8_lossy(&out.stderr);
     assert!(log.contains("INFO") && !log.contains('\u{1b}'), "{log}");
     for bad in ["bogus", "cvtrace=loud", ""] {
-        let out = Command::new(env!("CARGO_BIN_EXE_cvtrace")).args(["--log", bad, "reconstruct", "--list"]).env_remove("RUST_LOG").output().unwrap();
+        let out = Command::new(env!("CARGO_BIN_EXE_cvtrace"))
+            .args(["--log", bad, "reconstruct", "--list"])
+            .env_remove("RUST_LOG")
+            .output()
+            .unwrap();
         assert_eq!(out.status.code(), Some(2), "--log {bad:?}");
         assert!(String::from_utf8_lossy(&out.stderr).contains("--log"), "--log {bad:?}");
     }
     for good in ["warn", "cvtrace=debug,info", "OFF"] {
-        let out = Command::new(env!("CARGO_BIN_EXE_cvtrace")).args(["--log", good, "reconstruct", "--list"]).env_remove("RUST_LOG").output().unwrap();
+        let out = Command::new(env!("CARGO_BIN_EXE_cvtrace"))
+            .args(["--log", good, "reconstruct", "--list"])
+            .env_remove("RUST_LOG")
+            .output()
+            .unwrap();
         assert!(out.status.success(), "--log {good:?}: {}", String::from_utf8_lossy(&out.stderr));
     }
 }

@@ -171,7 +171,8 @@ fn leaks_through_shared_edges(robust: bool, quads: bool, n: usize) -> usize {
         let t = next();
         // Half the targets on the diagonal a–c shared by the face's two triangles, half on its
         // edge a–b shared with the neighbouring face.
-        let target = if next() < 0.5 { corner(a as usize).lerp(corner(c as usize), t) } else { corner(a as usize).lerp(corner(b as usize), t) };
+        let target =
+            if next() < 0.5 { corner(a as usize).lerp(corner(c as usize), t) } else { corner(a as usize).lerp(corner(b as usize), t) };
         if scene.intersect(&ray(origin, target - origin)).is_none() {
             misses += 1;
         }
@@ -189,7 +190,10 @@ fn robust_traversal_is_watertight_at_shared_edges() {
         assert_eq!(robust, 0, "robust traversal (quads {quads}) let {robust} of {n} rays through shared edges (fast: {fast})");
         // The rays do hit shared edges exactly: fast traversal leaks there (docs/performance.md:
         // 966 as triangles, 1179 as quads), so a robust count of 0 means something.
-        assert!(fast > n / 1000, "fast traversal (quads {quads}) let only {fast} of {n} rays through: the rays no longer aim at shared edges");
+        assert!(
+            fast > n / 1000,
+            "fast traversal (quads {quads}) let only {fast} of {n} rays through: the rays no longer aim at shared edges"
+        );
     }
 }
 
@@ -198,8 +202,7 @@ fn robust_traversal_is_watertight_at_shared_edges() {
 fn bumpy_mesh() -> (Vec<Vec3A>, Vec<[u32; 3]>) {
     let n = 24u32;
     let height = |i: u32, j: u32| ((i as f32 * 0.7).sin() * (j as f32 * 0.45).cos()) * 0.8;
-    let mut positions: Vec<Vec3A> =
-        (0..=n).flat_map(|j| (0..=n).map(move |i| Vec3A::new(i as f32, height(i, j), j as f32))).collect();
+    let mut positions: Vec<Vec3A> = (0..=n).flat_map(|j| (0..=n).map(move |i| Vec3A::new(i as f32, height(i, j), j as f32))).collect();
     let at = |i: u32, j: u32| j * (n + 1) + i;
     let mut triangles = Vec::new();
     for j in 0..n {
@@ -316,7 +319,6 @@ fn quads_give_the_same_hits_as_triangles_in_the_cornell_box() {
     assert!(hits > rays.len() / 2, "rays from inside the room should mostly hit it");
 }
 
-
 /// Batches traced in Embree's coherent mode must hit what single rays hit, up to the last bit
 /// of the distance: camera rays of the Cornell box, 16 jittered samples per pixel as the renderer
 /// batches them, in batches that also straddle pixels and rows, plus incoherent rays from inside
@@ -345,7 +347,9 @@ fn coherent_batches_give_the_same_hits_as_single_rays() {
     let device = Device::new().unwrap();
     for robust in [true, false] {
         for quads in [true, false] {
-            let tracer = device.build_scene(scene.positions(), scene.triangles(), &BuildOptions { robust, quads, ..BuildOptions::default() }).unwrap();
+            let tracer = device
+                .build_scene(scene.positions(), scene.triangles(), &BuildOptions { robust, quads, ..BuildOptions::default() })
+                .unwrap();
             let single: Vec<Option<Hit>> = rays.iter().map(|r| tracer.intersect(r)).collect();
             for batch in [16usize, 40, 64, 100] {
                 let mut coherent = vec![None; rays.len()];
@@ -378,9 +382,14 @@ fn coherent_batches_give_the_same_hits_as_single_rays() {
                     inexact += (a != b) as usize;
                 }
                 if batch == 16 {
-                    eprintln!("robust {robust}, quads {quads}: {inexact} of {hits} hits differ in the last bits or name a coplanar twin ({ties})");
+                    eprintln!(
+                        "robust {robust}, quads {quads}: {inexact} of {hits} hits differ in the last bits or name a coplanar twin ({ties})"
+                    );
                 }
-                assert!(ties * 200 <= hits, "robust {robust}, quads {quads}, batches of {batch}: {ties} of {hits} hits name a different triangle");
+                assert!(
+                    ties * 200 <= hits,
+                    "robust {robust}, quads {quads}, batches of {batch}: {ties} of {hits} hits name a different triangle"
+                );
             }
         }
     }

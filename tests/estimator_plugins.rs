@@ -11,7 +11,10 @@ use std::process::Command;
 
 fn render_streams(dir: &Path) {
     let s = scene();
-    let args = [&["--log", "warn", "render", s.to_str().unwrap(), "--spp", "16", "--batches", "8", "--seed", "3", "-o", "s.streams.exr"][..], SMALL];
+    let args = [
+        &["--log", "warn", "render", s.to_str().unwrap(), "--spp", "16", "--batches", "8", "--seed", "3", "-o", "s.streams.exr"][..],
+        SMALL,
+    ];
     ok(&cvtrace(dir, &args.concat()));
 }
 

@@ -11,7 +11,12 @@ fn an_interrupted_report_leaves_nothing_or_everything() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let s = scene();
-    let study = [&["--log", "warn", "study", s.to_str().unwrap(), "--spp", "4", "--seeds", "1", "--batches", "4"][..], &["--reference", "ref.exr", "--reference-spp", "16", "-o", "st"], SMALL].concat();
+    let study = [
+        &["--log", "warn", "study", s.to_str().unwrap(), "--spp", "4", "--seeds", "1", "--batches", "4"][..],
+        &["--reference", "ref.exr", "--reference-spp", "16", "-o", "st"],
+        SMALL,
+    ]
+    .concat();
     ok(&cvtrace(d, &study));
     let started = std::time::Instant::now();
     ok(&cvtrace(d, &["--log", "warn", "report", "st", "-o", "whole"]));
@@ -39,7 +44,12 @@ fn an_interrupted_report_leaves_nothing_or_everything() {
             std::fs::remove_dir_all(&rep).unwrap();
         }
         // No temporaries left next to it either.
-        let litter: Vec<_> = std::fs::read_dir(d).unwrap().flatten().map(|e| e.file_name().to_string_lossy().into_owned()).filter(|n| n.contains("tmp")).collect();
+        let litter: Vec<_> = std::fs::read_dir(d)
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| n.contains("tmp"))
+            .collect();
         assert!(litter.is_empty(), "interrupt {i}: {litter:?}");
     }
     assert!(interrupted >= 4, "only {interrupted} of 24 runs were interrupted; the test did not test");

@@ -84,7 +84,8 @@ fn reconstruct_rejects_bad_inputs_with_the_file_named() {
     render_inputs(d);
     // A reference of another size.
     let s = scene();
-    let small = ["--log", "warn", "render", s.to_str().unwrap(), "--reference", "--spp", "4", "--width", "16", "--height", "16", "-o", "small.exr"];
+    let small =
+        ["--log", "warn", "render", s.to_str().unwrap(), "--reference", "--spp", "4", "--width", "16", "--height", "16", "-o", "small.exr"];
     ok(&cvtrace(d, &small));
     let cases: [(&[&str], &str); 13] = [
         (&["reconstruct", "missing.streams.exr", "-o", "x.exr"], "missing.streams.exr"),
@@ -130,15 +131,45 @@ fn absurd_arguments_fail_before_any_work() {
         (study(&["--seeds", "4000000000"]), "--seeds 4000000000"),
         // iduw needs a multiple of 4 batches: known before the first render.
         (study(&["--batches", "2", "--seeds", "1"]), "`iduw` needs a positive multiple of 4 batches"),
-        (["study", "ref.exr", "--reference", "ref.exr", "--spp", "8", "--batches", "4", "--seeds", "1", "-o", "st"].map(String::from).to_vec(), "ref.exr: not a valid glTF"),
-        (["--threads", "100000", "reconstruct", "s.streams.exr", "-o", "x.exr"].map(String::from).to_vec(), "--threads 100000"),
-        (["compare", "--reference", "ref.exr", "s.streams.exr"].map(String::from).to_vec(), "s.streams.exr: is a PT/CRN stream file"),
-        (["compare", "--reference", "ref.exr", "ref.exr", "--csv", "ref.exr", "--force"].map(String::from).to_vec(), "ref.exr: is also an input"),
-        (["compare", "--reference", "ref.exr", "ref.exr", "--csv", "/dev/null", "--force"].map(String::from).to_vec(), "/dev/null: is not a regular file"),
         (
-            ["study", sp, "--reference", "ref.exr", "--spp", "8", "--batches", "4", "--seeds", "1", "--width", "32", "--height", "32", "--max-depth", "6", "-o", "s.streams.exr"]
+            ["study", "ref.exr", "--reference", "ref.exr", "--spp", "8", "--batches", "4", "--seeds", "1", "-o", "st"]
                 .map(String::from)
                 .to_vec(),
+            "ref.exr: not a valid glTF",
+        ),
+        (["--threads", "100000", "reconstruct", "s.streams.exr", "-o", "x.exr"].map(String::from).to_vec(), "--threads 100000"),
+        (["compare", "--reference", "ref.exr", "s.streams.exr"].map(String::from).to_vec(), "s.streams.exr: is a PT/CRN stream file"),
+        (
+            ["compare", "--reference", "ref.exr", "ref.exr", "--csv", "ref.exr", "--force"].map(String::from).to_vec(),
+            "ref.exr: is also an input",
+        ),
+        (
+            ["compare", "--reference", "ref.exr", "ref.exr", "--csv", "/dev/null", "--force"].map(String::from).to_vec(),
+            "/dev/null: is not a regular file",
+        ),
+        (
+            [
+                "study",
+                sp,
+                "--reference",
+                "ref.exr",
+                "--spp",
+                "8",
+                "--batches",
+                "4",
+                "--seeds",
+                "1",
+                "--width",
+                "32",
+                "--height",
+                "32",
+                "--max-depth",
+                "6",
+                "-o",
+                "s.streams.exr",
+            ]
+            .map(String::from)
+            .to_vec(),
             "s.streams.exr: is a file; the study needs a folder",
         ),
     ];
@@ -190,7 +221,8 @@ fn study_resumes_and_report_builds_the_viewer() {
     assert_eq!(rel(&again), rel(&results), "a resumed study gives the same numbers");
     // Other settings into the same folder: an error naming the file and the difference, not a
     // silent reuse of renders made otherwise.
-    let deeper: Vec<&str> = study.iter().zip(std::iter::once(&"").chain(&study)).map(|(a, prev)| if *prev == "--max-depth" { "3" } else { a }).collect();
+    let deeper: Vec<&str> =
+        study.iter().zip(std::iter::once(&"").chain(&study)).map(|(a, prev)| if *prev == "--max-depth" { "3" } else { a }).collect();
     // Settings that change the image itself make the reference another image's: that comes first.
     let cases: [(Vec<&str>, [&str; 2]); 4] = [
         ([&study[..], &["--traversal", "fast"]].concat(), ["seed-000", "traversal robust (in the file) vs fast (now)"]),

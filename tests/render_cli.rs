@@ -31,7 +31,6 @@ fn tool_available(name: &str) -> bool {
     found
 }
 
-
 #[test]
 fn stream_file_has_every_channel_and_openimageio_reads_it() {
     let dir = tempfile::tempdir().unwrap();
@@ -108,7 +107,11 @@ fn one_and_two_threads_give_identical_output() {
 fn a_terminated_render_leaves_no_temporary_files() {
     let dir = tempfile::tempdir().unwrap();
     let s = scene();
-    let args = [&["--log", "warn", "render", s.to_str().unwrap(), "--reference", "--spp", "100000", "--pass-spp", "1", "-o", "t.ref.exr"][..], SMALL].concat();
+    let args = [
+        &["--log", "warn", "render", s.to_str().unwrap(), "--reference", "--spp", "100000", "--pass-spp", "1", "-o", "t.ref.exr"][..],
+        SMALL,
+    ]
+    .concat();
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_cvtrace")).args(&args).current_dir(dir.path()).spawn().unwrap();
     let ckpt = dir.path().join("t.ref.checkpoint.exr");
     let start = std::time::Instant::now();
@@ -126,7 +129,8 @@ fn a_terminated_render_leaves_no_temporary_files() {
     assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGTERM) }, 0);
     let status = child.wait().unwrap();
     assert_eq!(status.code(), Some(130), "{status}");
-    let names: Vec<String> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    let names: Vec<String> =
+        std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
     assert_eq!(names, ["t.ref.checkpoint.exr"], "only the checkpoint stays");
     ExrChannels::read(&ckpt).unwrap();
 }
@@ -232,7 +236,8 @@ fn finished_reference_extends_to_a_one_shot_render() {
     let mut old = ExrChannels::read(&d.join("grown.ref.exr")).unwrap();
     old.attributes.retain(|k, _| k != "cvtrace.sceneHash" && k != "cvtrace.camera");
     old.write(&d.join("old.ref.exr"), false).unwrap();
-    let out = cvtrace(d, &[&["render", sp, "--reference", "--spp", "16", "--seed", "3", "-o", "old.ref.exr", "--extend"][..], SMALL].concat());
+    let out =
+        cvtrace(d, &[&["render", sp, "--reference", "--spp", "16", "--seed", "3", "-o", "old.ref.exr", "--extend"][..], SMALL].concat());
     ok(&out);
     assert!(stderr(&out).contains("scene hash"), "{}", stderr(&out));
     let grown = ExrChannels::read(&d.join("old.ref.exr")).unwrap();
@@ -325,7 +330,10 @@ fn traversal_is_recorded_and_guards_extension() {
 
     // A reference keeps its traversal, and --extend refuses to continue it with the other one.
     let reference = |spp: &str, extra: &[&str]| {
-        cvtrace(d, &[&["--log", "warn", "render", sp, "--reference", "--spp", spp, "--seed", "5", "-o", "r.ref.exr"][..], SMALL, extra].concat())
+        cvtrace(
+            d,
+            &[&["--log", "warn", "render", sp, "--reference", "--spp", spp, "--seed", "5", "-o", "r.ref.exr"][..], SMALL, extra].concat(),
+        )
     };
     ok(&reference("4", &[]));
     assert_eq!(ExrChannels::read(&d.join("r.ref.exr")).unwrap().attr("cvtrace.traversal"), Some(&AttrValue::Text("robust".into())));

@@ -118,8 +118,20 @@ fn ours_beats_a_real_pt_render_of_equal_cost_on_every_scene() {
         let run = cvtrace(
             tmp.path(),
             &[
-                "--log", "warn", "study", file.to_str().unwrap(), "--spp", "16", "--batches", "16", "--seeds", &seeds,
-                "--reference", reference.to_str().unwrap(), "-o", out.to_str().unwrap(),
+                "--log",
+                "warn",
+                "study",
+                file.to_str().unwrap(),
+                "--spp",
+                "16",
+                "--batches",
+                "16",
+                "--seeds",
+                &seeds,
+                "--reference",
+                reference.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
             ],
         );
         ok(&run);

@@ -5,9 +5,7 @@
 mod common;
 
 use common::{cvtrace, ok, scene, stderr, SMALL};
-use cvtrace::session::{
-    Job, NoProgress, ReferenceJob, RenderSession, SessionOptions, StreamJob, View,
-};
+use cvtrace::session::{Job, NoProgress, ReferenceJob, RenderSession, SessionOptions, StreamJob, View};
 use cvtrace_streams::exr_io::{AttrValue, ExrChannels};
 use cvtrace_streams::Provenance;
 use std::path::Path;
@@ -25,26 +23,8 @@ fn a_study_of_two_seeds_builds_the_bvh_once() {
     let d = dir.path();
     let s = scene();
     let study = [
-        &[
-            "--log",
-            "info",
-            "study",
-            s.to_str().unwrap(),
-            "--spp",
-            "4,8",
-            "--seeds",
-            "2",
-        ][..],
-        &[
-            "--batches",
-            "4",
-            "--reference",
-            "ref.exr",
-            "--reference-spp",
-            "16",
-            "-o",
-            "st",
-        ],
+        &["--log", "info", "study", s.to_str().unwrap(), "--spp", "4,8", "--seeds", "2"][..],
+        &["--batches", "4", "--reference", "ref.exr", "--reference-spp", "16", "-o", "st"],
         SMALL,
     ]
     .concat();
@@ -53,110 +33,56 @@ fn a_study_of_two_seeds_builds_the_bvh_once() {
     let log = stderr(&out);
     // The reference, then per spp value and seed a stream file and a PT(2n) render: nine
     // renders of one scene, one BVH.
-    let renders = log
-        .lines()
-        .filter(|l| l.contains("rendering ") && l.contains(" threads"))
-        .count();
+    let renders = log.lines().filter(|l| l.contains("rendering ") && l.contains(" threads")).count();
     assert_eq!(renders, 9, "{log}");
-    assert_eq!(
-        builds(&log),
-        1,
-        "one BVH for every render of the study:\n{log}"
-    );
+    assert_eq!(builds(&log), 1, "one BVH for every render of the study:\n{log}");
 
     // A stream file from before the provenance was typed records rrDepth as text: still
     // reused, and a resumed study that renders nothing builds no BVH.
     let old = d.join("st/spp00008/seed-001.streams.exr");
     let mut ch = ExrChannels::read(&old).unwrap();
     assert_eq!(ch.attr("cvtrace.rrDepth"), Some(&AttrValue::Int(5)));
-    ch.attributes
-        .insert("cvtrace.rrDepth".into(), AttrValue::Text("5".into()));
+    ch.attributes.insert("cvtrace.rrDepth".into(), AttrValue::Text("5".into()));
     ch.write(&old, true).unwrap();
     let again = cvtrace(d, &study);
     ok(&again);
     let log = stderr(&again);
-    assert!(
-        log.contains(&format!(
-            "reusing {}",
-            Path::new("st/spp00008/seed-001.streams.exr").display()
-        )),
-        "{log}"
-    );
+    assert!(log.contains(&format!("reusing {}", Path::new("st/spp00008/seed-001.streams.exr").display())), "{log}");
     assert_eq!(builds(&log), 0, "{log}");
     // The text spelling is still compared: another rr depth is refused.
-    ch.attributes
-        .insert("cvtrace.rrDepth".into(), AttrValue::Text("3".into()));
+    ch.attributes.insert("cvtrace.rrDepth".into(), AttrValue::Text("3".into()));
     ch.write(&old, true).unwrap();
     let refused = cvtrace(d, &study);
-    assert!(
-        !refused.status.success()
-            && stderr(&refused).contains("rr depth 3 (in the file) vs 5 (now)"),
-        "{}",
-        stderr(&refused)
-    );
+    assert!(!refused.status.success() && stderr(&refused).contains("rr depth 3 (in the file) vs 5 (now)"), "{}", stderr(&refused));
 }
 
 #[test]
 fn one_session_renders_streams_and_references_on_one_bvh() {
     let dir = tempfile::tempdir().unwrap();
     let session = RenderSession::new(&scene(), &SessionOptions::default()).unwrap();
-    assert_eq!(
-        session.bvh_builds(),
-        0,
-        "the BVH is built at the first render"
-    );
-    let view = View {
-        width: Some(16),
-        height: Some(12),
-        max_depth: Some(4),
-        rr_depth: None,
-    };
+    assert_eq!(session.bvh_builds(), 0, "the BVH is built at the first render");
+    let view = View { width: Some(16), height: Some(12), max_depth: Some(4), rr_depth: None };
     let stream = |seed: u64| {
         let output = dir.path().join(format!("s{seed}.streams.exr"));
-        Job::Streams(StreamJob {
-            output,
-            view,
-            spp: Some(4),
-            batches: 2,
-            seed,
-            overwrite: false,
-        })
+        Job::Streams(StreamJob { output, view, spp: Some(4), batches: 2, seed, overwrite: false })
     };
-    let reference = Job::Reference(ReferenceJob::replacing(
-        dir.path().join("r.exr"),
-        view,
-        6,
-        9,
-    ));
+    let reference = Job::Reference(ReferenceJob::replacing(dir.path().join("r.exr"), view, 6, 9));
     for job in [stream(1), stream(2), reference.clone()] {
         session.render(&job, &NoProgress).unwrap();
         // Each file records exactly what its plan says, rrDepth as an int in both kinds.
         let recorded = Provenance::read_header(job.output()).unwrap();
         assert_eq!(session.plan(&job).unwrap().provenance, recorded);
         let ch = ExrChannels::read(job.output()).unwrap();
-        assert_eq!(
-            ch.attr("cvtrace.rrDepth"),
-            Some(&AttrValue::Int(5)),
-            "{}",
-            job.output().display()
-        );
+        assert_eq!(ch.attr("cvtrace.rrDepth"), Some(&AttrValue::Int(5)), "{}", job.output().display());
     }
     assert_eq!(session.bvh_builds(), 1);
     // A job for another seed differs from the file in exactly that.
-    let Job::Reference(mut other) = reference else {
-        unreachable!()
-    };
+    let Job::Reference(mut other) = reference else { unreachable!() };
     other.seed = 10;
-    let d = session
-        .plan(&Job::Reference(other))
-        .unwrap()
-        .provenance
-        .differences(&Provenance::read_header(&dir.path().join("r.exr")).unwrap());
+    let d =
+        session.plan(&Job::Reference(other)).unwrap().provenance.differences(&Provenance::read_header(&dir.path().join("r.exr")).unwrap());
     assert_eq!(d.len(), 1, "{d:?}");
-    assert_eq!(
-        d[0].describe("in the file"),
-        "seed 9 (in the file) vs 10 (now)"
-    );
+    assert_eq!(d[0].describe("in the file"), "seed 9 (in the file) vs 10 (now)");
 }
 
 #[test]
@@ -195,10 +121,7 @@ fn the_committed_references_are_accepted_by_the_study_and_by_extend() {
             ],
         );
         ok(&extend);
-        assert_eq!(
-            ExrChannels::read(&copy).unwrap().attr("cvtrace.spp"),
-            Some(&AttrValue::Int(spp + 1))
-        );
+        assert_eq!(ExrChannels::read(&copy).unwrap().attr("cvtrace.spp"), Some(&AttrValue::Int(spp + 1)));
         // A study at the scene's own size scores against the committed file as it is.
         let out = d.join(format!("{name}-study"));
         let study = cvtrace(

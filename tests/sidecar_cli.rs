@@ -33,7 +33,10 @@ fn renders_at_the_sidecar_settings_and_flags_override_them() {
 
     // --width replaces the sidecar's size (the height follows the camera's square aspect),
     // --spp and --max-depth its values.
-    ok(&cvtrace(dir.path(), &["render", "scene.gltf", "--width", "10", "--spp", "2", "--max-depth", "-1", "--batches", "2", "-o", "b.streams.exr"]));
+    ok(&cvtrace(
+        dir.path(),
+        &["render", "scene.gltf", "--width", "10", "--spp", "2", "--max-depth", "-1", "--batches", "2", "-o", "b.streams.exr"],
+    ));
     let set = StreamSet::read(&dir.path().join("b.streams.exr")).unwrap();
     assert_eq!((set.width, set.height, set.meta.spp, set.meta.max_depth), (10, 10, 2, -1));
 

@@ -13,8 +13,19 @@ fn a_second_study_into_the_same_new_folder_leaves_the_first_alone() {
     let s = scene();
     // Large enough that the first study is still rendering into its first spp folder (empty
     // until that render is written) when the second one gives up.
-    let args = [&["--log", "warn", "study", s.to_str().unwrap(), "--spp", "32,64", "--seeds", "2", "--batches", "4"][..], &["--reference", "ref.exr", "--reference-spp", "16", "-o", "st"], &["--width", "96", "--height", "96", "--max-depth", "6"]].concat();
-    let first = Command::new(env!("CARGO_BIN_EXE_cvtrace")).args(&args).current_dir(d).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
+    let args = [
+        &["--log", "warn", "study", s.to_str().unwrap(), "--spp", "32,64", "--seeds", "2", "--batches", "4"][..],
+        &["--reference", "ref.exr", "--reference-spp", "16", "-o", "st"],
+        &["--width", "96", "--height", "96", "--max-depth", "6"],
+    ]
+    .concat();
+    let first = Command::new(env!("CARGO_BIN_EXE_cvtrace"))
+        .args(&args)
+        .current_dir(d)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
     // The second starts while the first renders into its first spp folder.
     let busy = d.join("st/spp00032");
     for _ in 0..2000 {

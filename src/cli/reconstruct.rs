@@ -77,11 +77,7 @@ fn targets(args: &ReconstructArgs, output: &Path) -> Result<Vec<Target>> {
     }
     Ok(specs
         .into_iter()
-        .map(|spec| Target {
-            spec,
-            exr: output.join(format!("{}.exr", spec.name)),
-            png: Some(output.join(format!("{}.png", spec.name))),
-        })
+        .map(|spec| Target { spec, exr: output.join(format!("{}.exr", spec.name)), png: Some(output.join(format!("{}.png", spec.name))) })
         .collect())
 }
 
@@ -167,10 +163,7 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
     let mut input = Input::new(&set).named(&streams_name, &reference_name);
     if let Some(r) = &reference {
         if !r.same_size(&set.pt.mean) {
-            bail!(
-                "{}: reference is {}x{} but {} is {}x{}",
-                reference_name, r.width, r.height, streams_name, set.width, set.height
-            );
+            bail!("{}: reference is {}x{} but {} is {}x{}", reference_name, r.width, r.height, streams_name, set.width, set.height);
         }
         input = input.with_reference(r);
     }
@@ -223,7 +216,14 @@ pub fn check_exposure(stops: f32) -> Result<()> {
 }
 
 /// `non_finite_samples`: the input's count of replaced samples, carried into the output.
-fn write_output(path: &Path, args: &ReconstructArgs, source: &Path, estimator: &Instance, out: &Output, non_finite_samples: u64) -> Result<()> {
+fn write_output(
+    path: &Path,
+    args: &ReconstructArgs,
+    source: &Path,
+    estimator: &Instance,
+    out: &Output,
+    non_finite_samples: u64,
+) -> Result<()> {
     let mut attrs: Vec<(String, AttrValue)> = vec![
         ("cvtrace.method".into(), AttrValue::Text(estimator.name().into())),
         ("cvtrace.source".into(), AttrValue::Text(source.display().to_string())),

@@ -125,7 +125,8 @@ pub fn run(args: RenderArgs) -> Result<()> {
     // The flags alone (scene defaults filled in after loading); a flag given is checked now.
     let view = args.view.view();
     let flag_size = (args.view.width.unwrap_or(DEFAULT_WIDTH), args.view.height.unwrap_or(DEFAULT_WIDTH));
-    let mut provisional = session::resolve_settings(&view, args.spp, batches, args.seed, args.reference, &RenderDefaults::default(), flag_size);
+    let mut provisional =
+        session::resolve_settings(&view, args.spp, batches, args.seed, args.reference, &RenderDefaults::default(), flag_size);
     // Without --spp the count comes from the scene, so only --batches itself is checked here.
     provisional.spp = args.spp.unwrap_or(batches);
     provisional.validate()?;

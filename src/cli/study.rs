@@ -166,7 +166,8 @@ pub fn run(args: StudyArgs) -> Result<()> {
         bail!("{}: is a file; the study needs a folder (-o)", args.output.display());
     }
     // The folders this run makes: if it fails before anything is written in them, they go again.
-    let made: Vec<PathBuf> = args.output.ancestors().take_while(|p| !p.as_os_str().is_empty() && !p.exists()).map(Path::to_path_buf).collect();
+    let made: Vec<PathBuf> =
+        args.output.ancestors().take_while(|p| !p.as_os_str().is_empty() && !p.exists()).map(Path::to_path_buf).collect();
     std::fs::create_dir_all(&args.output).with_context(|| format!("{}: cannot create the study folder", args.output.display()))?;
     // Two studies in one folder would render the same files twice and race over them: the
     // claim comes before anything else is made in it, and a study that does not get it
@@ -244,7 +245,11 @@ fn study_in_folder(
     };
     let results = study.run(source, &reference, scene, &args.output)?;
     crate::cli::say!("{}", table::terminal_report(&results).trim_end_matches('\n'));
-    crate::cli::say!("study written to {} (make a viewer with: cvtrace report {} -o report/)", args.output.display(), args.output.display());
+    crate::cli::say!(
+        "study written to {} (make a viewer with: cvtrace report {} -o report/)",
+        args.output.display(),
+        args.output.display()
+    );
     Ok(())
 }
 
@@ -262,4 +267,3 @@ fn scene_name(scene: &Path) -> String {
     }
     stem
 }
-

@@ -232,7 +232,9 @@ impl Device {
         quality: ffi::RTCBuildQuality,
     ) -> Result<(), EmbreeError> {
         let (geometry_type, index_format, per_primitive, flat_indices) = match indices {
-            MeshIndices::Triangles(t) => (ffi::RTCGeometryType::RTC_GEOMETRY_TYPE_TRIANGLE, ffi::RTCFormat::RTC_FORMAT_UINT3, 3, t.as_flattened()),
+            MeshIndices::Triangles(t) => {
+                (ffi::RTCGeometryType::RTC_GEOMETRY_TYPE_TRIANGLE, ffi::RTCFormat::RTC_FORMAT_UINT3, 3, t.as_flattened())
+            }
             MeshIndices::Quads(q) => (ffi::RTCGeometryType::RTC_GEOMETRY_TYPE_QUAD, ffi::RTCFormat::RTC_FORMAT_UINT4, 4, q.as_flattened()),
         };
         // SAFETY: valid device.

@@ -14,12 +14,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let opts = SyntheticOptions { width: 160, height: 120, ..SyntheticOptions::small() };
     let results = write_synthetic_study(&study, &opts)?;
     print!("{}", table::terminal_report(&results));
-    let index = write_report(
-        &results,
-        &study,
-        &out.join("report"),
-        &ReportOptions { title: "synthetic study".into(), overwrite: true },
-    )?;
+    let index = write_report(&results, &study, &out.join("report"), &ReportOptions { title: "synthetic study".into(), overwrite: true })?;
     println!("\nviewer: {}", index.display());
     Ok(())
 }

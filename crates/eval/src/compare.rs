@@ -84,13 +84,8 @@ mod tests {
         let mut off = r.clone();
         off.pixels.iter_mut().for_each(|p| p[0] += 0.1);
         let a = dir.path().join("a.exr");
-        write_rgb(
-            &a,
-            &off,
-            &[("cvtrace.method", AttrValue::Text("ours".into())), ("cvtrace.seconds", AttrValue::Float(1.5))],
-            false,
-        )
-        .unwrap();
+        write_rgb(&a, &off, &[("cvtrace.method", AttrValue::Text("ours".into())), ("cvtrace.seconds", AttrValue::Float(1.5))], false)
+            .unwrap();
         let b = dir.path().join("plain.exr");
         write_rgb(&b, &r, &[], false).unwrap();
         let scene = compare_files(&ref_path, &[a, b]).unwrap();

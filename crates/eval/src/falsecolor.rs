@@ -10,8 +10,7 @@ use std::path::Path;
 /// Name recorded in the results JSON.
 pub const COLORMAP_NAME: &str = "viridis-oklab";
 
-const ANCHORS: [[u8; 3]; 5] =
-    [[0x44, 0x01, 0x54], [0x3b, 0x52, 0x8b], [0x21, 0x91, 0x8c], [0x5e, 0xc9, 0x62], [0xfd, 0xe7, 0x25]];
+const ANCHORS: [[u8; 3]; 5] = [[0x44, 0x01, 0x54], [0x3b, 0x52, 0x8b], [0x21, 0x91, 0x8c], [0x5e, 0xc9, 0x62], [0xfd, 0xe7, 0x25]];
 
 /// At most this many decades between the ends of a scale: beyond it, the dark end only
 /// spreads noise-free pixels over colours nobody can tell apart.
@@ -86,13 +85,8 @@ pub fn scale_for_maps(maps: &[&[f32]]) -> ErrorMapScale {
     let total: usize = maps.iter().map(|m| m.len()).sum();
     // Deterministic subsample keeps the sort cheap on large images.
     let stride = (total / 2_000_000).max(1);
-    let mut logs: Vec<f64> = maps
-        .iter()
-        .flat_map(|m| m.iter())
-        .step_by(stride)
-        .filter(|v| **v > 0.0 && v.is_finite())
-        .map(|v| (*v as f64).log10())
-        .collect();
+    let mut logs: Vec<f64> =
+        maps.iter().flat_map(|m| m.iter()).step_by(stride).filter(|v| **v > 0.0 && v.is_finite()).map(|v| (*v as f64).log10()).collect();
     let (mut lo, mut hi) = if logs.is_empty() {
         (-4.0, 0.0)
     } else {

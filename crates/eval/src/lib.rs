@@ -31,7 +31,5 @@ pub mod table;
 pub use error::EvalError;
 pub use metrics::{Metrics, Reference};
 pub use report::{write_report, ReportOptions};
-pub use results::{
-    keys, ConvergencePoint, ErrorMapScale, MethodResult, ReferenceInfo, SceneResult, StageTimes, StudyResults,
-};
+pub use results::{keys, ConvergencePoint, ErrorMapScale, MethodResult, ReferenceInfo, SceneResult, StageTimes, StudyResults};
 pub use stats::{SeedAccumulator, SeedStats};

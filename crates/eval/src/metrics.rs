@@ -95,12 +95,7 @@ impl Reference {
     /// Its mean over pixels equals [`Reference::rel_mse`].
     pub fn rel_mse_map(&self, x: &Image, label: &str) -> Result<Vec<f32>, EvalError> {
         self.check(x, label)?;
-        Ok(x.pixels
-            .iter()
-            .zip(&self.image.pixels)
-            .zip(&self.weights)
-            .map(|((p, r), w)| (sq_error(*p, *r) * w / 3.0) as f32)
-            .collect())
+        Ok(x.pixels.iter().zip(&self.image.pixels).zip(&self.weights).map(|((p, r), w)| (sq_error(*p, *r) * w / 3.0) as f32).collect())
     }
 
     fn weighted_sq_error(&self, x: &Image, relative: bool) -> f64 {
@@ -168,9 +163,7 @@ pub fn ensure_same_size(a: &Image, a_label: &str, b: &Image, b_label: &str) -> R
 pub fn ensure_finite(img: &Image, label: &str) -> Result<(), EvalError> {
     match img.find_non_finite() {
         None => Ok(()),
-        Some((x, y, channel)) => {
-            Err(EvalError::NonFinite { label: label.to_string(), x, y, channel, value: img.get(x, y)[channel] })
-        }
+        Some((x, y, channel)) => Err(EvalError::NonFinite { label: label.to_string(), x, y, channel, value: img.get(x, y)[channel] }),
     }
 }
 

@@ -66,11 +66,7 @@ fn plot_err(e: impl std::fmt::Display) -> EvalError {
 /// The SVG text of a convergence plot. `style_of` maps a method key and its position in the
 /// legend to its legend label and colour. A dashed grey guide shows the `1/spp` slope of an
 /// unbiased Monte Carlo estimator.
-pub fn convergence_svg(
-    points: &[ConvergencePoint],
-    title: &str,
-    style_of: StyleOf,
-) -> Result<String, EvalError> {
+pub fn convergence_svg(points: &[ConvergencePoint], title: &str, style_of: StyleOf) -> Result<String, EvalError> {
     let valid: Vec<ConvergencePoint> =
         points.iter().filter(|p| p.spp_total > 0 && p.relmse > 0.0 && p.relmse.is_finite()).cloned().collect();
     if valid.is_empty() {
@@ -127,14 +123,15 @@ pub fn convergence_svg(
                 .map_err(plot_err)?
                 .label(&line.label)
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2)));
-            chart
-                .draw_series(line.points.iter().map(|p| Circle::new((p.0, p.1), 3, color.filled())))
-                .map_err(plot_err)?;
+            chart.draw_series(line.points.iter().map(|p| Circle::new((p.0, p.1), 3, color.filled()))).map_err(plot_err)?;
             // ± one standard error, clipped below to stay on the log axis.
             chart
-                .draw_series(line.points.iter().filter_map(|p| p.2.map(|se| (p.0, p.1, se))).map(|(x, y, se)| {
-                    PathElement::new(vec![(x, (y - se).max(y * 0.5)), (x, y + se)], color.stroke_width(1))
-                }))
+                .draw_series(
+                    line.points
+                        .iter()
+                        .filter_map(|p| p.2.map(|se| (p.0, p.1, se)))
+                        .map(|(x, y, se)| PathElement::new(vec![(x, (y - se).max(y * 0.5)), (x, y + se)], color.stroke_width(1))),
+                )
                 .map_err(plot_err)?;
         }
         chart

@@ -83,9 +83,7 @@ pub fn from_batch_means(reference: &Reference, batches: &[Image], label: &str) -
 pub fn from_variance_image(reference: &Reference, variance: &Image, label: &str) -> Result<ReferenceNoise, EvalError> {
     ensure_same_size(variance, label, &reference.image, &reference.label)?;
     ensure_finite(variance, label)?;
-    if let Some((i, c)) =
-        variance.pixels.iter().enumerate().find_map(|(i, p)| p.iter().position(|v| *v < 0.0).map(|c| (i, c)))
-    {
+    if let Some((i, c)) = variance.pixels.iter().enumerate().find_map(|(i, p)| p.iter().position(|v| *v < 0.0).map(|c| (i, c))) {
         return Err(EvalError::invalid(
             label,
             format!("negative variance at pixel ({}, {}), channel {c}", i % variance.width, i / variance.width),
@@ -184,18 +182,13 @@ mod tests {
         let (j, bf) = ((3 * n) as f64, count as f64);
         let target: f64 = (0..n).map(|i| 3.0 * w[i] * sigma_batch[i].powi(2) / bf).sum::<f64>() / j;
         // Var(s²/B) = 2σ⁴ / ((B−1) B²).
-        let sd: f64 = (0..n)
-            .map(|i| 3.0 * w[i] * w[i] * 2.0 * sigma_batch[i].powi(4) / ((bf - 1.0) * bf * bf))
-            .sum::<f64>()
-            .sqrt()
-            / j;
+        let sd: f64 = (0..n).map(|i| 3.0 * w[i] * w[i] * 2.0 * sigma_batch[i].powi(4) / ((bf - 1.0) * bf * bf)).sum::<f64>().sqrt() / j;
         assert!((est.relmse - target).abs() < 5.0 * sd, "{} vs {target} ± {sd}", est.relmse);
     }
 
     #[test]
     fn variance_image_is_weighted_like_relmse() {
-        let reference =
-            Reference::new(Image::from_fn(2, 1, |x, _| if x == 0 { [1.0; 3] } else { [0.0; 3] }), "r").unwrap();
+        let reference = Reference::new(Image::from_fn(2, 1, |x, _| if x == 0 { [1.0; 3] } else { [0.0; 3] }), "r").unwrap();
         let var = Image::from_fn(2, 1, |x, _| if x == 0 { [0.3; 3] } else { [0.001; 3] });
         let est = from_variance_image(&reference, &var, "var.exr").unwrap();
         let expected = (0.3 / 1.01 + 0.001 / 0.01) / 2.0;

@@ -63,12 +63,7 @@ struct ViewerScene {
 /// Writes the viewer for `results` into `out_dir` (created if needed) and returns the path
 /// of its index.html. Image paths in `results` are relative to `source_dir` (the study
 /// folder holding results.json); each must be a PNG of its scene's size.
-pub fn write_report(
-    results: &StudyResults,
-    source_dir: &Path,
-    out_dir: &Path,
-    options: &ReportOptions,
-) -> Result<PathBuf, EvalError> {
+pub fn write_report(results: &StudyResults, source_dir: &Path, out_dir: &Path, options: &ReportOptions) -> Result<PathBuf, EvalError> {
     results.validate()?;
     if results.scenes.is_empty() {
         return Err(EvalError::invalid("results", "no scene to report"));
@@ -82,12 +77,18 @@ pub fn write_report(
             return Err(cvtrace_streams::StreamError::AlreadyExists { path: index }.into());
         }
         if std::fs::read_dir(out_dir).is_ok_and(|mut d| d.next().is_some()) {
-            return Err(EvalError::invalid(out_dir.display().to_string(), "exists and is not empty; pass --force to write the report into it"));
+            return Err(EvalError::invalid(
+                out_dir.display().to_string(),
+                "exists and is not empty; pass --force to write the report into it",
+            ));
         }
     }
     let manifest = out_dir.join(MANIFEST);
     if manifest.symlink_metadata().is_ok_and(|m| !m.is_file()) {
-        return Err(EvalError::invalid(manifest.display().to_string(), "is not a regular file; remove it (it is the list of a report's images)"));
+        return Err(EvalError::invalid(
+            manifest.display().to_string(),
+            "is not a regular file; remove it (it is the list of a report's images)",
+        ));
     }
     let earlier = earlier_report_files(out_dir);
     let created = !out_dir.exists();
@@ -116,7 +117,8 @@ const MANIFEST: &str = ".cvtrace-report";
 
 /// Every file a report writes at the top of its folder, and the folders of its images and
 /// plots: what nothing else may be written over (`report --markdown`).
-pub const REPORT_FILES: &[&str] = &["index.html", "viewer.css", "viewer.js", "data.js", "colorbar.png", "results.json", "results.csv", MANIFEST];
+pub const REPORT_FILES: &[&str] =
+    &["index.html", "viewer.css", "viewer.js", "data.js", "colorbar.png", "results.json", "results.csv", MANIFEST];
 pub const REPORT_FOLDERS: &[&str] = &["images", "plots"];
 
 fn manifest_text<'a>(files: impl IntoIterator<Item = &'a String>) -> String {
@@ -212,12 +214,8 @@ fn write_viewer(
         if plot.is_none() {
             files.remove(&format!("plots/{slug}.svg"));
         }
-        let colors = scene
-            .ordered_methods()
-            .iter()
-            .enumerate()
-            .map(|(i, m)| (m.name.clone(), hex(method_colour(scene, &m.name, i))))
-            .collect();
+        let colors =
+            scene.ordered_methods().iter().enumerate().map(|(i, m)| (m.name.clone(), hex(method_colour(scene, &m.name, i)))).collect();
         scenes.push(ViewerScene { slug, plot, ratios: scene.ratios(), colors });
     }
 
@@ -239,10 +237,7 @@ fn write_viewer(
     let title = html_escape(&options.title);
     write_text(
         index,
-        &INDEX_HTML.replace(
-            "<title>cvtrace — estimator comparison</title>",
-            &format!("<title>{title} — estimator comparison</title>"),
-        ),
+        &INDEX_HTML.replace("<title>cvtrace — estimator comparison</title>", &format!("<title>{title} — estimator comparison</title>")),
     )?;
     Ok(files)
 }
@@ -428,18 +423,15 @@ mod tests {
         let src = dir.path().join("study");
         let ours = results.scenes[0].method("ours").unwrap().image.clone().unwrap();
         std::fs::remove_file(src.join(&ours)).unwrap();
-        let err =
-            write_report(&results, &src, &dir.path().join("r1"), &ReportOptions::default()).unwrap_err().to_string();
+        let err = write_report(&results, &src, &dir.path().join("r1"), &ReportOptions::default()).unwrap_err().to_string();
         assert!(err.contains("`ours`") && err.contains(&ours), "{err}");
         // A PNG of another size.
         cvtrace_streams::preview::write_png(&src.join(&ours), &cvtrace_streams::Image::new(3, 2), 0.0, true).unwrap();
-        let err =
-            write_report(&results, &src, &dir.path().join("r2"), &ReportOptions::default()).unwrap_err().to_string();
+        let err = write_report(&results, &src, &dir.path().join("r2"), &ReportOptions::default()).unwrap_err().to_string();
         assert!(err.contains("3x2") && err.contains("expected the scene size"), "{err}");
         // Not a PNG at all.
         std::fs::write(src.join(&ours), b"GIF89a........................").unwrap();
-        let err =
-            write_report(&results, &src, &dir.path().join("r3"), &ReportOptions::default()).unwrap_err().to_string();
+        let err = write_report(&results, &src, &dir.path().join("r3"), &ReportOptions::default()).unwrap_err().to_string();
         assert!(err.contains("not a PNG"), "{err}");
         // Each failure left no report folder behind.
         for r in ["r1", "r2", "r3"] {
@@ -528,7 +520,8 @@ mod tests {
         std::fs::remove_file(out.join("plots")).unwrap();
         let dropped = results.scenes[0].methods.pop().unwrap();
         write_report(&results, &src, &out, &opts).unwrap();
-        let copy = listed.iter().find(|f| f.ends_with(Path::new(dropped.image.as_ref().unwrap()).file_name().unwrap().to_str().unwrap())).unwrap();
+        let copy =
+            listed.iter().find(|f| f.ends_with(Path::new(dropped.image.as_ref().unwrap()).file_name().unwrap().to_str().unwrap())).unwrap();
         assert!(!out.join(copy).exists(), "{copy}: the failed report's image stayed");
         assert!(out.join("plots").is_dir());
     }

@@ -254,17 +254,13 @@ impl SceneResult {
         let se = if shared_inputs && pa.len() == pb.len() && pa.len() >= 2 {
             let n = pa.len() as f64;
             let (ma, mb) = (pa.iter().sum::<f64>() / n, pb.iter().sum::<f64>() / n);
-            let cov = |x: &[f64], mx: f64, y: &[f64], my: f64| {
-                x.iter().zip(y).map(|(x, y)| (x - mx) * (y - my)).sum::<f64>() / (n - 1.0) / n
-            };
-            let rel_var = cov(pa, ma, pa, ma) / (ma * ma) + cov(pb, mb, pb, mb) / (mb * mb)
-                - 2.0 * cov(pa, ma, pb, mb) / (ma * mb);
+            let cov =
+                |x: &[f64], mx: f64, y: &[f64], my: f64| x.iter().zip(y).map(|(x, y)| (x - mx) * (y - my)).sum::<f64>() / (n - 1.0) / n;
+            let rel_var = cov(pa, ma, pa, ma) / (ma * ma) + cov(pb, mb, pb, mb) / (mb * mb) - 2.0 * cov(pa, ma, pb, mb) / (ma * mb);
             Some(value * rel_var.max(0.0).sqrt())
         } else {
             match (a.relmse_se, b.relmse_se) {
-                (Some(sa), Some(sb)) => {
-                    Some(value * ((sa / a.relmse_mean).powi(2) + (sb / b.relmse_mean).powi(2)).sqrt())
-                }
+                (Some(sa), Some(sb)) => Some(value * ((sa / a.relmse_mean).powi(2) + (sb / b.relmse_mean).powi(2)).sqrt()),
                 _ => None,
             }
         };
@@ -301,11 +297,7 @@ impl StudyResults {
     }
 
     pub fn new(scenes: Vec<SceneResult>) -> Self {
-        StudyResults {
-            schema_version: SCHEMA_VERSION,
-            generator: format!("cvtrace {}", env!("CARGO_PKG_VERSION")),
-            scenes,
-        }
+        StudyResults { schema_version: SCHEMA_VERSION, generator: format!("cvtrace {}", env!("CARGO_PKG_VERSION")), scenes }
     }
 
     /// Geometric mean over scenes of each headline ratio (scenes lacking a method are skipped),
@@ -335,10 +327,7 @@ impl StudyResults {
         if self.schema_version != SCHEMA_VERSION {
             return Err(EvalError::invalid(
                 "results",
-                format!(
-                    "schema version {} is not supported (this cvtrace reads version {SCHEMA_VERSION})",
-                    self.schema_version
-                ),
+                format!("schema version {} is not supported (this cvtrace reads version {SCHEMA_VERSION})", self.schema_version),
             ));
         }
         let mut scene_names = BTreeSet::new();
@@ -415,8 +404,8 @@ impl StudyResults {
             Ok(_) => {}
         }
         let bytes = std::fs::read(path).map_err(|e| EvalError::io(path, e))?;
-        let results: StudyResults = serde_json::from_slice(&bytes)
-            .map_err(|e| EvalError::Json { path: path.to_path_buf(), message: e.to_string() })?;
+        let results: StudyResults =
+            serde_json::from_slice(&bytes).map_err(|e| EvalError::Json { path: path.to_path_buf(), message: e.to_string() })?;
         results.validate().map_err(|e| EvalError::Json { path: path.to_path_buf(), message: e.to_string() })?;
         Ok(results)
     }
@@ -446,10 +435,8 @@ fn check_number(v: f64, non_negative: bool, ctx: &str) -> Result<(), EvalError> 
 /// Image paths must stay inside the results folder so a report can copy them safely.
 pub fn check_relative_path(p: &str, ctx: &str) -> Result<(), EvalError> {
     let path = Path::new(p);
-    let bad = p.is_empty()
-        || path.is_absolute()
-        || p.contains('\\')
-        || path.components().any(|c| !matches!(c, std::path::Component::Normal(_)));
+    let bad =
+        p.is_empty() || path.is_absolute() || p.contains('\\') || path.components().any(|c| !matches!(c, std::path::Component::Normal(_)));
     if bad {
         return Err(EvalError::invalid(
             ctx,

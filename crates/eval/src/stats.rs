@@ -46,13 +46,7 @@ impl<'r> SeedAccumulator<'r> {
     /// `method` names the estimator in error messages.
     pub fn new(reference: &'r Reference, method: impl Into<String>) -> Self {
         let n = reference.image.len();
-        SeedAccumulator {
-            reference,
-            method: method.into(),
-            mean: vec![[0.0; 3]; n],
-            m2: vec![[0.0; 3]; n],
-            per_seed: Vec::new(),
-        }
+        SeedAccumulator { reference, method: method.into(), mean: vec![[0.0; 3]; n], m2: vec![[0.0; 3]; n], per_seed: Vec::new() }
     }
 
     /// Adds the next seed's image (label defaults to "`method` seed `k`").
@@ -193,22 +187,14 @@ mod tests {
                 b2 += w[i] * b * b;
                 v += w[i] * sg2;
                 // Var((m−r)²) + Var(s²/S); m and s² are independent for Gaussian noise.
-                vb += w[i]
-                    * w[i]
-                    * (2.0 * sg2 * sg2 / (s * s) + 4.0 * b * b * sg2 / s + 2.0 * sg2 * sg2 / ((s - 1.0) * s * s));
+                vb += w[i] * w[i] * (2.0 * sg2 * sg2 / (s * s) + 4.0 * b * b * sg2 / s + 2.0 * sg2 * sg2 / ((s - 1.0) * s * s));
                 vv += w[i] * w[i] * 2.0 * sg2 * sg2 / (s - 1.0);
             }
         }
         Truths { bias2: b2 / n, variance: v / n, bias2_sd: vb.sqrt() / n, variance_sd: vv.sqrt() / n }
     }
 
-    fn run(
-        reference: &Reference,
-        bias: &[[f64; 3]],
-        sigma: &[[f64; 3]],
-        seeds: usize,
-        rng: &mut TestRng,
-    ) -> (SeedStats, Vec<f32>, Image) {
+    fn run(reference: &Reference, bias: &[[f64; 3]], sigma: &[[f64; 3]], seeds: usize, rng: &mut TestRng) -> (SeedStats, Vec<f32>, Image) {
         let mut acc = SeedAccumulator::new(reference, "synthetic");
         for _ in 0..seeds {
             acc.add(&noisy(&reference.image, bias, sigma, rng)).unwrap();
@@ -229,18 +215,8 @@ mod tests {
         let (stats, _, _) = run(&reference, &bias, &sigma, seeds, &mut rng);
         let truths = true_values(&reference, &bias, &sigma, seeds as f64);
         let (b2, v) = (stats.bias2.unwrap(), stats.variance.unwrap());
-        assert!(
-            (b2 - truths.bias2).abs() < 5.0 * truths.bias2_sd,
-            "bias² {b2} vs {} ± {}",
-            truths.bias2,
-            truths.bias2_sd
-        );
-        assert!(
-            (v - truths.variance).abs() < 5.0 * truths.variance_sd,
-            "variance {v} vs {} ± {}",
-            truths.variance,
-            truths.variance_sd
-        );
+        assert!((b2 - truths.bias2).abs() < 5.0 * truths.bias2_sd, "bias² {b2} vs {} ± {}", truths.bias2, truths.bias2_sd);
+        assert!((v - truths.variance).abs() < 5.0 * truths.variance_sd, "variance {v} vs {} ± {}", truths.variance, truths.variance_sd);
         // bias² + variance is the mean per-seed relMSE, exactly.
         assert!((b2 + v - stats.relmse_mean).abs() < 1e-9 * stats.relmse_mean);
     }

@@ -111,8 +111,7 @@ fn pt_image(t: &Image, spp: u32, rng: &mut Rng) -> Image {
 /// weaker independent part.
 fn crn_image(t: &Image, spp: u32, rng: &mut Rng) -> Image {
     let s = 1.0 / (spp as f32).sqrt();
-    let (a, b, ph1, ph2) =
-        (rng.normal() as f32, rng.normal() as f32, rng.uniform() as f32 * TAU, rng.uniform() as f32 * TAU);
+    let (a, b, ph1, ph2) = (rng.normal() as f32, rng.normal() as f32, rng.uniform() as f32 * TAU, rng.uniform() as f32 * TAU);
     let (w, h) = (t.width as f32, t.height as f32);
     let mut out = t.clone();
     for (i, p) in out.pixels.iter_mut().enumerate() {
@@ -286,23 +285,16 @@ pub fn write_synthetic_study(dir: &Path, opts: &SyntheticOptions) -> Result<Stud
     // Convergence: two seeds per spp value.
     let mut convergence = Vec::new();
     for &spp in &opts.convergence_spp {
-        let mut accs: Vec<SeedAccumulator> =
-            list.iter().map(|(k, _, _)| SeedAccumulator::new(&reference, *k)).collect();
+        let mut accs: Vec<SeedAccumulator> = list.iter().map(|(k, _, _)| SeedAccumulator::new(&reference, *k)).collect();
         for seed in 0..2u64 {
-            for (i, (img, _)) in run_seed(&truth, spp, 50_000 + 100 * spp as u64 + seed, false).into_iter().enumerate()
-            {
+            for (i, (img, _)) in run_seed(&truth, spp, 50_000 + 100 * spp as u64 + seed, false).into_iter().enumerate() {
                 accs[i].add(&img)?;
             }
         }
         for (acc, (key, _, _)) in accs.iter().zip(&list).filter(|(_, (_, _, abl))| !abl) {
             let s = acc.finish()?;
             let spp_total = if one_stream(key) { spp } else { 2 * spp };
-            convergence.push(ConvergencePoint {
-                method: key.to_string(),
-                spp_total,
-                relmse: s.relmse_mean,
-                relmse_se: s.relmse_se,
-            });
+            convergence.push(ConvergencePoint { method: key.to_string(), spp_total, relmse: s.relmse_mean, relmse_se: s.relmse_se });
         }
     }
 

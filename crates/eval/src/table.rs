@@ -51,8 +51,7 @@ pub fn ratio_name(r: &Ratio, scene: &SceneResult) -> String {
     format!("{}/{}", scene.short_label(&r.numerator), scene.short_label(&r.denominator))
 }
 
-const HEADERS: [&str; 10] =
-    ["method", "spp", "relMSE", "± se", "/PT(2n)", "bias²", "variance", "MSE", "render s", "recon s"];
+const HEADERS: [&str; 10] = ["method", "spp", "relMSE", "± se", "/PT(2n)", "bias²", "variance", "MSE", "render s", "recon s"];
 
 fn rows(scene: &SceneResult, ablation: bool) -> Vec<[String; 10]> {
     let pt2n = scene.method(keys::PT_2N).map(|m| m.relmse_mean).filter(|v| *v > 0.0);
@@ -446,11 +445,18 @@ mod tests {
     fn ratio_errors_pair_shared_inputs_only_and_carry_into_the_geometric_mean() {
         // ours and IDUW move together over the seeds (they read the same streams); PT(2n) is
         // a render of its own.
-        let a = seeded_scene("a", &[("ours", [0.10, 0.12, 0.11, 0.13]), ("iduw", [0.20, 0.25, 0.21, 0.26]), ("pt2n", [0.30, 0.28, 0.33, 0.29])]);
-        let b = seeded_scene("b", &[("ours", [0.05, 0.04, 0.06, 0.05]), ("iduw", [0.09, 0.10, 0.08, 0.11]), ("pt2n", [0.20, 0.21, 0.19, 0.22])]);
+        let a = seeded_scene(
+            "a",
+            &[("ours", [0.10, 0.12, 0.11, 0.13]), ("iduw", [0.20, 0.25, 0.21, 0.26]), ("pt2n", [0.30, 0.28, 0.33, 0.29])],
+        );
+        let b = seeded_scene(
+            "b",
+            &[("ours", [0.05, 0.04, 0.06, 0.05]), ("iduw", [0.09, 0.10, 0.08, 0.11]), ("pt2n", [0.20, 0.21, 0.19, 0.22])],
+        );
         let unpaired = |s: &SceneResult, x: &str, y: &str| {
             let (p, q) = (s.method(x).unwrap(), s.method(y).unwrap());
-            p.relmse_mean / q.relmse_mean * ((p.relmse_se.unwrap() / p.relmse_mean).powi(2) + (q.relmse_se.unwrap() / q.relmse_mean).powi(2)).sqrt()
+            p.relmse_mean / q.relmse_mean
+                * ((p.relmse_se.unwrap() / p.relmse_mean).powi(2) + (q.relmse_se.unwrap() / q.relmse_mean).powi(2)).sqrt()
         };
         let r = a.ratio("ours", "iduw").unwrap();
         assert!(r.se.unwrap() < 0.6 * unpaired(&a, "ours", "iduw"), "pairing must remove the shared seed noise: {r:?}");
@@ -463,7 +469,9 @@ mod tests {
             let expect = g.value * ((ra.se.unwrap() / ra.value).powi(2) + (rb.se.unwrap() / rb.value).powi(2)).sqrt() / 2.0;
             assert!((g.se.unwrap() - expect).abs() < 1e-12, "{g:?} vs {expect}");
         }
-        assert!(terminal_report(&results).contains("geometric mean over 2 scenes: ours/IDUW = ") && terminal_report(&results).contains(" ± "));
+        assert!(
+            terminal_report(&results).contains("geometric mean over 2 scenes: ours/IDUW = ") && terminal_report(&results).contains(" ± ")
+        );
     }
 
     fn scene(name: &str, relmse: &[(&str, f64, bool)]) -> SceneResult {
@@ -508,8 +516,28 @@ mod tests {
 
     #[test]
     fn markdown_summary_has_a_row_per_scene_and_geometric_means() {
-        let a = scene("a", &[("pt", 0.4, false), ("pt2n", 0.2, false), ("iduw", 0.1, false), ("cv", 0.08, false), ("ours", 0.05, false), ("ours-window", 0.06, true)]);
-        let b = scene("b", &[("pt", 0.2, false), ("pt2n", 0.1, false), ("iduw", 0.02, false), ("cv", 0.04, false), ("ours", 0.01, false), ("ours-window", 0.015, true)]);
+        let a = scene(
+            "a",
+            &[
+                ("pt", 0.4, false),
+                ("pt2n", 0.2, false),
+                ("iduw", 0.1, false),
+                ("cv", 0.08, false),
+                ("ours", 0.05, false),
+                ("ours-window", 0.06, true),
+            ],
+        );
+        let b = scene(
+            "b",
+            &[
+                ("pt", 0.2, false),
+                ("pt2n", 0.1, false),
+                ("iduw", 0.02, false),
+                ("cv", 0.04, false),
+                ("ours", 0.01, false),
+                ("ours-window", 0.015, true),
+            ],
+        );
         let md = markdown_summary(&StudyResults::new(vec![a, b]));
         assert!(md.contains("| a (96+96) |"), "{md}");
         assert!(md.contains("| b (96+96) |"), "{md}");
@@ -533,7 +561,8 @@ mod tests {
         let odd = "x</td><script>|*y*\nz_";
         let a = scene(odd, &[("pt", 0.4, false), ("pt2n", 0.2, false), ("iduw", 0.1, false), ("cv", 0.08, false), ("ours", 0.05, false)]);
         // Every relMSE 0: no ratio is defined, so this scene is not in the geometric means.
-        let void = scene("void", &[("pt", 0.0, false), ("pt2n", 0.0, false), ("iduw", 0.0, false), ("cv", 0.0, false), ("ours", 0.0, false)]);
+        let void =
+            scene("void", &[("pt", 0.0, false), ("pt2n", 0.0, false), ("iduw", 0.0, false), ("cv", 0.0, false), ("ours", 0.0, false)]);
         let md = markdown_summary(&StudyResults::new(vec![a, void]));
         let escaped = "x&lt;/td&gt;&lt;script&gt;\\|\\*y\\* z\\_";
         assert!(md.contains(&format!("| {escaped} (96+96) |")), "{md}");

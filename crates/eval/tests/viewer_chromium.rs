@@ -181,13 +181,11 @@ fn viewer_loads_every_image_and_shows_the_json_numbers() {
     let study = dir.path().join("study");
     let results = two_scene_study(&study);
     let out = dir.path().join("report");
-    let index =
-        write_report(&results, &study, &out, &ReportOptions { title: "viewer test".into(), overwrite: false }).unwrap();
+    let index = write_report(&results, &study, &out, &ReportOptions { title: "viewer test".into(), overwrite: false }).unwrap();
     let url = file_url(&index);
 
     // 1. Screenshot: exists, has the window size, and is not blank.
-    let shot: PathBuf =
-        std::env::var_os("CVTRACE_VIEWER_SCREENSHOT").map(PathBuf::from).unwrap_or_else(|| dir.path().join("shot.png"));
+    let shot: PathBuf = std::env::var_os("CVTRACE_VIEWER_SCREENSHOT").map(PathBuf::from).unwrap_or_else(|| dir.path().join("shot.png"));
     chromium(&dir.path().join("profile-1"), &[format!("--screenshot={}", shot.display())], &url);
     assert!(shot.is_file(), "no screenshot written");
     let (w, h, px, color) = decode_png(&shot);
@@ -216,8 +214,7 @@ fn viewer_loads_every_image_and_shows_the_json_numbers() {
     let dom = chromium(&dir.path().join("profile-2"), &["--dump-dom".to_string()], &url);
     assert!(dom.contains("<body"), "no DOM dumped");
     let loaded = attr(&dom, "<body", "data-loaded").expect("body has no data-loaded: did viewer.js run?");
-    let (ok, total) =
-        loaded.split_once('/').map(|(a, b)| (a.parse::<usize>().unwrap(), b.parse::<usize>().unwrap())).unwrap();
+    let (ok, total) = loaded.split_once('/').map(|(a, b)| (a.parse::<usize>().unwrap(), b.parse::<usize>().unwrap())).unwrap();
     let failed_src = attr(&dom, "<body", "data-failed-src").unwrap_or_default();
     assert_eq!(ok, total, "only {ok} of {total} images loaded; failed: {failed_src}");
     assert_eq!(attr(&dom, "<body", "data-ready").as_deref(), Some("1"));
@@ -247,11 +244,7 @@ fn viewer_loads_every_image_and_shows_the_json_numbers() {
             assert_shows(&dom, &k("mse_mean"), Some(m.mse_mean));
             let t = cell(&dom, &k("time_total")).unwrap();
             let shown: f64 = t.parse().unwrap();
-            assert!(
-                (shown - m.time_seconds.total()).abs() <= 5e-4 + 5e-3 * m.time_seconds.total(),
-                "{} time {t}",
-                m.name
-            );
+            assert!((shown - m.time_seconds.total()).abs() <= 5e-4 + 5e-3 * m.time_seconds.total(), "{} time {t}", m.name);
             let pt2n = scene.method("pt2n").unwrap().relmse_mean;
             assert_shows(&dom, &k("over_pt2n"), Some(m.relmse_mean / pt2n));
         }
@@ -283,9 +276,7 @@ fn viewer_copes_with_minimal_results() {
     // What `cvtrace compare` produces: one seed, no images, no maps, no plot, unknown spp.
     let dir = tempfile::tempdir().unwrap();
     let study = dir.path().join("study");
-    let full =
-        write_synthetic_study(&study, &SyntheticOptions { convergence_spp: vec![], ..SyntheticOptions::small() })
-            .unwrap();
+    let full = write_synthetic_study(&study, &SyntheticOptions { convergence_spp: vec![], ..SyntheticOptions::small() }).unwrap();
     let mut scene = full.scenes[0].clone();
     scene.spp_per_stream = 0;
     scene.seeds = 1;

@@ -49,7 +49,13 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
             alias: None,
         },
     ],
-    needs: |_| Needs { batches: BatchNeed::Range { min: 2, max: MAX_BATCHES }, features: None, reference: false, spp: false, bounded_values: true },
+    needs: |_| Needs {
+        batches: BatchNeed::Range { min: 2, max: MAX_BATCHES },
+        features: None,
+        reference: false,
+        spp: false,
+        bounded_values: true,
+    },
     build: |p| Ok(Box::new(Ivw::from_params(p))),
     variants: &[],
 };

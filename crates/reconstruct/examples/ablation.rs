@@ -9,8 +9,8 @@
 //! cargo run --release -p cvtrace-reconstruct --example ablation            # full (a few minutes)
 //! cargo run --release -p cvtrace-reconstruct --example ablation -- --quick # 3 seeds, 1 spp level
 //! ```
-use cvtrace_reconstruct::estimators::{ClassicCv, Iduw, ImperfectCv};
 use cvtrace_eval::{Reference, SeedAccumulator};
+use cvtrace_reconstruct::estimators::{ClassicCv, Iduw, ImperfectCv};
 use cvtrace_reconstruct::synthetic::{RenderSpec, SoftShadowScene};
 use cvtrace_reconstruct::*;
 use cvtrace_streams::Image;

@@ -63,7 +63,8 @@ fn extra_variants() -> Vec<(String, Tweak)> {
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let reference = cvtrace_streams::exr_io::read_rgb(Path::new(&args[0])).unwrap();
-    let weights: Vec<f64> = reference.pixels.iter().map(|p| 1.0 / ((p.iter().map(|v| *v as f64).sum::<f64>() / 3.0).powi(2) + 0.01)).collect();
+    let weights: Vec<f64> =
+        reference.pixels.iter().map(|p| 1.0 / ((p.iter().map(|v| *v as f64).sum::<f64>() / 3.0).powi(2) + 0.01)).collect();
     let est = variants();
     let nb = EDGES.len();
     // [method][bin] → (count of pixel-channels, Σ signed error, Σ squared error, Σx, Σr)
@@ -117,7 +118,10 @@ fn main() {
         }
         total += (3 * w * h) as f64;
     }
-    println!("{} seeds; ρ = CRN var / neighbours' PT var; per bin: share | mean signed rel. error | relMSE contribution | Σx/Σr", args.len() - 1);
+    println!(
+        "{} seeds; ρ = CRN var / neighbours' PT var; per bin: share | mean signed rel. error | relMSE contribution | Σx/Σr",
+        args.len() - 1
+    );
     print!("| method |");
     let mut lo = 0.0;
     for e in EDGES {

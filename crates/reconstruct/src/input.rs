@@ -186,7 +186,10 @@ const RGB: [&str; 3] = ["R", "G", "B"];
 /// The first value that is not finite or is beyond `limit` in magnitude.
 fn first_beyond(im: &Image, limit: f32) -> Option<(usize, usize, usize, f32)> {
     let w = im.width.max(1);
-    im.pixels.iter().enumerate().find_map(|(i, p)| p.iter().position(|v| !v.is_finite() || v.abs() > limit).map(|c| (i % w, i / w, c, p[c])))
+    im.pixels
+        .iter()
+        .enumerate()
+        .find_map(|(i, p)| p.iter().position(|v| !v.is_finite() || v.abs() > limit).map(|c| (i % w, i / w, c, p[c])))
 }
 
 fn first_non_finite(im: &Image) -> Option<(usize, usize, usize, f32)> {

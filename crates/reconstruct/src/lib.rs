@@ -76,16 +76,15 @@ pub use cvtrace_streams::{Features, Image, Stream, StreamMeta, StreamSet};
 pub use diagnostics::{DiagValue, Diagnostics};
 pub use error::{ParseNameError, ReconError};
 pub use estimator::{Estimator, Instance, Output};
-pub use floor::{FloorMode, FloorSource};
 pub use estimators::{ClassicCvOptions, IduwOptions, ImperfectCvOptions, GAMMA_GRID};
+pub use floor::{FloorMode, FloorSource};
 pub use input::{stream_set_from_batches, BatchNeed, Input, Needs, MAX_VALUE};
-pub use registry::{build, Overrides, Registry, RESERVED_NAMES};
 pub use penalty::Penalty;
 pub use pt_error::{CbfOptions, ErrorEstimate};
+pub use registry::{build, Overrides, Registry, RESERVED_NAMES};
 pub use selection::{Selection, MAX_SEARCH_WINDOW};
 pub use solve::{MAX_BATCHES, MAX_K};
 pub use spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples, Value, Variant};
-
 
 /// The building blocks of the control-variate estimators, for estimators in other crates.
 ///

@@ -46,7 +46,10 @@ impl Registry {
                 && key.chars().all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-')
                 && !RESERVED_NAMES.contains(&key);
             if !valid {
-                return Err(ReconError::BadSpec { method: spec.name.to_string(), why: format!("`{key}` is not a usable name: lower-case letters, digits and `-`, not {}", RESERVED_NAMES.join(" or ")) });
+                return Err(ReconError::BadSpec {
+                    method: spec.name.to_string(),
+                    why: format!("`{key}` is not a usable name: lower-case letters, digits and `-`, not {}", RESERVED_NAMES.join(" or ")),
+                });
             }
             if self.specs.iter().any(|s| s.name == key || s.variants.iter().any(|v| v.key == key)) {
                 return Err(ReconError::BadSpec { method: spec.name.to_string(), why: format!("`{key}` is registered already") });
@@ -54,10 +57,16 @@ impl Registry {
         }
         for p in spec.params {
             if spec.params.iter().filter(|q| q.name == p.name).count() > 1 || p.name.contains('-') {
-                return Err(ReconError::BadSpec { method: spec.name.to_string(), why: format!("parameter `{}` is declared twice or has a `-` (use `_`)", p.name) });
+                return Err(ReconError::BadSpec {
+                    method: spec.name.to_string(),
+                    why: format!("parameter `{}` is declared twice or has a `-` (use `_`)", p.name),
+                });
             }
             if let Err(e) = p.kind.parse(p.default) {
-                return Err(ReconError::BadSpec { method: spec.name.to_string(), why: format!("the default of `{}`, `{}`: {e}", p.name, p.default) });
+                return Err(ReconError::BadSpec {
+                    method: spec.name.to_string(),
+                    why: format!("the default of `{}`, `{}`: {e}", p.name, p.default),
+                });
             }
         }
         self.specs.push(spec);
@@ -72,10 +81,11 @@ impl Registry {
     /// The spec called `name` (case-insensitive).
     pub fn get(&self, name: &str) -> Result<&'static EstimatorSpec, ReconError> {
         let wanted = name.trim();
-        self.specs.iter().copied().find(|s| s.name.eq_ignore_ascii_case(wanted)).ok_or_else(|| ReconError::UnknownMethod {
-            given: name.to_string(),
-            known: self.names_and_all(),
-        })
+        self.specs
+            .iter()
+            .copied()
+            .find(|s| s.name.eq_ignore_ascii_case(wanted))
+            .ok_or_else(|| ReconError::UnknownMethod { given: name.to_string(), known: self.names_and_all() })
     }
 
     fn names_and_all(&self) -> String {
@@ -227,7 +237,9 @@ mod tests {
         for spec in r.specs() {
             for p in spec.params {
                 let (ok, bad): (Vec<String>, Vec<String>) = match p.kind {
-                    ParamKind::Int { min, max } => (vec![min.to_string(), max.to_string()], vec![(min as i128 - 1).to_string(), (max as i128 + 1).to_string()]),
+                    ParamKind::Int { min, max } => {
+                        (vec![min.to_string(), max.to_string()], vec![(min as i128 - 1).to_string(), (max as i128 + 1).to_string()])
+                    }
                     ParamKind::Float(b) | ParamKind::AutoFloat(b) | ParamKind::FloatList(b) => {
                         let mut bad = vec!["nan".to_string(), "inf".to_string()];
                         if b.above || b.min.is_finite() {

@@ -305,13 +305,13 @@ mod dispatch_tests {
             return;
         }
         let runs: Vec<(&str, &[&str], usize)> = vec![
-            ("ours", &[], 16), // panel width 16, CBF errors, common floor
+            ("ours", &[], 16),                                                          // panel width 16, CBF errors, common floor
             ("ours", &["ours.crn_floor_mode=independent", "ours.penalty=residual"], 8), // width 8
-            ("ours", &[], 24),              // width 32
-            ("ours", &["ours.k=40"], 36),   // width 64
-            ("ours", &[], 32),              // B ≥ k: the general f64 solve
-            ("ours", &["ours.shared_coefficients=true"], 16), // general, 3·B columns
-            ("ours", &["ours.cross_fit=true"], 16), // two halves, width 8
+            ("ours", &[], 24),                                                          // width 32
+            ("ours", &["ours.k=40"], 36),                                               // width 64
+            ("ours", &[], 32),                                                          // B ≥ k: the general f64 solve
+            ("ours", &["ours.shared_coefficients=true"], 16),                           // general, 3·B columns
+            ("ours", &["ours.cross_fit=true"], 16),                                     // two halves, width 8
             ("cv", &[], 16),
             ("iduw", &[], 16), // γ criterion and output
         ];

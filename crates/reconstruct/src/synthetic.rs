@@ -288,17 +288,16 @@ mod tests {
         for s in 0..seeds {
             let set = scene.render(&RenderSpec { seed: 1000 + s, ..spec.clone() }).unwrap();
             for (k, im) in [&set.pt.mean, &set.crn.mean].into_iter().enumerate() {
-                let e: Vec<[f64; 3]> = im.pixels.iter().zip(&r.pixels).map(|(a, b)| std::array::from_fn(|c| (a[c] - b[c]) as f64)).collect();
+                let e: Vec<[f64; 3]> =
+                    im.pixels.iter().zip(&r.pixels).map(|(a, b)| std::array::from_fn(|c| (a[c] - b[c]) as f64)).collect();
                 for i in 0..n {
                     for c in 0..3 {
                         sum[k][i][c] += e[i][c];
                         sum2[k][i][c] += e[i][c] * e[i][c];
                     }
                 }
-                let per_region: Vec<[f64; 3]> = members
-                    .iter()
-                    .map(|px| std::array::from_fn(|c| px.iter().map(|i| e[*i][c]).sum::<f64>() / px.len() as f64))
-                    .collect();
+                let per_region: Vec<[f64; 3]> =
+                    members.iter().map(|px| std::array::from_fn(|c| px.iter().map(|i| e[*i][c]).sum::<f64>() / px.len() as f64)).collect();
                 region_means[k].push(per_region);
             }
         }

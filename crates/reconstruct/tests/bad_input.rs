@@ -121,7 +121,10 @@ fn absurd_options_are_refused_before_any_work() {
     let e = bad(&["cv.ridge=NaN"]);
     assert!(e.contains("--cv-ridge NaN"), "{e}");
     // The typed options are checked as strictly as the parameters.
-    assert!(estimators::ClassicCv::new(ClassicCvOptions { neighbours: 0, ..Default::default() }).unwrap_err().to_string().contains("at least one neighbour"));
+    assert!(estimators::ClassicCv::new(ClassicCvOptions { neighbours: 0, ..Default::default() })
+        .unwrap_err()
+        .to_string()
+        .contains("at least one neighbour"));
     let e = "lasso".parse::<Penalty>().unwrap_err().to_string();
     assert!(e.contains("lasso") && e.contains("avg"), "{e}");
     let e = "nearest".parse::<Selection>().unwrap_err().to_string();

@@ -99,11 +99,5 @@ fn ours_bias_is_small_against_its_variance() {
     // not zero). Measured when written: bias² 1.1% of the variance.
     let (reference, images) = images("ours", &Overrides::default());
     let b = bias(&reference, &images);
-    assert!(
-        b.bias2 + 5.0 * b.sd_jack < 0.05 * b.variance,
-        "ours: bias² {:.3e} ± {:.3e}, variance {:.3e}",
-        b.bias2,
-        b.sd_jack,
-        b.variance
-    );
+    assert!(b.bias2 + 5.0 * b.sd_jack < 0.05 * b.variance, "ours: bias² {:.3e} ± {:.3e}, variance {:.3e}", b.bias2, b.sd_jack, b.variance);
 }

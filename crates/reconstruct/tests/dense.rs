@@ -47,7 +47,14 @@ fn ours_matches_a_dense_solve_of_eq7_from_the_batches() {
     // ridge λ = 10⁻³ · mean diag(V_g + V_h), and the output f̄_c − Σ β_i (ḡ_i − h̄_i).
     // Tolerance 1e-5 relative: the panel solves in f32 (β within 10⁻⁶ of f64) and the inputs
     // are f32.
-    let base = Overrides::parse(["ours.select=window", "ours.errors=variance", "ours.penalty=none", "ours.crn_floor=0", "ours.shared_coefficients=false"]).unwrap();
+    let base = Overrides::parse([
+        "ours.select=window",
+        "ours.errors=variance",
+        "ours.penalty=none",
+        "ours.crn_floor=0",
+        "ours.shared_coefficients=false",
+    ])
+    .unwrap();
     // (B, k): panel widths 8, 16, 32 and 64, then B ≥ k (the general f64 solve).
     for (b, k) in [(4usize, 25usize), (16, 25), (24, 25), (36, 37), (32, 25)] {
         let options = base.with("ours", &[("k", &k.to_string())]);

@@ -8,8 +8,7 @@ fn run_on(threads: usize, set: &cvtrace_streams::StreamSet) -> Vec<Image> {
     pool.install(|| {
         let runs: [(&str, &[&str]); 5] =
             [("ours", &[]), ("ours", &["ours.select=random"]), ("ours", &["ours.shared_coefficients=true"]), ("cv", &[]), ("iduw", &[])];
-        runs.iter().map(|(m, o)| build(m, &Overrides::parse(o.iter()).unwrap()).unwrap().run(&Input::new(set)).unwrap().image)
-        .collect()
+        runs.iter().map(|(m, o)| build(m, &Overrides::parse(o.iter()).unwrap()).unwrap().run(&Input::new(set)).unwrap().image).collect()
     })
 }
 

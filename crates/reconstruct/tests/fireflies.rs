@@ -5,7 +5,7 @@ mod common;
 
 use common::{normal, stream_set};
 use cvtrace_reconstruct::estimators::ImperfectCv;
-use cvtrace_reconstruct::{Estimator, Input, ImperfectCvOptions, StreamSet};
+use cvtrace_reconstruct::{Estimator, ImperfectCvOptions, Input, StreamSet};
 
 const W: usize = 21;
 const TRUTH: f64 = 0.5;

@@ -5,7 +5,9 @@ mod common;
 use common::dense::{batch_mean, set_of, variance_of_mean, Fit, Rule};
 use common::{normal, stream_set, stream_set_rgb};
 use cvtrace_reconstruct::estimators::ImperfectCv;
-use cvtrace_reconstruct::{Estimator, ErrorEstimate, FloorMode, FloorSource, Input, ImperfectCvOptions, Penalty, ReconError, Selection, StreamSet};
+use cvtrace_reconstruct::{
+    ErrorEstimate, Estimator, FloorMode, FloorSource, ImperfectCvOptions, Input, Penalty, ReconError, Selection, StreamSet,
+};
 
 const W: usize = 21;
 const M: f64 = 0.8;
@@ -123,18 +125,21 @@ fn cross_fit_end_points_are_pt_and_crn() {
     });
     let out = est.reconstruct(&Input::new(&noisy_crn)).unwrap().image;
     let c = (W / 2) * W + W / 2;
-    assert!((out.pixels[c][0] - noisy_crn.pt.mean.pixels[c][0]).abs() < 0.02, "{:?} vs PT {:?}", out.pixels[c], noisy_crn.pt.mean.pixels[c]);
-    let noisy_pt = stream_set(
-        W,
-        W,
-        16,
-        64,
-        truth,
-        |b, i| 1e-3 * normal(7, (b * 4096 + i) as u64),
-        |b, i| 3.0 * normal(8, (b * 4096 + i) as u64),
+    assert!(
+        (out.pixels[c][0] - noisy_crn.pt.mean.pixels[c][0]).abs() < 0.02,
+        "{:?} vs PT {:?}",
+        out.pixels[c],
+        noisy_crn.pt.mean.pixels[c]
     );
+    let noisy_pt =
+        stream_set(W, W, 16, 64, truth, |b, i| 1e-3 * normal(7, (b * 4096 + i) as u64), |b, i| 3.0 * normal(8, (b * 4096 + i) as u64));
     let out = est.reconstruct(&Input::new(&noisy_pt)).unwrap().image;
-    assert!((out.pixels[c][0] - noisy_pt.crn.mean.pixels[c][0]).abs() < 1e-3, "{:?} vs CRN {:?}", out.pixels[c], noisy_pt.crn.mean.pixels[c]);
+    assert!(
+        (out.pixels[c][0] - noisy_pt.crn.mean.pixels[c][0]).abs() < 1e-3,
+        "{:?} vs CRN {:?}",
+        out.pixels[c],
+        noisy_pt.crn.mean.pixels[c]
+    );
 }
 
 #[test]
@@ -214,7 +219,8 @@ fn bad_floor_and_cross_fit_settings_are_rejected() {
     // Cross-fitting needs two equal halves of at least two batches each.
     let est = cvtrace_reconstruct::build("ours", &cvtrace_reconstruct::Overrides::parse(["ours.cross_fit=true"]).unwrap()).unwrap();
     for (b, needle) in [(5usize, "even"), (2, "at least 4")] {
-        let set = stream_set(8, 8, b, 16, |_| 1.0, |bb, i| 0.1 * normal(1, (bb * 64 + i) as u64), |bb, i| 0.1 * normal(2, (bb * 64 + i) as u64));
+        let set =
+            stream_set(8, 8, b, 16, |_| 1.0, |bb, i| 0.1 * normal(1, (bb * 64 + i) as u64), |bb, i| 0.1 * normal(2, (bb * 64 + i) as u64));
         let e = est.run(&Input::new(&set)).unwrap_err();
         assert!(matches!(e, ReconError::BatchCount { .. }) && e.to_string().contains(needle), "B = {b}: {e}");
     }

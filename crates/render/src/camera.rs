@@ -47,7 +47,10 @@ impl Camera {
         // every pixel would see the same point.
         if (self.vfov_deg.to_radians() * 0.5).tan() <= f32::EPSILON {
             let min = (2.0 * f32::EPSILON.atan()).to_degrees();
-            return Err(format!("vertical field of view {} degrees is too narrow: below {min:.2e} degrees every camera ray points the same way", self.vfov_deg));
+            return Err(format!(
+                "vertical field of view {} degrees is too narrow: below {min:.2e} degrees every camera ray points the same way",
+                self.vfov_deg
+            ));
         }
         Ok(())
     }

@@ -30,46 +30,28 @@ pub fn sum_channel(c: usize, piece: usize) -> String {
 
 /// `cbox.ref.exr` → `cbox.ref.checkpoint.exr` (other names get `.checkpoint.exr` appended).
 pub fn checkpoint_path(output: &Path) -> PathBuf {
-    let name = output
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
+    let name = output.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let stem = name.strip_suffix(".exr").unwrap_or(&name);
     output.with_file_name(format!("{stem}.checkpoint.exr"))
 }
 
 /// Writes `accum` to `path` atomically, recording `provenance` without its counts (the
 /// progress is `cvtrace.samplesDone`).
-pub fn save(
-    path: &Path,
-    accum: &ReferenceAccum,
-    provenance: &Provenance,
-) -> Result<(), RenderError> {
+pub fn save(path: &Path, accum: &ReferenceAccum, provenance: &Provenance) -> Result<(), RenderError> {
     let (w, h) = (accum.width as usize, accum.height as usize);
     let mut ch = ExrChannels::new(w, h);
     let mean = accum.mean();
     for (c, name) in ["R", "G", "B"].iter().enumerate() {
         ch.insert(*name, mean.channel(c));
         for piece in 0..SUM_PIECES {
-            let plane = accum
-                .sum
-                .iter()
-                .map(|s| ((s[c].to_bits() >> (16 * piece)) & 0xffff) as f32)
-                .collect();
+            let plane = accum.sum.iter().map(|s| ((s[c].to_bits() >> (16 * piece)) & 0xffff) as f32).collect();
             ch.insert(sum_channel(c, piece), plane);
         }
     }
     provenance.without_counts().write_to(&mut ch.attributes);
-    ch.attributes
-        .insert(KIND_ATTR.into(), AttrValue::Text(KIND.into()));
-    ch.attributes.insert(
-        ATTR_SAMPLES_DONE.into(),
-        AttrValue::Int(accum.samples_done as i32),
-    );
-    ch.attributes.insert(
-        ATTR_NON_FINITE.into(),
-        AttrValue::Text(accum.non_finite_samples.to_string()),
-    );
+    ch.attributes.insert(KIND_ATTR.into(), AttrValue::Text(KIND.into()));
+    ch.attributes.insert(ATTR_SAMPLES_DONE.into(), AttrValue::Int(accum.samples_done as i32));
+    ch.attributes.insert(ATTR_NON_FINITE.into(), AttrValue::Text(accum.non_finite_samples.to_string()));
     ch.write(path, true)?;
     Ok(())
 }
@@ -78,25 +60,15 @@ pub fn save(
 /// is no checkpoint. A checkpoint of another render (any difference in `planned`'s fields but
 /// the counts), of another cvtrace version, or one that does not read is an error that says
 /// to delete it.
-pub fn load(
-    path: &Path,
-    planned: &Provenance,
-    s: &RenderSettings,
-) -> Result<Option<ReferenceAccum>, RenderError> {
+pub fn load(path: &Path, planned: &Provenance, s: &RenderSettings) -> Result<Option<ReferenceAccum>, RenderError> {
     if !path.exists() {
         return Ok(None);
     }
     // Whatever is wrong with it, the way out is the same.
-    read(path, planned, s)
-        .map(Some)
-        .map_err(|e| RenderError::Checkpoint(e.to_string()))
+    read(path, planned, s).map(Some).map_err(|e| RenderError::Checkpoint(e.to_string()))
 }
 
-fn read(
-    path: &Path,
-    planned: &Provenance,
-    s: &RenderSettings,
-) -> Result<ReferenceAccum, RenderError> {
+fn read(path: &Path, planned: &Provenance, s: &RenderSettings) -> Result<ReferenceAccum, RenderError> {
     let invalid = |m: String| RenderError::from(StreamError::invalid(path, m));
     let mut ch = ExrChannels::read(path)?;
     if ch.attr(KIND_ATTR).map(AttrValue::as_text).as_deref() != Some(KIND) {
@@ -104,17 +76,7 @@ fn read(
     }
     let saved = Provenance::from_exr(&ch, path)?;
     check_version(&saved, path, "checkpoint")?;
-    saved.require(
-        &[
-            Field::Seed,
-            Field::MaxDepth,
-            Field::RrDepth,
-            Field::SceneHash,
-            Field::Camera,
-        ],
-        path,
-        "checkpoint",
-    )?;
+    saved.require(&[Field::Seed, Field::MaxDepth, Field::RrDepth, Field::SceneHash, Field::Camera], path, "checkpoint")?;
     let diff = planned.without_counts().differences(&saved);
     if !diff.is_empty() {
         return Err(invalid(format!(
@@ -124,16 +86,9 @@ fn read(
     }
     let samples_done = match ch.attr(ATTR_SAMPLES_DONE) {
         Some(AttrValue::Int(n)) if *n >= 0 => *n as u32,
-        _ => {
-            return Err(invalid(format!(
-                "checkpoint lacks a valid {ATTR_SAMPLES_DONE}"
-            )))
-        }
+        _ => return Err(invalid(format!("checkpoint lacks a valid {ATTR_SAMPLES_DONE}"))),
     };
-    let non_finite_samples = ch
-        .attr(ATTR_NON_FINITE)
-        .and_then(|v| v.as_text().parse().ok())
-        .unwrap_or(0);
+    let non_finite_samples = ch.attr(ATTR_NON_FINITE).and_then(|v| v.as_text().parse().ok()).unwrap_or(0);
     let n = ch.width * ch.height;
     let mut bits = vec![[0u64; 3]; n];
     for c in 0..3 {
@@ -141,10 +96,7 @@ fn read(
             let plane = ch.take(path, &sum_channel(c, piece))?;
             for (b, v) in bits.iter_mut().zip(plane) {
                 if !(0.0..=65535.0).contains(&v) || v.fract() != 0.0 {
-                    return Err(invalid(format!(
-                        "channel {} is corrupt",
-                        sum_channel(c, piece)
-                    )));
+                    return Err(invalid(format!("channel {} is corrupt", sum_channel(c, piece))));
                 }
                 b[c] |= (v as u64) << (16 * piece);
             }
@@ -154,42 +106,24 @@ fn read(
     if sum.iter().flatten().any(|v| !v.is_finite()) {
         return Err(invalid("checkpoint sums are not finite".into()));
     }
-    Ok(ReferenceAccum {
-        sum,
-        samples_done,
-        non_finite_samples,
-        ..ReferenceAccum::new(s)
-    })
+    Ok(ReferenceAccum { sum, samples_done, non_finite_samples, ..ReferenceAccum::new(s) })
 }
 
 /// The accumulator of the finished reference at `path`, to be extended to `s.spp` samples: its
 /// record must match `planned` (counts aside) and it must hold fewer samples. A reference that
 /// does not record its scene hash or camera is trusted, with a warning.
-pub fn load_finished(
-    path: &Path,
-    planned: &Provenance,
-    s: &RenderSettings,
-) -> Result<ReferenceAccum, RenderError> {
+pub fn load_finished(path: &Path, planned: &Provenance, s: &RenderSettings) -> Result<ReferenceAccum, RenderError> {
     let invalid = |m: String| RenderError::from(StreamError::invalid(path, m));
     let mut ch = ExrChannels::read(path)?;
     if ch.attr(KIND_ATTR).is_some() {
-        return Err(invalid(
-            "this is a checkpoint, not a finished reference".into(),
-        ));
+        return Err(invalid("this is a checkpoint, not a finished reference".into()));
     }
     let saved = Provenance::from_exr(&ch, path)?;
     check_version(&saved, path, "reference")?;
-    saved.require(
-        &[Field::Seed, Field::MaxDepth, Field::RrDepth],
-        path,
-        "reference",
-    )?;
+    saved.require(&[Field::Seed, Field::MaxDepth, Field::RrDepth], path, "reference")?;
     let diff = planned.without_counts().differences(&saved);
     if !diff.is_empty() {
-        return Err(invalid(format!(
-            "--extend: the reference is of a different render ({})",
-            describe_all(&diff, "reference")
-        )));
+        return Err(invalid(format!("--extend: the reference is of a different render ({})", describe_all(&diff, "reference"))));
     }
     if saved.scene_hash.is_none() || saved.camera.is_none() {
         tracing::warn!(
@@ -202,33 +136,26 @@ pub fn load_finished(
         _ => return Err(invalid("reference lacks a valid cvtrace.spp".into())),
     };
     if done >= s.spp {
-        return Err(invalid(format!(
-            "--extend: the reference already holds {done} spp; ask for more with --spp (now {})",
-            s.spp
-        )));
+        return Err(invalid(format!("--extend: the reference already holds {done} spp; ask for more with --spp (now {})", s.spp)));
     }
     let mean = take_rgb(&mut ch, path, "")?;
     let mut accum = ReferenceAccum::from_mean(s, &mean, done)?;
-    accum.non_finite_samples = ch
-        .attr(ATTR_NON_FINITE)
-        .and_then(|v| v.as_text().parse().ok())
-        .unwrap_or(0);
+    accum.non_finite_samples = ch.attr(ATTR_NON_FINITE).and_then(|v| v.as_text().parse().ok()).unwrap_or(0);
     Ok(accum)
 }
 
 /// Another cvtrace version may draw other samples for the same settings: its sums are not
 /// continued.
 fn check_version(saved: &Provenance, path: &Path, what: &str) -> Result<(), RenderError> {
-    let version = saved.version.as_deref().ok_or_else(|| {
-        StreamError::invalid(path, format!("{what} lacks the attribute cvtrace.version"))
-    })?;
+    let version =
+        saved.version.as_deref().ok_or_else(|| StreamError::invalid(path, format!("{what} lacks the attribute cvtrace.version")))?;
     if version != VERSION {
-        let advice = if what == "reference" {
-            "render a new reference"
-        } else {
-            "delete it to start over"
-        };
-        return Err(StreamError::invalid(path, format!("{what} written by cvtrace {version}, this is {VERSION}, whose samples may differ; {advice}")).into());
+        let advice = if what == "reference" { "render a new reference" } else { "delete it to start over" };
+        return Err(StreamError::invalid(
+            path,
+            format!("{what} written by cvtrace {version}, this is {VERSION}, whose samples may differ; {advice}"),
+        )
+        .into());
     }
     Ok(())
 }
@@ -240,26 +167,12 @@ mod tests {
 
     #[test]
     fn checkpoint_sits_next_to_the_output() {
-        assert_eq!(
-            checkpoint_path(Path::new("out/cbox.ref.exr")),
-            Path::new("out/cbox.ref.checkpoint.exr")
-        );
-        assert_eq!(
-            checkpoint_path(Path::new("ref")),
-            Path::new("ref.checkpoint.exr")
-        );
+        assert_eq!(checkpoint_path(Path::new("out/cbox.ref.exr")), Path::new("out/cbox.ref.checkpoint.exr"));
+        assert_eq!(checkpoint_path(Path::new("ref")), Path::new("ref.checkpoint.exr"));
     }
 
     fn settings() -> RenderSettings {
-        RenderSettings {
-            width: 3,
-            height: 2,
-            spp: 8,
-            batches: 1,
-            seed: 9,
-            max_depth: 4,
-            rr_depth: 5,
-        }
+        RenderSettings { width: 3, height: 2, spp: 8, batches: 1, seed: 9, max_depth: 4, rr_depth: 5 }
     }
 
     fn planned(s: &RenderSettings) -> Provenance {
@@ -293,21 +206,11 @@ mod tests {
         let ch = ExrChannels::read(&p).unwrap();
         assert_eq!(ch.attr(KIND_ATTR), Some(&AttrValue::Text(KIND.into())));
         assert_eq!(ch.attr("cvtrace.rrDepth"), Some(&AttrValue::Int(5)));
-        assert_eq!(
-            ch.attr("cvtrace.spp"),
-            None,
-            "a checkpoint's progress is samplesDone"
-        );
+        assert_eq!(ch.attr("cvtrace.spp"), None, "a checkpoint's progress is samplesDone");
         assert_eq!(load(&p, &planned(&s), &s).unwrap(), Some(accum));
-        assert_eq!(
-            load(&dir.path().join("none.exr"), &planned(&s), &s).unwrap(),
-            None
-        );
+        assert_eq!(load(&dir.path().join("none.exr"), &planned(&s), &s).unwrap(), None);
 
-        let other = Provenance {
-            seed: Some(10),
-            ..planned(&s)
-        };
+        let other = Provenance { seed: Some(10), ..planned(&s) };
         let e = load(&p, &other, &s).unwrap_err().to_string();
         assert!(
             e.contains("r.checkpoint.exr")
@@ -322,39 +225,15 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("r.exr");
         let s = settings();
-        let mut attrs = Provenance {
-            spp: Some(4),
-            ..planned(&s)
-        }
-        .attributes();
+        let mut attrs = Provenance { spp: Some(4), ..planned(&s) }.attributes();
         attrs.retain(|(k, _)| *k != "cvtrace.sceneHash");
-        cvtrace_streams::exr_io::write_rgb(
-            &p,
-            &Image::from_fn(3, 2, |x, _| [x as f32, 1.0, 2.0]),
-            &attrs,
-            false,
-        )
-        .unwrap();
+        cvtrace_streams::exr_io::write_rgb(&p, &Image::from_fn(3, 2, |x, _| [x as f32, 1.0, 2.0]), &attrs, false).unwrap();
         let a = load_finished(&p, &planned(&s), &s).unwrap();
         assert_eq!((a.samples_done, a.sum[1][0]), (4, 4.0));
-        let few = RenderSettings {
-            spp: 4,
-            ..s.clone()
-        };
-        let e = load_finished(&p, &planned(&few), &few)
-            .unwrap_err()
-            .to_string();
+        let few = RenderSettings { spp: 4, ..s.clone() };
+        let e = load_finished(&p, &planned(&few), &few).unwrap_err().to_string();
         assert!(e.contains("already holds 4 spp"), "{e}");
-        let e = load_finished(
-            &p,
-            &Provenance {
-                max_depth: Some(2),
-                ..planned(&s)
-            },
-            &s,
-        )
-        .unwrap_err()
-        .to_string();
+        let e = load_finished(&p, &Provenance { max_depth: Some(2), ..planned(&s) }, &s).unwrap_err().to_string();
         assert!(e.contains("r.exr: --extend: the reference is of a different render (max depth 4 (reference) vs 2 (now))"), "{e}");
     }
 }

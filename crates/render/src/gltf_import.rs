@@ -155,8 +155,26 @@ fn check_json(json: &gltf::json::Root, path: &Path) -> Result<(), SceneError> {
 
 /// Object keys whose values (or array elements) are indices into the document's arrays.
 const INDEX_KEYS: &[&str] = &[
-    "buffer", "bufferView", "camera", "children", "index", "indices", "input", "inverseBindMatrices", "joints", "light",
-    "material", "mesh", "node", "nodes", "output", "sampler", "scene", "skeleton", "skin", "source",
+    "buffer",
+    "bufferView",
+    "camera",
+    "children",
+    "index",
+    "indices",
+    "input",
+    "inverseBindMatrices",
+    "joints",
+    "light",
+    "material",
+    "mesh",
+    "node",
+    "nodes",
+    "output",
+    "sampler",
+    "scene",
+    "skeleton",
+    "skin",
+    "source",
 ];
 
 /// The `gltf` crate reads every index as a u64 and keeps its low 32 bits, so that index 2^32
@@ -166,7 +184,8 @@ fn check_index_widths(bytes: &[u8], path: &Path) -> Result<(), SceneError> {
     use gltf::json::Value;
     let glb;
     let text: &[u8] = if bytes.starts_with(b"glTF") {
-        glb = gltf::binary::Glb::from_slice(bytes).map_err(|e| SceneError::Malformed { path: path.to_path_buf(), message: e.to_string() })?;
+        glb =
+            gltf::binary::Glb::from_slice(bytes).map_err(|e| SceneError::Malformed { path: path.to_path_buf(), message: e.to_string() })?;
         &glb.json
     } else {
         bytes
@@ -314,7 +333,12 @@ fn check_external_files(doc: &gltf::Document, base: &Path, path: &Path) -> Resul
 /// The buffers' bytes. External files are read only up to the buffer's `byteLength` (the
 /// importer reads whole files, so a huge file behind a small buffer would be read entirely),
 /// into memory reserved fallibly; a file shorter than `byteLength` is an error naming it.
-fn import_buffers(doc: &gltf::Document, base: &Path, mut blob: Option<Vec<u8>>, path: &Path) -> Result<Vec<gltf::buffer::Data>, SceneError> {
+fn import_buffers(
+    doc: &gltf::Document,
+    base: &Path,
+    mut blob: Option<Vec<u8>>,
+    path: &Path,
+) -> Result<Vec<gltf::buffer::Data>, SceneError> {
     use std::io::Read;
     let malformed = |m: String| SceneError::Malformed { path: path.to_path_buf(), message: m };
     let mut buffers = Vec::with_capacity(doc.buffers().len());
@@ -353,7 +377,12 @@ fn import_buffers(doc: &gltf::Document, base: &Path, mut blob: Option<Vec<u8>>, 
 }
 
 /// Decodes the images one by one, so that an error names the image and its file.
-fn import_images(doc: &gltf::Document, base: &Path, buffers: &[gltf::buffer::Data], path: &Path) -> Result<Vec<gltf::image::Data>, SceneError> {
+fn import_images(
+    doc: &gltf::Document,
+    base: &Path,
+    buffers: &[gltf::buffer::Data],
+    path: &Path,
+) -> Result<Vec<gltf::image::Data>, SceneError> {
     let mut images = Vec::with_capacity(doc.images().len());
     for im in doc.images() {
         let data = gltf::image::Data::from_source(im.source(), Some(base), buffers).map_err(|e| {
@@ -646,8 +675,7 @@ impl<'a> Builder<'a> {
             if let Some(i) = raw_normals.as_ref().and_then(|v| v.iter().position(|n| !n.is_finite())) {
                 return Err(self.err(format!("mesh {}: NORMAL of vertex {i} is not finite", mesh.index())));
             }
-            let normals: Option<Vec<Vec3A>> =
-                raw_normals.map(|v| v.into_iter().map(|n| (normal_matrix * n).normalize_or_zero()).collect());
+            let normals: Option<Vec<Vec3A>> = raw_normals.map(|v| v.into_iter().map(|n| (normal_matrix * n).normalize_or_zero()).collect());
             let uvs: Option<Vec<Vec2>> = reader.read_tex_coords(0).map(|t| t.into_f32().map(Vec2::from).collect());
             let indices: Vec<u32> = match reader.read_indices() {
                 Some(i) => i.into_u32().collect(),
@@ -660,11 +688,7 @@ impl<'a> Builder<'a> {
                 return Err(self.err(format!("mesh {}: attribute counts differ from POSITION", mesh.index())));
             }
             if mode == Mode::Triangles && !indices.len().is_multiple_of(3) {
-                return Err(self.err(format!(
-                    "mesh {}: a triangle list of {} indices (not a multiple of 3)",
-                    mesh.index(),
-                    indices.len()
-                )));
+                return Err(self.err(format!("mesh {}: a triangle list of {} indices (not a multiple of 3)", mesh.index(), indices.len())));
             }
             if uvs.is_none() && prim.material().pbr_metallic_roughness().base_color_texture().is_some() {
                 self.warn_once("a textured material on a mesh without TEXCOORD_0: its texture's first texel colours the whole mesh");
@@ -694,23 +718,28 @@ impl<'a> Builder<'a> {
         use gltf::mesh::Semantic;
         let float = |a: &gltf::Accessor| a.data_type() == DataType::F32;
         let unorm = |a: &gltf::Accessor| a.normalized() && matches!(a.data_type(), DataType::U8 | DataType::U16);
-        let check = |what: &str, a: Option<gltf::Accessor>, dims: Dimensions, ok: &dyn Fn(&gltf::Accessor) -> bool, expected: &str| {
-            match a {
-                Some(a) if a.dimensions() != dims || !ok(&a) => Err(self.err(format!(
-                    "mesh {mesh}: {what} accessor {} is {:?} {:?}{}; expected {expected}",
-                    a.index(),
-                    a.dimensions(),
-                    a.data_type(),
-                    if a.normalized() { " normalized" } else { "" }
-                ))),
-                _ => Ok(()),
-            }
+        let check = |what: &str, a: Option<gltf::Accessor>, dims: Dimensions, ok: &dyn Fn(&gltf::Accessor) -> bool, expected: &str| match a
+        {
+            Some(a) if a.dimensions() != dims || !ok(&a) => Err(self.err(format!(
+                "mesh {mesh}: {what} accessor {} is {:?} {:?}{}; expected {expected}",
+                a.index(),
+                a.dimensions(),
+                a.data_type(),
+                if a.normalized() { " normalized" } else { "" }
+            ))),
+            _ => Ok(()),
         };
         let vec3 = "VEC3 of FLOAT (KHR_mesh_quantization is not supported)";
         check("POSITION", prim.get(&Semantic::Positions), Dimensions::Vec3, &float, vec3)?;
         check("NORMAL", prim.get(&Semantic::Normals), Dimensions::Vec3, &float, vec3)?;
         let uv_ok = |a: &gltf::Accessor| float(a) || unorm(a);
-        check("TEXCOORD_0", prim.get(&Semantic::TexCoords(0)), Dimensions::Vec2, &uv_ok, "VEC2 of FLOAT or normalized UNSIGNED_BYTE/SHORT")?;
+        check(
+            "TEXCOORD_0",
+            prim.get(&Semantic::TexCoords(0)),
+            Dimensions::Vec2,
+            &uv_ok,
+            "VEC2 of FLOAT or normalized UNSIGNED_BYTE/SHORT",
+        )?;
         let index_ok = |a: &gltf::Accessor| matches!(a.data_type(), DataType::U8 | DataType::U16 | DataType::U32) && !a.normalized();
         check("indices", prim.indices(), Dimensions::Scalar, &index_ok, "SCALAR of UNSIGNED_BYTE, UNSIGNED_SHORT or UNSIGNED_INT")
     }
@@ -945,7 +974,9 @@ mod tests {
         let near = |a: Vec3A, b: Vec3A| (a - b).length() < 1e-5;
         let i = Vec3A::new(8.0, 4.0, 2.0);
         match &lights[0] {
-            Punctual::Point { position, intensity } => assert!(near(*position, Vec3A::new(1.0, 4.0, 3.0)) && *intensity == i, "{:?}", lights[0]),
+            Punctual::Point { position, intensity } => {
+                assert!(near(*position, Vec3A::new(1.0, 4.0, 3.0)) && *intensity == i, "{:?}", lights[0])
+            }
             l => panic!("{l:?}"),
         }
         match &lights[1] {
@@ -1005,24 +1036,41 @@ mod tests {
             (&[("/accessors/1/count", "0")], "accessor 1 has count 0"),
             // Sparse indices 0, 1, 2, 0 (the index buffer read as sparse indices): not increasing.
             (
-                &[("/accessors/0/sparse", r#"{"count": 4, "indices": {"bufferView": 1, "componentType": 5123}, "values": {"bufferView": 0}}"#)],
+                &[(
+                    "/accessors/0/sparse",
+                    r#"{"count": 4, "indices": {"bufferView": 1, "componentType": 5123}, "values": {"bufferView": 0}}"#,
+                )],
                 "sparse accessor 0: index 0 at position 3",
             ),
             (&[("/accessors/1/count", "5")], "5 indices (not a multiple of 3)"),
             (&[("/asset/version", r#""1.0""#)], "asset.version"),
             (&[("/nodes/0/children", "[1]")], "node 1 is reached twice"),
             (&[("/nodes/0/translation", "[1e20, 0, 0]")], "farther than 1e15"),
-            (&[("/cameras", r#"[{"type": "perspective", "perspective": {"yfov": 0, "znear": 0.1}}]"#), ("/nodes/3/camera", "0")], "camera 0"),
-            (&[("/materials", r#"[{"pbrMetallicRoughness": {"baseColorFactor": [2, 1, 1, 1]}}]"#), ("/meshes/0/primitives/0/material", "0")], "baseColorFactor is outside"),
-            (&[("/materials", r#"[{"emissiveFactor": [-1, 0, 0]}]"#), ("/meshes/0/primitives/0/material", "0")], "emissiveFactor is outside"),
+            (
+                &[("/cameras", r#"[{"type": "perspective", "perspective": {"yfov": 0, "znear": 0.1}}]"#), ("/nodes/3/camera", "0")],
+                "camera 0",
+            ),
+            (
+                &[
+                    ("/materials", r#"[{"pbrMetallicRoughness": {"baseColorFactor": [2, 1, 1, 1]}}]"#),
+                    ("/meshes/0/primitives/0/material", "0"),
+                ],
+                "baseColorFactor is outside",
+            ),
+            (
+                &[("/materials", r#"[{"emissiveFactor": [-1, 0, 0]}]"#), ("/meshes/0/primitives/0/material", "0")],
+                "emissiveFactor is outside",
+            ),
             // Found by fuzzing the scene input: the first panicked in the gltf crate (image.rs),
             // the next two tripped its assertions inside the loader's catch_unwind (which
             // printed a panic and blamed "an accessor or buffer view"), the last two silently
             // referred to node 1 and accessor 0 (the crate keeps an index's low 32 bits).
             (&[("/images", r#"[{"name": "no source"}]"#)], "image 0 has neither a uri nor a bufferView"),
             (&[("/bufferViews/0/byteStride", "4")], "accessor 0 has elements of 12 bytes but its buffer view 0 has byteStride 4"),
-            (&[("/cameras", r#"[{"type": "orthographic", "perspective": {"yfov": 0.5, "znear": 0.1}}]"#), ("/nodes/3/camera", "0")],
-                "camera 0 is of type orthographic but has no `orthographic` object"),
+            (
+                &[("/cameras", r#"[{"type": "orthographic", "perspective": {"yfov": 0.5, "znear": 0.1}}]"#), ("/nodes/3/camera", "0")],
+                "camera 0 is of type orthographic but has no `orthographic` object",
+            ),
             (&[("/scenes/0/nodes/1", "4294967297")], "/scenes/0/nodes/1: index 4294967297 does not fit in 32 bits"),
             (&[("/meshes/0/primitives/0/attributes/POSITION", "4294967296")], "index 4294967296 does not fit in 32 bits"),
         ];
@@ -1056,25 +1104,33 @@ mod tests {
         assert_eq!((s.render_defaults().width, s.render_defaults().height), (Some(300), Some(200)));
         // The sidecar's size wins over the hint.
         let sidecar = dir.path().join("scene.cvtrace.toml");
-        std::fs::write(&sidecar, "[render]
+        std::fs::write(
+            &sidecar,
+            "[render]
 width = 320
 height = 180
 reference_spp = 512
 
 [environment]
 color = [0.5, 0.5, 1]
-").unwrap();
+",
+        )
+        .unwrap();
         let s = Scene::load(&path).unwrap();
         let d = s.render_defaults();
         assert_eq!((d.width, d.height, d.reference_spp, d.spp), (Some(320), Some(180), Some(512), None));
         assert_eq!(s.lights().environment().unwrap().eval(Vec3A::Y), Vec3A::new(0.5, 0.5, 1.0));
         assert_eq!(s.lights().len(), 5);
         // A broken sidecar fails the load, naming itself.
-        std::fs::write(&sidecar, "[render]
+        std::fs::write(
+            &sidecar,
+            "[render]
 width = 320
 [environment]
 colour = [1, 1, 1]
-").unwrap();
+",
+        )
+        .unwrap();
         let e = Scene::load(&path).unwrap_err().to_string();
         assert!(e.contains("scene.cvtrace.toml") && e.contains("colour") && e.contains("line 4"), "{e}");
     }

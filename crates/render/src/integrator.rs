@@ -141,7 +141,8 @@ pub fn radiance_from_hit<T: Intersector>(
         }
         if let Some(f) = first.take() {
             let ns = if sp.ns.dot(ray.dir) > 0.0 { -sp.ns } else { sp.ns };
-            *f = FirstHit { albedo: if le != Vec3A::ZERO { le } else { material.base_color_at(textures, sp.uv) }, normal: ns, depth: hit.t };
+            *f =
+                FirstHit { albedo: if le != Vec3A::ZERO { le } else { material.base_color_at(textures, sp.uv) }, normal: ns, depth: hit.t };
         }
         if depth >= max_depth {
             break;

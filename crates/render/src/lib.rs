@@ -23,16 +23,16 @@ pub mod render;
 pub mod sampler;
 pub mod scene;
 pub mod select;
-pub mod vector;
 pub mod sidecar;
 pub mod testing;
 pub mod texture;
+pub mod vector;
 
 pub use camera::Camera;
 pub use intersect::{Hit, Intersector, Ray};
+pub use lights::{Environment, Punctual};
 pub use material::Material;
 pub use render::{render_reference_pass, render_streams, ReferenceAccum, RenderError, RenderSettings};
-pub use lights::{Environment, Punctual};
 pub use scene::{Scene, SceneError, SceneParts};
 pub use sidecar::{RenderDefaults, Sidecar};
 pub use texture::Texture;

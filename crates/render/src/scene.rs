@@ -5,8 +5,8 @@
 //! `Hit.prim` indexes [`Scene::triangles`].
 use crate::camera::Camera;
 use crate::lights::{triangle_power, Environment, LightSet, Punctual};
-use crate::sidecar::RenderDefaults;
 use crate::material::Material;
+use crate::sidecar::RenderDefaults;
 use crate::texture::Texture;
 use glam::{Vec2, Vec3A};
 use std::path::{Path, PathBuf};
@@ -335,7 +335,12 @@ impl Scene {
         // Small, structured parts by their debug form (an environment map's shows a hash of
         // its texels); emitters are derived from the geometry and materials above. Vectors are
         // spelt `Vec3(…)` as before they became the SIMD `Vec3A`, so recorded hashes still match.
-        for part in [format!("{:?}", self.materials), format!("{:?}", self.lights.punctual()), format!("{:?}", self.lights.environment()), format!("{:?}", self.camera)] {
+        for part in [
+            format!("{:?}", self.materials),
+            format!("{:?}", self.lights.punctual()),
+            format!("{:?}", self.lights.environment()),
+            format!("{:?}", self.camera),
+        ] {
             h.text(&part.replace("Vec3A(", "Vec3("));
         }
         h.0

@@ -131,7 +131,13 @@ pub fn materials_box() -> Scene {
             Material::diffuse(Vec3A::new(0.65, 0.05, 0.05)),
             Material::diffuse(Vec3A::new(0.12, 0.45, 0.15)),
             Material::emissive(Vec3A::splat(0.78), Vec3A::new(17.0, 12.0, 4.0)),
-            Material { name: "plastic".into(), base_color: Vec3A::new(0.2, 0.3, 0.6), metallic: 0.0, roughness: 0.25, ..Default::default() },
+            Material {
+                name: "plastic".into(),
+                base_color: Vec3A::new(0.2, 0.3, 0.6),
+                metallic: 0.0,
+                roughness: 0.25,
+                ..Default::default()
+            },
             Material::metal(Vec3A::new(1.0, 0.78, 0.34), 0.35),
             Material::glass(1.5, 0.0),
             Material::metal(Vec3A::splat(0.95), 0.0),

@@ -80,7 +80,8 @@ fn smooth_glass_is_invisible_in_a_furnace() {
         t.swap(1, 2);
     }
     add_box(&mut parts, Vec3A::splat(-0.6), Vec3A::splat(0.6), 1);
-    parts.camera = Some(Camera { eye: Vec3A::new(0.3, 0.4, 1.9), target: Vec3A::ZERO, up: Vec3A::Y, vfov_deg: 30.0, width: 16, height: 16 });
+    parts.camera =
+        Some(Camera { eye: Vec3A::new(0.3, 0.4, 1.9), target: Vec3A::ZERO, up: Vec3A::Y, vfov_deg: 30.0, width: 16, height: 16 });
     let scene = Scene::from_parts(parts).unwrap();
     let tracer = BruteForce::new(&scene);
     let set = render_streams(&scene, &tracer, &settings(16, 64, 8, -1), &|_| {}).unwrap();

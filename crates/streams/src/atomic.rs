@@ -235,7 +235,8 @@ impl OutputSet {
     /// Creates the folder `dir` (and its parents) for the set's files; a folder the set made
     /// is removed with them, if nothing else was put into it meanwhile.
     pub fn create_dir_all(&mut self, dir: &Path) -> Result<(), StreamError> {
-        let mut missing: Vec<PathBuf> = dir.ancestors().take_while(|d| !d.as_os_str().is_empty() && d.symlink_metadata().is_err()).map(Path::to_path_buf).collect();
+        let mut missing: Vec<PathBuf> =
+            dir.ancestors().take_while(|d| !d.as_os_str().is_empty() && d.symlink_metadata().is_err()).map(Path::to_path_buf).collect();
         std::fs::create_dir_all(dir).map_err(|e| StreamError::Io { path: dir.to_path_buf(), error: e })?;
         // Outermost first, so that undoing (in reverse) removes the deepest first.
         missing.reverse();
@@ -316,11 +317,7 @@ fn create_temp(tmp: &Path) -> std::io::Result<std::fs::File> {
 
 /// Runs `write` on a temporary path, flushes it to disk and moves the result onto `path`.
 /// On any error the temporary file is removed and `path` is untouched.
-pub fn write_atomically<E>(
-    path: &Path,
-    overwrite: bool,
-    write: impl FnOnce(&Path) -> Result<(), E>,
-) -> Result<(), StreamError>
+pub fn write_atomically<E>(path: &Path, overwrite: bool, write: impl FnOnce(&Path) -> Result<(), E>) -> Result<(), StreamError>
 where
     E: std::fmt::Display,
 {

@@ -2,7 +2,10 @@
 use crate::atomic::write_atomically;
 use crate::input_file::NotAFile;
 use crate::StreamError;
-use exr::prelude::{read, AnyChannel, AnyChannels, AttributeValue, Blocks, Compression, Encoding, FlatSamples, Layer, LayerAttributes, LineOrder, ReadChannels, ReadLayers, SmallVec, Text, WritableImage};
+use exr::prelude::{
+    read, AnyChannel, AnyChannels, AttributeValue, Blocks, Compression, Encoding, FlatSamples, Layer, LayerAttributes, LineOrder,
+    ReadChannels, ReadLayers, SmallVec, Text, WritableImage,
+};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
@@ -61,9 +64,7 @@ impl ExrChannels {
                 format!("channel `{name}` holds 32-bit unsigned integers, not floating-point values; write it as float (or half)"),
             ));
         }
-        self.channels
-            .remove(name)
-            .ok_or_else(|| StreamError::MissingChannel { path: path.to_path_buf(), channel: name.to_string() })
+        self.channels.remove(name).ok_or_else(|| StreamError::MissingChannel { path: path.to_path_buf(), channel: name.to_string() })
     }
 
     pub fn attr(&self, name: &str) -> Option<&AttrValue> {
@@ -90,10 +91,7 @@ impl ExrChannels {
             .from_file(path)
             .map_err(|e| StreamError::Exr { path: path.to_path_buf(), message: e.to_string() })?;
         if image.layer_data.len() != 1 {
-            return Err(StreamError::invalid(
-                path,
-                format!("expected a single-part EXR, found {} parts", image.layer_data.len()),
-            ));
+            return Err(StreamError::invalid(path, format!("expected a single-part EXR, found {} parts", image.layer_data.len())));
         }
         let layer = &image.layer_data[0];
         let (width, height) = (layer.size.width(), layer.size.height());
@@ -174,7 +172,10 @@ pub fn check_header(path: &Path) -> Result<(), StreamError> {
     let meta = exr::meta::MetaData::read_from_file(path, false).map_err(exr_error)?;
     if let Some(h) = meta.headers.iter().find(|h| h.deep) {
         let name = h.own_attributes.layer_name.as_ref().map(|n| format!(" (part `{n}`)")).unwrap_or_default();
-        return Err(StreamError::invalid(path, format!("holds deep data{name}: cvtrace reads flat images with one value per pixel and channel")));
+        return Err(StreamError::invalid(
+            path,
+            format!("holds deep data{name}: cvtrace reads flat images with one value per pixel and channel"),
+        ));
     }
     exr::meta::MetaData::validate(&meta.headers, false).map_err(exr_error)?;
     let [header] = meta.headers.as_slice() else {
@@ -228,7 +229,10 @@ pub fn check_header(path: &Path) -> Result<(), StreamError> {
     if !fits {
         return Err(StreamError::invalid(
             path,
-            format!("reading its {w}x{h} pixels in {channels} channels needs {:.2} GiB of memory, which cannot be allocated here", needed as f64 / GIB),
+            format!(
+                "reading its {w}x{h} pixels in {channels} channels needs {:.2} GiB of memory, which cannot be allocated here",
+                needed as f64 / GIB
+            ),
         ));
     }
     Ok(())
@@ -255,16 +259,12 @@ fn custom_attributes<'a>(attrs: impl Iterator<Item = (&'a Text, &'a AttributeVal
 }
 
 impl ExrChannels {
-
     /// Writes a single-part, ZIP-compressed, f32 scanline EXR atomically.
     pub fn write(&self, path: &Path, overwrite: bool) -> Result<(), StreamError> {
         crate::atomic::check_extension(path, "exr")?;
         let size = (self.width, self.height);
-        let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = self
-            .channels
-            .iter()
-            .map(|(name, plane)| AnyChannel::new(name.as_str(), FlatSamples::F32(plane.clone())))
-            .collect();
+        let list: SmallVec<[AnyChannel<FlatSamples>; 4]> =
+            self.channels.iter().map(|(name, plane)| AnyChannel::new(name.as_str(), FlatSamples::F32(plane.clone()))).collect();
         let channels = AnyChannels::sort(list);
         let mut attributes = LayerAttributes::default();
         for (k, v) in &self.attributes {
@@ -363,12 +363,7 @@ pub fn put_rgb(ch: &mut ExrChannels, prefix: &str, img: &crate::Image) {
 }
 
 /// Writes a plain RGB EXR (channels R, G, B) with the given attributes.
-pub fn write_rgb(
-    path: &Path,
-    img: &crate::Image,
-    attributes: &[(&str, AttrValue)],
-    overwrite: bool,
-) -> Result<(), StreamError> {
+pub fn write_rgb(path: &Path, img: &crate::Image, attributes: &[(&str, AttrValue)], overwrite: bool) -> Result<(), StreamError> {
     let mut ch = ExrChannels::new(img.width, img.height);
     put_rgb(&mut ch, "", img);
     for (k, v) in attributes {
@@ -400,8 +395,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("a.exr");
         let img = crate::Image::from_fn(5, 3, |x, y| [x as f32, y as f32, 0.5]);
-        write_rgb(&p, &img, &[("cvtrace.spp", AttrValue::Int(7)), ("cvtrace.note", AttrValue::Text("hi".into()))], false)
-            .unwrap();
+        write_rgb(&p, &img, &[("cvtrace.spp", AttrValue::Int(7)), ("cvtrace.note", AttrValue::Text("hi".into()))], false).unwrap();
         let back = read_rgb(&p).unwrap();
         assert_eq!(back, img);
         let ch = ExrChannels::read(&p).unwrap();
@@ -418,8 +412,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("a.exr");
         let img = crate::Image::from_fn(5, 3, |x, _| [x as f32, 0.0, 1.0]);
-        write_rgb(&p, &img, &[("cvtrace.spp", AttrValue::Int(7)), ("cvtrace.traversal", AttrValue::Text("fast".into()))], false)
-            .unwrap();
+        write_rgb(&p, &img, &[("cvtrace.spp", AttrValue::Int(7)), ("cvtrace.traversal", AttrValue::Text("fast".into()))], false).unwrap();
         let (w, h, attrs) = ExrChannels::read_header(&p).unwrap();
         assert_eq!((w, h), (5, 3));
         assert_eq!(attrs, ExrChannels::read(&p).unwrap().attributes);

@@ -71,9 +71,7 @@ impl Image {
 
     /// First non-finite value, as (x, y, channel).
     pub fn find_non_finite(&self) -> Option<(usize, usize, usize)> {
-        self.pixels.iter().enumerate().find_map(|(i, p)| {
-            p.iter().position(|v| !v.is_finite()).map(|c| (i % self.width, i / self.width, c))
-        })
+        self.pixels.iter().enumerate().find_map(|(i, p)| p.iter().position(|v| !v.is_finite()).map(|c| (i % self.width, i / self.width, c)))
     }
 
     pub fn same_size(&self, other: &Image) -> bool {

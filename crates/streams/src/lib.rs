@@ -11,9 +11,9 @@
 pub mod atomic;
 pub mod error;
 pub mod exr_io;
+pub mod iduw_layout;
 pub mod image;
 pub mod input_file;
-pub mod iduw_layout;
 pub mod output_lock;
 pub mod preview;
 pub mod provenance;

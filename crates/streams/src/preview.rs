@@ -16,10 +16,7 @@ pub fn linear_to_srgb(v: f32) -> f32 {
 /// Encodes `img * 2^exposure` as sRGB bytes, row-major RGB.
 pub fn to_srgb8(img: &Image, exposure: f32) -> Vec<u8> {
     let scale = exposure.exp2();
-    img.pixels
-        .iter()
-        .flat_map(|p| p.map(|v| (linear_to_srgb(v * scale) * 255.0 + 0.5) as u8))
-        .collect()
+    img.pixels.iter().flat_map(|p| p.map(|v| (linear_to_srgb(v * scale) * 255.0 + 0.5) as u8)).collect()
 }
 
 /// Writes an sRGB PNG preview atomically.

@@ -80,10 +80,7 @@ impl Field {
     /// depth change the noise only, and the traversal only whether rare rays graze through an
     /// edge.
     pub fn changes_the_image(self) -> bool {
-        matches!(
-            self,
-            Field::Size | Field::MaxDepth | Field::SceneHash | Field::Camera
-        )
+        matches!(self, Field::Size | Field::MaxDepth | Field::SceneHash | Field::Camera)
     }
 }
 
@@ -136,22 +133,13 @@ pub struct Difference {
 impl Difference {
     /// `"seed 3 (in the file) vs 4 (now)"`, `recorded_in` naming where the recorded value is.
     pub fn describe(&self, recorded_in: &str) -> String {
-        format!(
-            "{} {} ({recorded_in}) vs {} (now)",
-            self.field.name(),
-            self.recorded,
-            self.now
-        )
+        format!("{} {} ({recorded_in}) vs {} (now)", self.field.name(), self.recorded, self.now)
     }
 }
 
 /// The differences described and joined with commas, for an error message.
 pub fn describe_all(differences: &[Difference], recorded_in: &str) -> String {
-    differences
-        .iter()
-        .map(|d| d.describe(recorded_in))
-        .collect::<Vec<_>>()
-        .join(", ")
+    differences.iter().map(|d| d.describe(recorded_in)).collect::<Vec<_>>().join(", ")
 }
 
 impl Provenance {
@@ -172,10 +160,7 @@ impl Provenance {
 
     /// The recorded fields as (name, value) pairs in [`Field::ALL`] order, for reports.
     pub fn fields(&self) -> Vec<(&'static str, String)> {
-        Field::ALL
-            .iter()
-            .filter_map(|&f| Some((f.name(), self.value(f)?)))
-            .collect()
+        Field::ALL.iter().filter_map(|&f| Some((f.name(), self.value(f)?))).collect()
     }
 
     /// The fields in which `recorded` (a file's record) differs from `self` (the render asked
@@ -185,11 +170,7 @@ impl Provenance {
             .iter()
             .filter_map(|&field| {
                 let (now, recorded) = (self.value(field)?, recorded.value(field)?);
-                (now != recorded).then_some(Difference {
-                    field,
-                    recorded,
-                    now,
-                })
+                (now != recorded).then_some(Difference { field, recorded, now })
             })
             .collect()
     }
@@ -198,11 +179,7 @@ impl Provenance {
     /// agree on (passes add samples in index order, so any later target continues the same
     /// sequence).
     pub fn without_counts(&self) -> Provenance {
-        Provenance {
-            spp: None,
-            batches: None,
-            ..self.clone()
-        }
+        Provenance { spp: None, batches: None, ..self.clone() }
     }
 
     /// The header attributes of the recorded fields, each with its one type: `int` for depths
@@ -257,12 +234,7 @@ impl Provenance {
         path: &Path,
     ) -> Result<Provenance, StreamError> {
         let size = |v: usize, what: &str| {
-            u32::try_from(v).map_err(|_| {
-                StreamError::invalid(
-                    path,
-                    format!("its {what} {v} is more than a render records"),
-                )
-            })
+            u32::try_from(v).map_err(|_| StreamError::invalid(path, format!("its {what} {v} is more than a render records")))
         };
         let text = |k: &str| attrs.get(k).map(AttrValue::as_text);
         Ok(Provenance {
@@ -295,34 +267,19 @@ impl Provenance {
     /// `what` names the file kind ("checkpoint", "reference").
     pub fn require(&self, fields: &[Field], path: &Path, what: &str) -> Result<(), StreamError> {
         match fields.iter().find(|f| self.value(**f).is_none()) {
-            Some(f) => Err(StreamError::invalid(
-                path,
-                format!(
-                    "{what} lacks the attribute {}",
-                    f.attribute().unwrap_or("size")
-                ),
-            )),
+            Some(f) => Err(StreamError::invalid(path, format!("{what} lacks the attribute {}", f.attribute().unwrap_or("size")))),
             None => Ok(()),
         }
     }
 }
 
 /// Attribute `key` as an integer of type `T`: from an `int`, or a `string` of decimal digits.
-fn integer<T>(
-    attrs: &BTreeMap<String, AttrValue>,
-    key: &str,
-    path: &Path,
-) -> Result<Option<T>, StreamError>
+fn integer<T>(attrs: &BTreeMap<String, AttrValue>, key: &str, path: &Path) -> Result<Option<T>, StreamError>
 where
     T: TryFrom<i32> + std::str::FromStr + Bounded,
 {
     let expected = T::EXPECTED;
-    let bad = |v: &AttrValue| {
-        StreamError::invalid(
-            path,
-            format!("attribute {key} = {} is not {expected}", v.as_text()),
-        )
-    };
+    let bad = |v: &AttrValue| StreamError::invalid(path, format!("attribute {key} = {} is not {expected}", v.as_text()));
     match attrs.get(key) {
         None => Ok(None),
         Some(v @ AttrValue::Int(i)) => T::try_from(*i).map(Some).map_err(|_| bad(v)),
@@ -381,29 +338,10 @@ mod tests {
         assert_eq!(a[ATTR_BATCHES], AttrValue::Int(4));
         assert_eq!(a[ATTR_SEED], AttrValue::Text((1u64 << 40).to_string()));
         assert_eq!(a[ATTR_TRAVERSAL], AttrValue::Text("robust".into()));
-        let names: Vec<&str> = p
-            .without_counts()
-            .fields()
-            .into_iter()
-            .map(|(k, _)| k)
-            .collect();
-        assert_eq!(
-            names,
-            [
-                "size",
-                "seed",
-                "max depth",
-                "rr depth",
-                "scene hash",
-                "camera",
-                "traversal"
-            ]
-        );
+        let names: Vec<&str> = p.without_counts().fields().into_iter().map(|(k, _)| k).collect();
+        assert_eq!(names, ["size", "seed", "max depth", "rr depth", "scene hash", "camera", "traversal"]);
         assert_eq!(p.fields()[0], ("size", "32x24".to_string()));
-        assert_eq!(
-            Provenance::from_attributes(32, 24, &a, Path::new("f.exr")).unwrap(),
-            p
-        );
+        assert_eq!(Provenance::from_attributes(32, 24, &a, Path::new("f.exr")).unwrap(), p);
     }
 
     #[test]
@@ -411,27 +349,11 @@ mod tests {
         // Stream files of earlier versions wrote cvtrace.rrDepth as a string.
         let mut a = attrs_of(&record());
         a.insert(ATTR_RR_DEPTH.into(), AttrValue::Text("3".into()));
-        assert_eq!(
-            Provenance::from_attributes(32, 24, &a, Path::new("f.exr"))
-                .unwrap()
-                .rr_depth,
-            Some(3)
-        );
-        for bad in [
-            AttrValue::Text("three".into()),
-            AttrValue::Int(-2),
-            AttrValue::Float(3.0),
-        ] {
+        assert_eq!(Provenance::from_attributes(32, 24, &a, Path::new("f.exr")).unwrap().rr_depth, Some(3));
+        for bad in [AttrValue::Text("three".into()), AttrValue::Int(-2), AttrValue::Float(3.0)] {
             a.insert(ATTR_RR_DEPTH.into(), bad);
-            let e = Provenance::from_attributes(32, 24, &a, Path::new("f.exr"))
-                .unwrap_err()
-                .to_string();
-            assert!(
-                e.contains("f.exr")
-                    && e.contains("cvtrace.rrDepth")
-                    && e.contains("not an unsigned integer"),
-                "{e}"
-            );
+            let e = Provenance::from_attributes(32, 24, &a, Path::new("f.exr")).unwrap_err().to_string();
+            assert!(e.contains("f.exr") && e.contains("cvtrace.rrDepth") && e.contains("not an unsigned integer"), "{e}");
         }
     }
 
@@ -439,60 +361,23 @@ mod tests {
     fn differences_name_the_fields_and_skip_unrecorded_values() {
         let now = record();
         assert!(now.differences(&now).is_empty());
-        let recorded = Provenance {
-            seed: Some(3),
-            rr_depth: Some(4),
-            camera: None,
-            spp: Some(8),
-            ..record()
-        };
+        let recorded = Provenance { seed: Some(3), rr_depth: Some(4), camera: None, spp: Some(8), ..record() };
         let d = now.differences(&recorded);
-        assert_eq!(
-            d.iter().map(|d| d.field).collect::<Vec<_>>(),
-            [Field::Seed, Field::RrDepth, Field::Spp]
-        );
-        assert_eq!(
-            d[1].describe("in the file"),
-            "rr depth 4 (in the file) vs 5 (now)"
-        );
-        assert_eq!(
-            describe_all(&d[..1], "checkpoint"),
-            format!("seed 3 (checkpoint) vs {} (now)", 1u64 << 40)
-        );
+        assert_eq!(d.iter().map(|d| d.field).collect::<Vec<_>>(), [Field::Seed, Field::RrDepth, Field::Spp]);
+        assert_eq!(d[1].describe("in the file"), "rr depth 4 (in the file) vs 5 (now)");
+        assert_eq!(describe_all(&d[..1], "checkpoint"), format!("seed 3 (checkpoint) vs {} (now)", 1u64 << 40));
         // Counts left out on either side are not compared.
         assert_eq!(now.without_counts().differences(&recorded).len(), 2);
-        let size = Provenance {
-            width: 8,
-            ..record()
-        };
-        assert_eq!(
-            now.differences(&size)[0].describe("reference"),
-            "size 8x24 (reference) vs 32x24 (now)"
-        );
-        assert!(
-            Field::Size.changes_the_image()
-                && !Field::Seed.changes_the_image()
-                && !Field::Traversal.changes_the_image()
-        );
+        let size = Provenance { width: 8, ..record() };
+        assert_eq!(now.differences(&size)[0].describe("reference"), "size 8x24 (reference) vs 32x24 (now)");
+        assert!(Field::Size.changes_the_image() && !Field::Seed.changes_the_image() && !Field::Traversal.changes_the_image());
     }
 
     #[test]
     fn a_file_without_provenance_reads_as_unrecorded_and_robust() {
-        let p =
-            Provenance::from_attributes(32, 24, &BTreeMap::new(), Path::new("other.exr")).unwrap();
-        assert_eq!(
-            p,
-            Provenance {
-                width: 32,
-                height: 24,
-                traversal: Some(LEGACY_TRAVERSAL.into()),
-                ..Default::default()
-            }
-        );
-        let e = p
-            .require(&[Field::Seed], Path::new("other.exr"), "checkpoint")
-            .unwrap_err()
-            .to_string();
+        let p = Provenance::from_attributes(32, 24, &BTreeMap::new(), Path::new("other.exr")).unwrap();
+        assert_eq!(p, Provenance { width: 32, height: 24, traversal: Some(LEGACY_TRAVERSAL.into()), ..Default::default() });
+        let e = p.require(&[Field::Seed], Path::new("other.exr"), "checkpoint").unwrap_err().to_string();
         assert_eq!(e, "other.exr: checkpoint lacks the attribute cvtrace.seed");
         assert!(record().differences(&p).is_empty());
     }

@@ -125,10 +125,7 @@ impl StreamSet {
                 .chain(s.batches.iter().enumerate().map(|(i, im)| (batch_prefix(name, i), im)));
             for (prefix, im) in all {
                 if im.width != w || im.height != h {
-                    return Err(StreamError::invalid(
-                        origin,
-                        format!("{prefix}RGB is {}x{}, expected {w}x{h}", im.width, im.height),
-                    ));
+                    return Err(StreamError::invalid(origin, format!("{prefix}RGB is {}x{}, expected {w}x{h}", im.width, im.height)));
                 }
                 if let Some((x, y, c)) = im.find_non_finite() {
                     return Err(StreamError::NonFinite {
@@ -151,7 +148,12 @@ impl StreamSet {
                 return Err(StreamError::invalid(origin, "feature channels do not match the image size"));
             }
             let non_finite = |name: &str, im: &Image, channels: [&str; 3]| {
-                im.find_non_finite().map(|(x, y, c)| StreamError::NonFinite { path: origin.to_path_buf(), channel: format!("{name}.{}", channels[c]), x, y })
+                im.find_non_finite().map(|(x, y, c)| StreamError::NonFinite {
+                    path: origin.to_path_buf(),
+                    channel: format!("{name}.{}", channels[c]),
+                    x,
+                    y,
+                })
             };
             if let Some(e) = non_finite("albedo", &f.albedo, ["R", "G", "B"]).or_else(|| non_finite("normal", &f.normal, ["X", "Y", "Z"])) {
                 return Err(e);
@@ -207,7 +209,10 @@ impl StreamSet {
         let (w, h) = (ch.width, ch.height);
         // An attribute of another EXR type (a `v2f` spp) must not read as an absent one.
         if let Some((k, kind)) = ch.other_attributes.iter().find(|(k, _)| KNOWN_ATTRS.contains(&k.as_str())) {
-            return Err(StreamError::invalid(path, format!("attribute {k} has EXR type {kind}, not int or string (docs/stream-format.md)")));
+            return Err(StreamError::invalid(
+                path,
+                format!("attribute {k} has EXR type {kind}, not int or string (docs/stream-format.md)"),
+            ));
         }
         let batches = match ch.attr(ATTR_BATCHES) {
             Some(AttrValue::Int(b)) if *b > 0 => *b as usize,
@@ -230,7 +235,10 @@ impl StreamSet {
         if batches > found {
             return Err(StreamError::invalid(
                 path,
-                format!("attribute {ATTR_BATCHES} = {batches}, but channel {}R is missing: the file holds {found} batches", batch_prefix("pt", found)),
+                format!(
+                    "attribute {ATTR_BATCHES} = {batches}, but channel {}R is missing: the file holds {found} batches",
+                    batch_prefix("pt", found)
+                ),
             ));
         }
         let mut streams = Vec::with_capacity(2);
@@ -245,7 +253,10 @@ impl StreamSet {
         // Batch channels left over mean the count is wrong (or has a gap): reading fewer batches
         // than the file holds would silently drop samples.
         if let Some(extra) = ch.channels.keys().find(|k| k.starts_with("pt.b") || k.starts_with("crn.b")) {
-            return Err(StreamError::invalid(path, format!("has channel {extra} beyond its {batches} batches (b00 to b{:02})", batches - 1)));
+            return Err(StreamError::invalid(
+                path,
+                format!("has channel {extra} beyond its {batches} batches (b00 to b{:02})", batches - 1),
+            ));
         }
         const FEATURES: [&str; 7] = ["albedo.R", "albedo.G", "albedo.B", "normal.X", "normal.Y", "normal.Z", "depth.Z"];
         let present: Vec<&str> = FEATURES.iter().copied().filter(|c| ch.channels.contains_key(*c)).collect();
@@ -268,7 +279,9 @@ impl StreamSet {
         };
         let text = |k: &str| ch.attr(k).map(|v| v.as_text()).unwrap_or_default();
         // Absent attributes (other renderers) read as unknown; present ones must make sense.
-        let bad = |k: &str, v: &AttrValue, expected: &str| StreamError::invalid(path, format!("attribute {k} = {} is not {expected}", v.as_text()));
+        let bad = |k: &str, v: &AttrValue, expected: &str| {
+            StreamError::invalid(path, format!("attribute {k} = {} is not {expected}", v.as_text()))
+        };
         let spp = match ch.attr(ATTR_SPP) {
             None => 0,
             Some(AttrValue::Int(i)) if *i > 0 => *i as u32,

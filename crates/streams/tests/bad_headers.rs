@@ -143,7 +143,11 @@ fn fifos_devices_and_folders_are_refused_not_read() {
     let fifo = dir.path().join("pipe.exr");
     assert!(std::process::Command::new("mkfifo").arg(&fifo).status().unwrap().success());
     for p in [fifo.as_path(), Path::new("/dev/zero"), dir.path()] {
-        for e in [ExrChannels::read(p).map(|_| ()).unwrap_err(), ExrChannels::read_header(p).map(|_| ()).unwrap_err(), read_rgb(p).map(|_| ()).unwrap_err()] {
+        for e in [
+            ExrChannels::read(p).map(|_| ()).unwrap_err(),
+            ExrChannels::read_header(p).map(|_| ()).unwrap_err(),
+            read_rgb(p).map(|_| ()).unwrap_err(),
+        ] {
             let e = e.to_string();
             assert!(e.contains(&p.display().to_string()) && (e.contains("not a regular file") || e.contains("is a directory")), "{e}");
         }

@@ -24,7 +24,15 @@ fn sample_set() -> StreamSet {
             normal: Image::from_fn(w, h, |_, _| [0.0, 1.0, 0.0]),
             depth: vec![3.5; w * h],
         }),
-        meta: StreamMeta { spp: 16, seed: 7, max_depth: 8, scene: "x.gltf".into(), version: "t".into(), non_finite_samples: 0, ..Default::default() },
+        meta: StreamMeta {
+            spp: 16,
+            seed: 7,
+            max_depth: 8,
+            scene: "x.gltf".into(),
+            version: "t".into(),
+            non_finite_samples: 0,
+            ..Default::default()
+        },
     }
 }
 

@@ -87,11 +87,16 @@ pub fn headline(ratios: &[String], columns: &[Column]) -> Result<Vec<(String, St
     ratios
         .iter()
         .map(|r| {
-            let (a, b) = r.split_once('/').ok_or_else(|| StudyError::Invalid(format!("--headline {r}: give NUMERATOR/DENOMINATOR, e.g. ours/iduw")))?;
+            let (a, b) = r
+                .split_once('/')
+                .ok_or_else(|| StudyError::Invalid(format!("--headline {r}: give NUMERATOR/DENOMINATOR, e.g. ours/iduw")))?;
             for k in [a, b] {
                 if !columns.iter().any(|c| c.key == k) {
                     let keys: Vec<&str> = columns.iter().map(|c| c.key.as_str()).collect();
-                    return Err(StudyError::Invalid(format!("--headline {r}: `{k}` is not a column of this study; its columns: {}", keys.join(", "))));
+                    return Err(StudyError::Invalid(format!(
+                        "--headline {r}: `{k}` is not a column of this study; its columns: {}",
+                        keys.join(", ")
+                    )));
                 }
             }
             Ok((a.to_string(), b.to_string()))

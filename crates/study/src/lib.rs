@@ -120,7 +120,12 @@ impl Study<'_> {
                     continue;
                 }
                 let s = acc.finish()?;
-                convergence.push(ConvergencePoint { method: c.key.clone(), spp_total: c.samples.total(n), relmse: s.relmse_mean, relmse_se: s.relmse_se });
+                convergence.push(ConvergencePoint {
+                    method: c.key.clone(),
+                    spp_total: c.samples.total(n),
+                    relmse: s.relmse_mean,
+                    relmse_se: s.relmse_se,
+                });
             }
             if last {
                 main = Some(r);

@@ -17,8 +17,8 @@ use crate::input::BatchNeed;
 #[cfg(target_arch = "x86_64")]
 use crate::simd::Avx2;
 use crate::simd::{Portable, Simd};
-use crate::window::mirror;
 use crate::spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples};
+use crate::window::mirror;
 use crate::{Diagnostics, Estimator, Input, Needs, Output, ReconError};
 use cvtrace_streams::Image;
 use rayon::prelude::*;
@@ -33,7 +33,8 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
     name: "iduw",
     label: "IDUW",
     short: "IDUW",
-    summary: "Input-dependent uncorrelated weighting (Back et al. 2023): PT plus weighted CRN differences over a window, γ chosen per image.",
+    summary:
+        "Input-dependent uncorrelated weighting (Back et al. 2023): PT plus weighted CRN differences over a window, γ chosen per image.",
     colour: [0x76, 0xb7, 0xf2],
     samples: Samples::BothStreams,
     params: &[

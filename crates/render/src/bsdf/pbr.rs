@@ -569,7 +569,10 @@ mod tests {
                     let (mc, se) = (albedo[c].mean(), albedo[c].se());
                     let (model, e_model) = (q[c] + delta[c], err[c]);
                     let (eval, e_eval) = (q[3 + c] + delta[c], err[3 + c]);
-                    report += &format!("{case} ch {c}: sampled {mc:.5} ± {se:.1e}, model {model:.5} ± {e_model:.0e} ({:+.2} se), eval {eval:.5}\n", (mc - model) / se);
+                    report += &format!(
+                        "{case} ch {c}: sampled {mc:.5} ± {se:.1e}, model {model:.5} ± {e_model:.0e} ({:+.2} se), eval {eval:.5}\n",
+                        (mc - model) / se
+                    );
                     check(
                         (mc - model).abs() <= 5.0 * se + e_model + rare,
                         format!(
@@ -600,7 +603,8 @@ mod tests {
                     }
                 }
                 let (pdf_int, e_pdf) = (q[6], err[6]);
-                report += &format!("{case}: ∫pdf {pdf_int:.5} ± {e_pdf:.0e}, P(non-delta sample) {:.5} ± {:.1e}\n", valid.mean(), valid.se());
+                report +=
+                    &format!("{case}: ∫pdf {pdf_int:.5} ± {e_pdf:.0e}, P(non-delta sample) {:.5} ± {:.1e}\n", valid.mean(), valid.se());
                 check(
                     (pdf_int - valid.mean()).abs() <= 5.0 * valid.se() + e_pdf + rare,
                     format!(

@@ -83,7 +83,8 @@ impl Reference {
         let ior = p.ior as f64;
         // glTF: the dielectric layer's F0 from KHR_materials_ior, coloured and scaled by
         // KHR_materials_specular; its F90 is the specular factor.
-        let f0_layer = (DVec3::splat(((ior - 1.0) / (ior + 1.0)).powi(2)) * p.specular_color.as_dvec3().max(DVec3::ZERO)).min(DVec3::ONE) * spec;
+        let f0_layer =
+            (DVec3::splat(((ior - 1.0) / (ior + 1.0)).powi(2)) * p.specular_color.as_dvec3().max(DVec3::ZERO)).min(DVec3::ONE) * spec;
         let opaque = (1.0 - m) * (1.0 - t);
         // Diffuse under the layer, weighted by what the layer does not reflect at the view angle.
         let diffuse = base * opaque * (1.0 - schlick(f0_layer, spec, wo.z.abs()).max_element());

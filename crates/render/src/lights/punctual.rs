@@ -33,9 +33,7 @@ impl Punctual {
     /// A spot light with the glTF cone angles (radians), checked: `0 ≤ inner < outer ≤ π/2`.
     pub fn spot(position: Vec3A, direction: Vec3A, intensity: Vec3A, inner: f32, outer: f32) -> Result<Punctual, String> {
         if !(inner.is_finite() && outer.is_finite() && 0.0 <= inner && inner < outer && outer <= FRAC_PI_2) {
-            return Err(format!(
-                "spot cone angles inner {inner} and outer {outer} must satisfy 0 ≤ innerConeAngle < outerConeAngle ≤ π/2"
-            ));
+            return Err(format!("spot cone angles inner {inner} and outer {outer} must satisfy 0 ≤ innerConeAngle < outerConeAngle ≤ π/2"));
         }
         Ok(Punctual::Spot { position, direction, intensity, cos_inner: inner.cos(), cos_outer: outer.cos() })
     }
