@@ -339,6 +339,9 @@ impl RenderSession {
         whole.check_outputs()?;
         let plan = self.plan(&whole)?;
         let s = &plan.settings;
+        // Claimed for the whole render: a second process on the same output fails at once
+        // instead of rendering in full and then finding the file taken.
+        let _claim = OutputLock::acquire(&lock_path_for(&job.output), &job.output)?;
         let engine = self.engine()?;
         let total = s.width as u64 * s.height as u64 * s.spp as u64 * 2;
         tracing::info!(

@@ -33,14 +33,22 @@ pub fn check_writable(path: &Path, overwrite: bool) -> Result<(), StreamError> {
     if !parent.is_dir() {
         return Err(StreamError::invalid(path, format!("output directory {} does not exist", parent.display())));
     }
-    let md = std::fs::metadata(&parent).map_err(|e| StreamError::Io { path: parent.clone(), error: e })?;
-    if md.permissions().readonly() {
-        return Err(StreamError::invalid(path, format!("output directory {} is not writable", parent.display())));
-    }
     if path.file_name().is_some_and(|n| n.len() > NAME_MAX) {
         return Err(StreamError::invalid(path, format!("the file name is longer than {NAME_MAX} bytes")));
     }
-    Ok(())
+    // Whether the folder takes a new file is known only by making one: permission bits do not
+    // say it for root, ACLs, read-only mounts or full quotas. The probe is the temporary name
+    // the write will use, made and removed at once.
+    let probe = temp_path_for(path);
+    let _pending = PendingTemp::new(probe.clone());
+    match create_temp(&probe) {
+        Ok(file) => {
+            drop(file);
+            let _ = std::fs::remove_file(&probe);
+            Ok(())
+        }
+        Err(e) => Err(StreamError::invalid(path, format!("output directory {} is not writable: {e}", parent.display()))),
+    }
 }
 
 /// Fails unless `path` ends in `.{ext}` (any case). The writers pick the format, not the name:
