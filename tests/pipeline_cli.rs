@@ -62,6 +62,8 @@ fn reconstruct_all_then_compare_ranks_against_the_reference() {
     let r = StudyResults::read_json(&d.join("cmp.json")).unwrap();
     let scene = &r.scenes[0];
     assert_eq!(scene.methods.len(), 3);
+    // Reconstructions carry the samples they stand for (16 per stream here).
+    assert_eq!((scene.method("pt").unwrap().spp_total, scene.method("ours").unwrap().spp_total), (16, 32));
     assert_eq!(Path::new(&scene.reference.path), d.join("ref.exr").canonicalize().unwrap());
     let rel = |k: &str| scene.method(k).unwrap().relmse_mean;
     // Averaging two independent-enough estimates beats one of them, even at 32×32.

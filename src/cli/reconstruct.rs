@@ -6,7 +6,7 @@ use cvtrace_reconstruct::{EstimatorSpec, Input, Instance, Output};
 use cvtrace_streams::exr_io::{read_rgb, write_rgb, AttrValue};
 use cvtrace_streams::iduw_layout::{parse_iduw_name, read_iduw};
 use cvtrace_streams::preview::write_png;
-use cvtrace_streams::{atomic, StreamSet};
+use cvtrace_streams::{atomic, StreamMeta, StreamSet};
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
@@ -195,7 +195,7 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
     }
     let mut rows = Vec::new();
     for ((target, estimator), out) in estimators.iter().zip(outputs) {
-        written.write(&target.exr, || write_output(&target.exr, &args, &input_path, estimator, &out, set.meta.non_finite_samples))?;
+        written.write(&target.exr, || write_output(&target.exr, &args, &input_path, estimator, &out, &set.meta))?;
         if let Some(png) = &target.png {
             written.write(png, || write_png(png, &out.image, args.exposure, args.force))?;
         }
@@ -215,19 +215,18 @@ pub fn check_exposure(stops: f32) -> Result<()> {
     Ok(())
 }
 
-/// `non_finite_samples`: the input's count of replaced samples, carried into the output.
-fn write_output(
-    path: &Path,
-    args: &ReconstructArgs,
-    source: &Path,
-    estimator: &Instance,
-    out: &Output,
-    non_finite_samples: u64,
-) -> Result<()> {
+/// `meta`: the input's; its spp, seed, scene and count of replaced samples go into the output.
+fn write_output(path: &Path, args: &ReconstructArgs, source: &Path, estimator: &Instance, out: &Output, meta: &StreamMeta) -> Result<()> {
+    let non_finite_samples = meta.non_finite_samples;
     let mut attrs: Vec<(String, AttrValue)> = vec![
         ("cvtrace.method".into(), AttrValue::Text(estimator.name().into())),
         ("cvtrace.source".into(), AttrValue::Text(source.display().to_string())),
         ("cvtrace.nonFiniteSamples".into(), AttrValue::Text(non_finite_samples.to_string())),
+        // What the image stands for, so that `compare` and other tools see its samples and render.
+        ("cvtrace.spp".into(), AttrValue::Int(i32::try_from(estimator.spec().samples.total(meta.spp)).unwrap_or(i32::MAX))),
+        ("cvtrace.streamSpp".into(), AttrValue::Int(i32::try_from(meta.spp).unwrap_or(i32::MAX))),
+        ("cvtrace.seed".into(), AttrValue::Text(meta.seed.to_string())),
+        ("cvtrace.scene".into(), AttrValue::Text(meta.scene.clone())),
         ("cvtrace.version".into(), AttrValue::Text(env!("CARGO_PKG_VERSION").into())),
         ("cvtrace.seconds".into(), AttrValue::Float(out.diagnostics.seconds as f32)),
     ];

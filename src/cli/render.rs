@@ -32,7 +32,7 @@ pub struct RenderArgs {
     pub output: PathBuf,
     /// Samples per pixel of each stream (or of the reference) [default: the sidecar's `spp`, or
     /// `reference_spp` with --reference, else 64].
-    #[arg(long)]
+    #[arg(long, value_parser = spp_parser(), allow_hyphen_values = true)]
     pub spp: Option<u32>,
     /// Batches per stream (must divide --spp; default 16, the measured default of the estimators, see docs/estimators.md). Not used with --reference.
     #[arg(long)]
@@ -77,7 +77,7 @@ pub struct ViewArgs {
     #[arg(long, allow_negative_numbers = true)]
     pub max_depth: Option<i32>,
     /// Path depth at which Russian roulette starts [default: the sidecar's rr_depth, else 5].
-    #[arg(long)]
+    #[arg(long, value_parser = clap::value_parser!(u32).range(0..=i32::MAX as i64), allow_hyphen_values = true)]
     pub rr_depth: Option<u32>,
     /// Override the scene camera: "ex,ey,ez:tx,ty,tz:vfov_degrees" (eye, target, vertical FOV; up stays).
     #[arg(long, value_name = "EYE:TARGET:FOV")]
@@ -233,4 +233,10 @@ mod tests {
             assert!(parse_camera(bad).is_err(), "{bad}");
         }
     }
+}
+
+/// Sample counts on the command line: 1 up to what a file records (an EXR `int`), with the
+/// range in clap's own error, and `-8` taken as the (refused) value it is rather than a flag.
+pub fn spp_parser() -> clap::builder::RangedI64ValueParser<u32> {
+    clap::value_parser!(u32).range(1..=cvtrace_render::render::MAX_SPP as i64)
 }

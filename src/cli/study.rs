@@ -36,7 +36,7 @@ pub struct StudyArgs {
     pub scene: PathBuf,
     /// Samples per pixel of each stream; a list (e.g. 8,16,32) also gives convergence plots.
     /// Tables and images are for the largest value.
-    #[arg(long, value_delimiter = ',', default_value = "96")]
+    #[arg(long, value_delimiter = ',', default_value = "96", value_parser = crate::cli::render::spp_parser(), allow_hyphen_values = true)]
     pub spp: Vec<u32>,
     /// Independent seeds per spp value.
     #[arg(long, default_value_t = 8)]
