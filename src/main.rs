@@ -12,7 +12,7 @@ use std::io::{IsTerminal, Write};
 )]
 struct Cli {
     /// Worker threads (default: all cores). Results are bit-identical for any count.
-    #[arg(long, global = true)]
+    #[arg(short = 't', long, global = true)]
     threads: Option<usize>,
     /// Log level filter (error, warn, info, debug, trace); RUST_LOG overrides it.
     #[arg(long, global = true, default_value = "info")]

@@ -22,6 +22,24 @@ use std::path::{Component, Path, PathBuf};
 
 pub use cvtrace::registry;
 
+/// Makes the missing folders above `output`; returns them, deepest first, for [`remove_empty`].
+pub fn make_parent_folders(output: &Path) -> Result<Vec<PathBuf>> {
+    let Some(parent) = output.parent().filter(|p| !p.as_os_str().is_empty()) else { return Ok(Vec::new()) };
+    let missing: Vec<PathBuf> =
+        parent.ancestors().take_while(|p| !p.as_os_str().is_empty() && !p.exists()).map(Path::to_path_buf).collect();
+    if !missing.is_empty() {
+        cvtrace_streams::atomic::create_dir_all(parent)?;
+    }
+    Ok(missing)
+}
+
+/// Removes the folders of `dirs` that are empty (deepest first): what a failed command made.
+pub fn remove_empty(dirs: &[PathBuf]) {
+    for d in dirs {
+        let _ = std::fs::remove_dir(d);
+    }
+}
+
 /// True if both paths exist and are the same file: the same device and inode, so links, hard
 /// links and `./` spellings all count; a path that does not exist yet is no other file.
 pub fn same_file(a: &Path, b: &Path) -> bool {

@@ -104,16 +104,24 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
     let (Some(input_path), Some(output)) = (args.input.clone(), args.output.clone()) else {
         bail!("reconstruct needs an input stream file and -o");
     };
+    // Missing folders above the output are made, and taken back if the command fails.
+    let made = crate::cli::make_parent_folders(&output)?;
+    let result = reconstruct(&args, input_path, output);
+    if result.is_err() {
+        crate::cli::remove_empty(&made);
+    }
+    result
+}
+
+fn reconstruct(args: &ReconstructArgs, input_path: PathBuf, output: PathBuf) -> Result<()> {
     check_exposure(args.exposure)?;
     let overrides = args.options.overrides()?;
     // Every option given is checked, also those of methods not run: `--method pt --k 0` is as
     // much a mistake as `--method ours --k 0`.
     registry().check(&overrides)?;
     // Build every estimator first: absurd options fail before any file is read.
-    let estimators: Vec<(Target, Instance)> = targets(&args, &output)?
-        .into_iter()
-        .map(|t| registry().build(t.spec.name, &overrides).map(|e| (t, e)))
-        .collect::<Result<_, _>>()?;
+    let estimators: Vec<(Target, Instance)> =
+        targets(args, &output)?.into_iter().map(|t| registry().build(t.spec.name, &overrides).map(|e| (t, e))).collect::<Result<_, _>>()?;
     // Several methods create their directory, but only once the inputs have been read: a
     // failed command leaves nothing behind.
     let new_directory = (estimators.len() > 1 || args.method.eq_ignore_ascii_case("all")) && !output.is_dir();
@@ -195,7 +203,7 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
     }
     let mut rows = Vec::new();
     for ((target, estimator), out) in estimators.iter().zip(outputs) {
-        written.write(&target.exr, || write_output(&target.exr, &args, &input_path, estimator, &out, &set.meta))?;
+        written.write(&target.exr, || write_output(&target.exr, args, &input_path, estimator, &out, &set.meta))?;
         if let Some(png) = &target.png {
             written.write(png, || write_png(png, &out.image, args.exposure, args.force))?;
         }

@@ -109,12 +109,25 @@ pub fn open_session(scene: &std::path::Path, options: &SessionOptions) -> Result
     })
 }
 
+/// The batch count when `--batches` is not given: the largest of 16, 8, 4, 2, 1 that divides
+/// `--spp` (16 where the count comes from the scene), so `render --spp 8` just works. A value
+/// given that does not divide stays an error.
+fn default_batches(spp: Option<u32>) -> u32 {
+    let Some(n) = spp else { return DEFAULT_BATCHES };
+    let b = [DEFAULT_BATCHES, 8, 4, 2, 1].into_iter().find(|b| n % b == 0).unwrap_or(1);
+    if b != DEFAULT_BATCHES {
+        tracing::info!("--batches not given: {b} batches, the most of 16, 8, 4, 2, 1 that divide --spp {n}");
+    }
+    b
+}
+
 pub fn run(args: RenderArgs) -> Result<()> {
     // Cheap checks first: flags, then whether the output can be written at all.
     let batches = match (args.reference, args.batches) {
         (true, Some(_)) => bail!("--batches does not apply to --reference renders (they have a single PT stream)"),
         (true, None) => 1,
-        (false, b) => b.unwrap_or(DEFAULT_BATCHES),
+        (false, Some(b)) => b,
+        (false, None) => default_batches(args.spp),
     };
     if args.reference && args.pass_spp == 0 {
         bail!("--pass-spp must be at least 1");
@@ -145,11 +158,21 @@ pub fn run(args: RenderArgs) -> Result<()> {
     } else {
         Job::Streams(StreamJob { output: args.output.clone(), view, spp: args.spp, batches, seed: args.seed, overwrite: args.force })
     };
-    job.check_outputs()?;
+    // Missing folders of the output are made, as `study` makes its own; taken back if the
+    // render fails.
+    let made = crate::cli::make_parent_folders(&args.output)?;
+    let result = render_job(&args, &job, &options);
+    if result.is_err() {
+        crate::cli::remove_empty(&made);
+    }
+    result
+}
 
-    let session = open_session(&args.scene, &options)?;
+fn render_job(args: &RenderArgs, job: &Job, options: &SessionOptions) -> Result<()> {
+    job.check_outputs()?;
+    let session = open_session(&args.scene, options)?;
     let progress = TerminalProgress::default();
-    match &job {
+    match job {
         Job::Streams(j) => session.render_streams(j, &progress)?,
         Job::Reference(j) => {
             if let ReferenceOutcome::Stopped { passes, samples_done, spp } = session.render_reference(j, &progress)? {
