@@ -40,9 +40,8 @@ pub fn check_writable(path: &Path, overwrite: bool) -> Result<(), StreamError> {
     // say it for root, ACLs, read-only mounts or full quotas. The probe is the temporary name
     // the write will use, made and removed at once.
     let probe = temp_path_for(path);
-    let _pending = PendingTemp::new(probe.clone());
-    match create_temp(&probe) {
-        Ok(file) => {
+    match PendingTemp::create(probe.clone()) {
+        Ok((_pending, file)) => {
             drop(file);
             let _ = std::fs::remove_file(&probe);
             Ok(())
@@ -140,6 +139,16 @@ impl PendingTemp {
     pub(crate) fn new(path: PathBuf) -> PendingTemp {
         pending().push(path.clone());
         PendingTemp(path)
+    }
+
+    /// Creates the temporary file at `path` and registers it in one step under the list's
+    /// lock: an interrupt either finds it registered (and removes it) or has locked the list
+    /// for good (and this waits for the exit), never a file made after the clean-up.
+    fn create(path: PathBuf) -> std::io::Result<(PendingTemp, std::fs::File)> {
+        let mut list = pending();
+        let file = create_temp(&path)?;
+        list.push(path.clone());
+        Ok((PendingTemp(path), file))
     }
 }
 
@@ -332,8 +341,8 @@ where
     check_writable(path, overwrite)?;
     remove_stale_temporaries(path);
     let tmp = temp_path_for(path);
-    let _pending = PendingTemp::new(tmp.clone());
-    let _writing = create_temp(&tmp).map_err(|e| StreamError::invalid(path, format!("could not create {}: {e}", tmp.display())))?;
+    let (_pending, _writing) =
+        PendingTemp::create(tmp.clone()).map_err(|e| StreamError::invalid(path, format!("could not create {}: {e}", tmp.display())))?;
     let written = write(&tmp).map_err(|e| e.to_string()).and_then(|()| {
         // Durable before it is visible: a crash after the rename must not leave an empty file.
         std::fs::File::open(&tmp).and_then(|f| f.sync_all()).map_err(|e| e.to_string())
