@@ -28,3 +28,29 @@ fn batches_default_to_what_divides_spp_and_outputs_make_their_folders() {
     assert!(!bad.status.success() && stderr(&bad).contains("multiple of batches (3)"), "{}", stderr(&bad));
     assert!(!d.join("gone").exists());
 }
+
+#[test]
+fn a_stream_file_opens_as_its_picture_and_render_writes_a_preview() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    ok(&cvtrace(d, &[&["--log", "warn", "render", sp, "--spp", "8", "-o", "s.streams.exr", "--preview", "s.png"][..], SMALL].concat()));
+    // The top-level layer is the mean of both streams: what `average` reconstructs.
+    ok(&cvtrace(d, &["--log", "warn", "reconstruct", "s.streams.exr", "--method", "average", "-o", "avg.exr"]));
+    let picture = cvtrace_streams::exr_io::read_rgb(&d.join("s.streams.exr")).unwrap();
+    assert_eq!(picture, cvtrace_streams::exr_io::read_rgb(&d.join("avg.exr")).unwrap());
+    let png = std::fs::read(d.join("s.png")).unwrap();
+    assert!(png.starts_with(b"\x89PNG"), "the preview is a PNG");
+    // OpenImageIO's tools show the picture by default: an opaque RGBA export of the top layer.
+    let have = std::process::Command::new("oiiotool").arg("--version").output().is_ok();
+    assert!(have || std::env::var_os("CVTRACE_REQUIRE_TOOLS").is_none(), "oiiotool is missing and CVTRACE_REQUIRE_TOOLS is set");
+    if have {
+        let out = std::process::Command::new("oiiotool").args(["s.streams.exr", "-o", "o.png"]).current_dir(d).output().unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let stats = std::process::Command::new("oiiotool").args(["--stats", "o.png"]).current_dir(d).output().unwrap();
+        let text = String::from_utf8_lossy(&stats.stdout);
+        let min = text.lines().find(|l| l.contains("Stats Min")).unwrap_or_default();
+        assert!(min.trim_end().ends_with("255 (of 255)"), "alpha is opaque: {text}");
+    }
+}

@@ -51,6 +51,9 @@ pub struct RenderArgs {
     /// Replace an existing output file.
     #[arg(long)]
     pub force: bool,
+    /// Also write an sRGB PNG preview of the image (the mean of both streams, or the reference).
+    #[arg(long, value_name = "PNG")]
+    pub preview: Option<PathBuf>,
     /// With --reference: continue the finished reference at --output (same scene, seed and
     /// settings) up to --spp samples and replace it. The samples continue its sequence, so the
     /// result equals a one-shot render of --spp to f32 rounding (the file keeps means, not sums).
@@ -160,6 +163,10 @@ pub fn run(args: RenderArgs) -> Result<()> {
     };
     // Missing folders of the output are made, as `study` makes its own; taken back if the
     // render fails.
+    if let Some(p) = &args.preview {
+        cvtrace_streams::atomic::check_extension(p, "png")?;
+        crate::cli::refuse_overwriting_inputs(p, &[&args.output, &args.scene])?;
+    }
     let made = crate::cli::make_parent_folders(&args.output)?;
     let result = render_job(&args, &job, &options);
     if result.is_err() {
@@ -170,6 +177,9 @@ pub fn run(args: RenderArgs) -> Result<()> {
 
 fn render_job(args: &RenderArgs, job: &Job, options: &SessionOptions) -> Result<()> {
     job.check_outputs()?;
+    if let Some(p) = &args.preview {
+        cvtrace_streams::atomic::check_writable(p, args.force)?;
+    }
     let session = open_session(&args.scene, options)?;
     let progress = TerminalProgress::default();
     match job {
@@ -180,8 +190,16 @@ fn render_job(args: &RenderArgs, job: &Job, options: &SessionOptions) -> Result<
                     "stopped after {passes} passes as asked: {samples_done} of {spp} spp saved in {}",
                     cvtrace_render::checkpoint::checkpoint_path(&j.output).display()
                 );
+                // No finished image to preview yet.
+                return Ok(());
             }
         }
+    }
+    if let Some(p) = &args.preview {
+        // The file's top-level R, G, B: a stream file's picture or the reference itself.
+        let image = cvtrace_streams::exr_io::read_rgb(job.output())?;
+        cvtrace_streams::preview::write_png(p, &image, 0.0, args.force)?;
+        tracing::info!("wrote {}", p.display());
     }
     Ok(())
 }

@@ -181,6 +181,23 @@ impl StreamSet {
                 put_rgb(&mut ch, &batch_prefix(name, b), im);
             }
         }
+        // The top-level layer is the picture: the mean of both streams, so that `oiiotool x.exr
+        // -o x.png` and image viewers show the image. Readers of the streams ignore it.
+        let picture = Image {
+            width: self.width,
+            height: self.height,
+            pixels: self
+                .pt
+                .mean
+                .pixels
+                .iter()
+                .zip(&self.crn.mean.pixels)
+                .map(|(h, g)| std::array::from_fn(|c| 0.5 * (h[c] + g[c])))
+                .collect(),
+        };
+        put_rgb(&mut ch, "", &picture);
+        // An opaque alpha, so that a 4-channel export takes it rather than the next layer.
+        ch.insert("A", vec![1.0; self.width * self.height]);
         if let Some(f) = &self.features {
             put_rgb(&mut ch, "albedo.", &f.albedo);
             for (c, n) in ["X", "Y", "Z"].iter().enumerate() {
