@@ -115,7 +115,14 @@ fn main() -> std::process::ExitCode {
     // interrupted run leaves no half files (finished outputs and checkpoints stay).
     if let Err(e) = ctrlc::set_handler(|| {
         cvtrace_streams::atomic::remove_pending_temporaries();
-        let _ = writeln!(std::io::stderr(), "interrupted");
+        match cli::interrupt_note() {
+            Some(note) => {
+                let _ = writeln!(std::io::stderr(), "interrupted: {note}");
+            }
+            None => {
+                let _ = writeln!(std::io::stderr(), "interrupted");
+            }
+        }
         std::process::exit(130);
     }) {
         tracing::warn!("no signal handler: an interrupted run may leave temporary files ({e})");

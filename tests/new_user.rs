@@ -54,3 +54,32 @@ fn a_stream_file_opens_as_its_picture_and_render_writes_a_preview() {
         assert!(min.trim_end().ends_with("255 (of 255)"), "alpha is opaque: {text}");
     }
 }
+
+#[test]
+fn ctrl_c_on_a_reference_render_says_how_to_resume() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene();
+    let args = [
+        &["--log", "warn", "render", s.to_str().unwrap(), "--reference", "--spp", "100000", "--pass-spp", "1", "-o", "r.ref.exr"][..],
+        SMALL,
+    ]
+    .concat();
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_cvtrace"))
+        .args(&args)
+        .current_dir(d)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    while !d.join("r.ref.checkpoint.exr").exists() {
+        assert!(start.elapsed().as_secs() < 60, "no checkpoint after 60 s");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    // SAFETY: kill(2) on our own child's pid, not yet waited for.
+    unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(130));
+    let e = stderr(&out);
+    assert!(e.contains("r.ref.checkpoint.exr") && e.contains("run the same command again to resume"), "{e}");
+}

@@ -22,6 +22,19 @@ use std::path::{Component, Path, PathBuf};
 
 pub use cvtrace::registry;
 
+/// What an interrupt should tell the user about the work in progress (that a checkpoint is
+/// kept, and how to resume), set by the command doing it.
+static INTERRUPT_NOTE: std::sync::Mutex<Option<String>> = std::sync::Mutex::new(None);
+
+pub fn set_interrupt_note(note: String) {
+    *INTERRUPT_NOTE.lock().unwrap_or_else(|p| p.into_inner()) = Some(note);
+}
+
+/// The note, for the signal handler; never waits (the handler must not block on a lock).
+pub fn interrupt_note() -> Option<String> {
+    INTERRUPT_NOTE.try_lock().ok().and_then(|n| n.clone())
+}
+
 /// Makes the missing folders above `output`; returns them, deepest first, for [`remove_empty`].
 pub fn make_parent_folders(output: &Path) -> Result<Vec<PathBuf>> {
     let Some(parent) = output.parent().filter(|p| !p.as_os_str().is_empty()) else { return Ok(Vec::new()) };

@@ -185,6 +185,10 @@ fn render_job(args: &RenderArgs, job: &Job, options: &SessionOptions) -> Result<
     match job {
         Job::Streams(j) => session.render_streams(j, &progress)?,
         Job::Reference(j) => {
+            crate::cli::set_interrupt_note(format!(
+                "the finished passes are kept in {}; run the same command again to resume",
+                cvtrace_render::checkpoint::checkpoint_path(&j.output).display()
+            ));
             if let ReferenceOutcome::Stopped { passes, samples_done, spp } = session.render_reference(j, &progress)? {
                 tracing::info!(
                     "stopped after {passes} passes as asked: {samples_done} of {spp} spp saved in {}",
