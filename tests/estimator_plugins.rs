@@ -110,4 +110,9 @@ fn an_estimator_of_another_crate_is_studied_reported_and_shown() {
     assert!(dom.matches("Inverse-variance blend").count() >= 2, "{dom}");
     assert!(dom.contains("max_weight = 0.9") && dom.contains("crn_weight_mean"), "settings and diagnostics are shown");
     assert!(dom.contains("IVW / PT(n)"), "the headline ratio uses the short labels");
+    // Equal-time efficiency beside equal-sample error, and no local absolute path in the page.
+    assert!(dom.contains("relMSE × s") && dom.contains("÷ PT(2n), equal time") && dom.contains("/efficiency_over_pt2n"), "{dom}");
+    let root = d.canonicalize().unwrap().display().to_string();
+    let data = std::fs::read_to_string(d.join("report/data.js")).unwrap();
+    assert!(!dom.contains(&root) && !data.contains(&root), "the page names {root}");
 }

@@ -359,10 +359,27 @@
     const pt2n = scene.methods.find((m) => m.name === "pt2n");
     const best = Math.min(...methods.map((m) => m.relmse_mean));
     const worst = Math.max(...methods.concat(ablations).map((m) => m.relmse_mean));
-    const head = ["Method", "spp", "relMSE", "± s.e.", "÷ PT(2n)", "bias²", "variance", "MSE", "render s", "recon s", "total s"];
+    const head = ["Method", "spp", "relMSE", "± s.e.", "÷ PT(2n)", "bias²", "variance", "MSE", "render s", "recon s", "total s", "relMSE × s", "÷ PT(2n), equal time"];
+    const titles = { "relMSE × s": "equal-time efficiency: relMSE times the total seconds per image (lower is better)", "÷ PT(2n), equal time": "relMSE × s over PT(2n)'s: below 1, better than PT at equal time" };
     const table = el("table", { class: "results" });
-    table.appendChild(el("thead", {}, el("tr", {}, ...head.map((h) => el("th", { text: h })))));
     const tbody = el("tbody");
+    // Click a header to sort the methods by it (again to reverse); ablations stay below.
+    let sorted = { col: -1, dir: 1 };
+    const sortBy = (col) => {
+      sorted = { col, dir: sorted.col === col ? -sorted.dir : 1 };
+      const main = Array.from(tbody.querySelectorAll("tr.main"));
+      const value = (tr) => {
+        const td = tr.children[col];
+        const v = parseFloat(td.getAttribute("data-value"));
+        return isNaN(v) ? (col === 0 ? td.textContent : Infinity) : v;
+      };
+      main.sort((a, b) => { const x = value(a), y = value(b); return (x < y ? -1 : x > y ? 1 : 0) * sorted.dir; });
+      const first = tbody.firstChild;
+      for (const tr of main) tbody.insertBefore(tr, first);
+    };
+    table.appendChild(el("thead", {}, el("tr", {}, ...head.map((h, i) => el("th", { text: h, title: titles[h] || "click to sort", class: "sortable", onclick: () => sortBy(i) })))));
+    const efficiency = (m) => { const t = m.time_seconds || {}; const s = (t.render || 0) + (t.reconstruct || 0); return s > 0 ? m.relmse_mean * s : null; };
+    const pt2nEff = pt2n ? efficiency(pt2n) : null;
     const colors = view.colors || {};
     const rows = methods.map((m) => [m, false]).concat(ablations.map((m, i) => [m, i === 0]));
     for (const [m, groupStart] of rows) {
@@ -372,18 +389,24 @@
       if (m.relmse_per_seed && m.relmse_per_seed.length) rel.title = "per seed: " + m.relmse_per_seed.map(fmt).join(", ");
       rel.appendChild(el("span", { class: "bar", style: "width:calc((100% - 12px) * " + (worst > 0 ? m.relmse_mean / worst : 0) + ");background:" + (colors[m.name] || "#888") }));
       const t = m.time_seconds || { render: null, reconstruct: null };
-      tbody.appendChild(el("tr", { "data-method": m.name },
-        el("td", {}, el("span", { class: "swatch", style: "background:" + (colors[m.name] || "#888") + ";margin-right:7px" }), m.label),
-        el("td", { class: "dim", text: m.spp_total ? String(m.spp_total) : "?" }),
-        rel,
-        el("td", { class: "dim", text: fmt(m.relmse_se), "data-key": k("relmse_se") }),
-        el("td", { text: pt2n && pt2n.relmse_mean > 0 ? fmt(m.relmse_mean / pt2n.relmse_mean) : "–", "data-key": k("over_pt2n") }),
-        el("td", { text: fmt(m.bias2), "data-key": k("bias2") }),
-        el("td", { text: fmt(m.variance), "data-key": k("variance") }),
-        el("td", { text: fmt(m.mse_mean), "data-key": k("mse_mean") }),
-        el("td", { text: fmtSec(t.render), "data-key": k("time_render") }),
-        el("td", { text: fmtSec(t.reconstruct), "data-key": k("time_reconstruct") }),
-        el("td", { text: fmtSec(t.render + t.reconstruct), "data-key": k("time_total") })));
+      const eff = efficiency(m);
+      const cells = [
+        [el("td", {}, el("span", { class: "swatch", style: "background:" + (colors[m.name] || "#888") + ";margin-right:7px" }), m.label), null],
+        [el("td", { class: "dim", text: m.spp_total ? String(m.spp_total) : "?" }), m.spp_total],
+        [rel, m.relmse_mean],
+        [el("td", { class: "dim", text: fmt(m.relmse_se), "data-key": k("relmse_se") }), m.relmse_se],
+        [el("td", { text: pt2n && pt2n.relmse_mean > 0 ? fmt(m.relmse_mean / pt2n.relmse_mean) : "–", "data-key": k("over_pt2n") }), pt2n && pt2n.relmse_mean > 0 ? m.relmse_mean / pt2n.relmse_mean : null],
+        [el("td", { text: fmt(m.bias2), "data-key": k("bias2") }), m.bias2],
+        [el("td", { text: fmt(m.variance), "data-key": k("variance") }), m.variance],
+        [el("td", { text: fmt(m.mse_mean), "data-key": k("mse_mean") }), m.mse_mean],
+        [el("td", { text: fmtSec(t.render), "data-key": k("time_render") }), t.render],
+        [el("td", { text: fmtSec(t.reconstruct), "data-key": k("time_reconstruct") }), t.reconstruct],
+        [el("td", { text: fmtSec(t.render + t.reconstruct), "data-key": k("time_total") }), t.render + t.reconstruct],
+        [el("td", { text: eff === null ? "–" : fmt(eff), "data-key": k("efficiency") }), eff],
+        [el("td", { text: eff !== null && pt2nEff ? fmt(eff / pt2nEff) : "–", "data-key": k("efficiency_over_pt2n") }), eff !== null && pt2nEff ? eff / pt2nEff : null],
+      ];
+      for (const [td, v] of cells) if (v !== null && v !== undefined && isFinite(v)) td.setAttribute("data-value", String(v));
+      tbody.appendChild(el("tr", { "data-method": m.name, class: m.ablation ? "ablation" : "main" }, ...cells.map(([td]) => td)));
     }
     table.appendChild(tbody);
     return table;

@@ -111,6 +111,28 @@ pub fn write_report(results: &StudyResults, source_dir: &Path, out_dir: &Path, o
     }
 }
 
+/// `path` relative to the folder `base` (with `..` where it lies outside), or `path` as it is
+/// when it is relative already or the two share no root.
+fn relative_to(path: &Path, base: &Path) -> String {
+    let Ok(base) = base.canonicalize() else { return path.display().to_string() };
+    if !path.is_absolute() {
+        return path.display().to_string();
+    }
+    let (p, b): (Vec<_>, Vec<_>) = (path.components().collect(), base.components().collect());
+    let common = p.iter().zip(&b).take_while(|(x, y)| x == y).count();
+    if common <= 1 {
+        return path.display().to_string();
+    }
+    let mut rel = std::path::PathBuf::new();
+    for _ in common..b.len() {
+        rel.push("..");
+    }
+    for c in &p[common..] {
+        rel.push(c);
+    }
+    rel.display().to_string()
+}
+
 /// The list of images and plots a report keeps in its folder, so that the next report there
 /// removes only files a report wrote, never the user's.
 const MANIFEST: &str = ".cvtrace-report";
@@ -179,6 +201,9 @@ fn write_viewer(
     let mut slugs = BTreeSet::new();
     let mut plots = Vec::new();
     for scene in out.scenes.iter_mut() {
+        // A page meant to be shared names no local absolute path: the reference is given
+        // relative to the study folder.
+        scene.reference.path = relative_to(Path::new(&scene.reference.path), source_dir);
         let slug = unique_slug(&scene.name, &mut slugs);
         let mut copier = ImageCopier::new(source_dir, &slug, scene);
         if let Some(p) = scene.reference.image.as_mut() {
@@ -356,6 +381,17 @@ pub fn png_size(path: &Path) -> Result<(usize, usize), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn reference_paths_are_shown_relative_to_the_study() {
+        let dir = tempfile::tempdir().unwrap();
+        let study = dir.path().join("studies/cbox");
+        std::fs::create_dir_all(&study).unwrap();
+        let root = dir.path().canonicalize().unwrap();
+        assert_eq!(relative_to(&root.join("studies/cbox/ref.exr"), &study), "ref.exr");
+        assert_eq!(relative_to(&root.join("scenes/cbox/scene.ref.exr"), &study), "../../scenes/cbox/scene.ref.exr");
+        assert_eq!(relative_to(Path::new("already/relative.exr"), &study), "already/relative.exr");
+    }
     use crate::synthetic::{write_synthetic_study, SyntheticOptions};
 
     fn study() -> (tempfile::TempDir, StudyResults) {
