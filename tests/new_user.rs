@@ -38,7 +38,9 @@ fn a_stream_file_opens_as_its_picture_and_render_writes_a_preview() {
     ok(&cvtrace(d, &[&["--log", "warn", "render", sp, "--spp", "8", "-o", "s.streams.exr", "--preview", "s.png"][..], SMALL].concat()));
     // The top-level layer is the mean of both streams: what `average` reconstructs.
     ok(&cvtrace(d, &["--log", "warn", "reconstruct", "s.streams.exr", "--method", "average", "-o", "avg.exr"]));
-    let picture = cvtrace_streams::exr_io::read_rgb(&d.join("s.streams.exr")).unwrap();
+    let picture = cvtrace_streams::exr_io::read_picture(&d.join("s.streams.exr")).unwrap();
+    // As an image to score it is refused: the picture is no reconstruction.
+    assert!(cvtrace_streams::exr_io::read_rgb(&d.join("s.streams.exr")).unwrap_err().to_string().contains("is a PT/CRN stream file"));
     assert_eq!(picture, cvtrace_streams::exr_io::read_rgb(&d.join("avg.exr")).unwrap());
     let png = std::fs::read(d.join("s.png")).unwrap();
     assert!(png.starts_with(b"\x89PNG"), "the preview is a PNG");

@@ -50,6 +50,8 @@ fn stream_file_has_every_channel_and_openimageio_reads_it() {
         }
     }
     expected.extend(["albedo.R", "albedo.G", "albedo.B", "normal.X", "normal.Y", "normal.Z", "depth.Z"].map(String::from));
+    // The picture: what viewers show of the file.
+    expected.extend(["R", "G", "B", "A"].map(String::from));
     for name in &expected {
         assert!(ch.channels.contains_key(name), "missing channel {name}; have {:?}", ch.channels.keys());
     }
@@ -71,7 +73,7 @@ fn stream_file_has_every_channel_and_openimageio_reads_it() {
     let info = Command::new("oiiotool").args(["--info", "-v", "a.streams.exr"]).current_dir(dir.path()).output().unwrap();
     let text = String::from_utf8_lossy(&info.stdout);
     assert!(info.status.success(), "oiiotool: {}", String::from_utf8_lossy(&info.stderr));
-    assert!(text.contains("32 x   32") && text.contains("37 channel"), "{text}");
+    assert!(text.contains("32 x   32") && text.contains("41 channel") && text.contains("channel list: R, G, B, A,"), "{text}");
     assert!(text.contains("crn.b03.B") && text.contains("cvtrace.spp: 8"), "{text}");
 
     ok(&cvtrace(dir.path(), &args("b.streams.exr")));

@@ -201,7 +201,7 @@ fn render_job(args: &RenderArgs, job: &Job, options: &SessionOptions) -> Result<
     }
     if let Some(p) = &args.preview {
         // The file's top-level R, G, B: a stream file's picture or the reference itself.
-        let image = cvtrace_streams::exr_io::read_rgb(job.output())?;
+        let image = cvtrace_streams::exr_io::read_picture(job.output())?;
         cvtrace_streams::preview::write_png(p, &image, 0.0, args.force)?;
         tracing::info!("wrote {}", p.display());
     }

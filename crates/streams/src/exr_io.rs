@@ -332,15 +332,24 @@ fn sort_header_attributes(path: &Path) -> std::io::Result<()> {
     file.write_all(&sorted)
 }
 
-/// Reads an RGB image from channels `{prefix}R/G/B` (prefix "" for a plain beauty image).
+/// Reads an RGB image (a reference, a reconstruction) from its channels `R/G/B`. A stream
+/// file is refused: its top-level layer is only a picture of it, not an image to score.
 pub fn read_rgb(path: &Path) -> Result<crate::Image, StreamError> {
     let mut ch = ExrChannels::read(path)?;
     take_rgb(&mut ch, path, "")
 }
 
+/// The top-level `R/G/B` of any cvtrace file: an image, or a stream file's picture (the mean
+/// of both streams), for previews.
+pub fn read_picture(path: &Path) -> Result<crate::Image, StreamError> {
+    let mut ch = ExrChannels::read(path)?;
+    ch.channels.remove("pt.R");
+    take_rgb(&mut ch, path, "")
+}
+
 /// Removes `{prefix}R/G/B` from `ch` and returns them as an image, rejecting non-finite values.
 pub fn take_rgb(ch: &mut ExrChannels, path: &Path, prefix: &str) -> Result<crate::Image, StreamError> {
-    if prefix.is_empty() && !ch.channels.contains_key("R") && ch.channels.contains_key("pt.R") {
+    if prefix.is_empty() && ch.channels.contains_key("pt.R") {
         return Err(StreamError::invalid(
             path,
             "is a PT/CRN stream file, not an RGB image: reconstruct it first, or use a reference rendered with --reference",
