@@ -276,7 +276,7 @@ impl RenderSession {
             camera.validate().map_err(SessionError::Camera)?;
             scene.set_camera(camera);
         }
-        let scene_hash = format!("{:016x}", scene_hash(&scene));
+        let scene_hash = scene_hash(&scene);
         Ok(RenderSession {
             path: path.to_path_buf(),
             scene,
@@ -534,7 +534,7 @@ fn can_allocate(bytes: u64) -> bool {
 /// The scene's [`Scene::fingerprint`]: geometry, materials, textures, lights and camera, not the
 /// sidecar's render defaults (the resolved settings are recorded on their own), so editing e.g.
 /// `reference_spp` does not orphan a checkpoint.
-fn scene_hash(scene: &Scene) -> u64 {
+fn scene_hash(scene: &Scene) -> String {
     scene.fingerprint()
 }
 

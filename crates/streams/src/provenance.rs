@@ -133,7 +133,18 @@ pub struct Difference {
 impl Difference {
     /// `"seed 3 (in the file) vs 4 (now)"`, `recorded_in` naming where the recorded value is.
     pub fn describe(&self, recorded_in: &str) -> String {
-        format!("{} {} ({recorded_in}) vs {} (now)", self.field.name(), self.recorded, self.now)
+        let plain = format!("{} {} ({recorded_in}) vs {} (now)", self.field.name(), self.recorded, self.now);
+        // A scene hash carries its fingerprint's version before a colon (`fp3:…`); the first
+        // ones carried none. Hashes of two versions never match, whatever the scene.
+        let version = |h: &str| h.split_once(':').map(|(v, _)| v.to_string());
+        match (self.field, version(&self.recorded), version(&self.now)) {
+            (Field::SceneHash, old, Some(new)) if old.as_deref() != Some(new.as_str()) => format!(
+                "{plain}: the file was recorded with {} scene fingerprint, which cannot be compared with this cvtrace's ({new}); \
+                 re-render it, or render with the cvtrace that wrote it",
+                old.map_or_else(|| "the unversioned".to_string(), |o| format!("an older ({o})"))
+            ),
+            _ => plain,
+        }
     }
 }
 
@@ -305,6 +316,19 @@ impl Bounded for i32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_scene_hash_of_an_older_fingerprint_is_named_as_such() {
+        let d = |recorded: &str, now: &str| {
+            Difference { field: Field::SceneHash, recorded: recorded.into(), now: now.into() }.describe("in the file")
+        };
+        let old = d("65a69bf6f120960e", "fp3:abcde11df24238af");
+        assert!(old.contains("unversioned scene fingerprint") && old.contains("fp3") && old.contains("re-render"), "{old}");
+        let older = d("fp2:65a69bf6f120960e", "fp3:abcde11df24238af");
+        assert!(older.contains("an older (fp2)"), "{older}");
+        // Two hashes of one version differ because the scenes do: no excuse offered.
+        assert_eq!(d("fp3:1", "fp3:2"), "scene hash fp3:1 (in the file) vs fp3:2 (now)");
+    }
 
     fn record() -> Provenance {
         Provenance {

@@ -65,6 +65,24 @@ impl std::fmt::Debug for LatLong {
 }
 
 impl Environment {
+    /// Feeds everything that decides the radiance to the scene fingerprint: the kind, the
+    /// colour or the map's size and texels (bit patterns), and the rotation.
+    pub(crate) fn fingerprint_into(&self, h: &mut crate::scene::Canonical) {
+        match &self.source {
+            Source::Constant(c) => {
+                h.word(0);
+                h.vec(*c);
+            }
+            Source::Map(m) => {
+                h.word(1);
+                h.word(m.width as u64);
+                h.word(m.height as u64);
+                h.floats(m.texels.iter().flat_map(|t| t.to_array()));
+            }
+        }
+        h.floats(self.from_map.to_cols_array());
+    }
+
     /// Constant radiance `color` from every direction.
     pub fn constant(color: Vec3A) -> Result<Environment, String> {
         if !(color.is_finite() && color.min_element() >= 0.0) {
