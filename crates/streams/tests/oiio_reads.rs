@@ -51,7 +51,8 @@ fn oiiotool_lists_every_channel_and_attribute() {
     for ch in ["pt.R", "crn.B", "pt.b00.R", "crn.b03.G", "albedo.G", "normal.Z", "depth.Z"] {
         assert!(text.contains(ch), "oiiotool does not list {ch}:\n{text}");
     }
-    assert!(text.contains("37 channel") && text.contains("float openexr"), "{text}");
+    // 37 stream and feature channels and the R, G, B, A picture.
+    assert!(text.contains("41 channel") && text.contains("channel list: R, G, B, A,") && text.contains("float openexr"), "{text}");
     assert!(text.contains("cvtrace.spp: 16"), "{text}");
     assert!(text.to_lowercase().contains("zip"), "expected ZIP compression:\n{text}");
 }
