@@ -619,9 +619,9 @@ def build_city(src, city, name, camera, sun_elev, sun_azim, sun_e, sky, spp, not
 def build_city_munich(src):
     return build_city(src, "munich", "city-munich",
                       camera=((-330.0, 140.0, 260.0), (0.0, 0.0, 0.0), 38.0),
-                      sun_elev=38.0, sun_azim=200.0, sun_e=(5.0, 4.7, 4.2),
+                      sun_elev=38.0, sun_azim=200.0, sun_e=(3.5, 3.3, 2.95),
                       sky=((0.18, 0.32, 0.75), (0.75, 0.82, 0.95), (0.25, 0.24, 0.22), (0.6, 0.55, 0.45)),
-                      spp=4096, note="Sun: directional light (KHR_lights_punctual); sky: sky.exr without the sun disc.")
+                      spp=12288, note="Sun: directional light (KHR_lights_punctual); sky: sky.exr without the sun disc.")
 
 
 def build_city_etoile(src):
@@ -629,7 +629,7 @@ def build_city_etoile(src):
                       camera=((250.0, 70.0, 260.0), (0.0, 10.0, 0.0), 40.0),
                       sun_elev=12.0, sun_azim=250.0, sun_e=(4.0, 2.9, 1.7),
                       sky=((0.14, 0.24, 0.6), (0.9, 0.7, 0.5), (0.22, 0.2, 0.18), (1.2, 0.7, 0.35)),
-                      spp=4096, note="Low evening sun: directional light; sky: sky.exr without the sun disc.")
+                      spp=12288, note="Low evening sun: directional light; sky: sky.exr without the sun disc.")
 
 
 
@@ -801,7 +801,7 @@ PBR = [("checker", pbr_checker), ("rust", pbr_rust), ("marble", pbr_marble), ("b
 
 
 def build_pbr_grid(src):
-    sc = Scene("pbr-grid", "cvtrace project, MIT OR Apache-2.0 (procedural)", 8192)
+    sc = Scene("pbr-grid", "cvtrace project, MIT OR Apache-2.0 (procedural)", 16384)
     radius = 0.28
     for i, (name, f) in enumerate(PBR):
         b, m = pbr_textures(f)
@@ -870,7 +870,7 @@ def build_thin_blinds(src):
 
 
 def build_small_emitters(src):
-    sc = Scene("small-emitters", "Stanford dragon (genesis-world 1.4.5, Apache-2.0); see SOURCE.md", 16384)
+    sc = Scene("small-emitters", "Stanford dragon (genesis-world 1.4.5, Apache-2.0); see SOURCE.md", 32768)
     lo, hi = (-2.0, 0.0, -2.0), (2.0, 2.6, 2.0)
     wall = sc.material(lambert("wall", (0.55, 0.52, 0.48)))
     floor = sc.material(mat("oak floor", (1, 1, 1), roughness=0.5, base_tex=sc.image("planks.png", tex_planks_small())))
@@ -940,7 +940,7 @@ def build_bounce_interior(src):
         sc.add(sofa, au.box(*b))
     table = sc.material(mat("table", (0.35, 0.2, 0.1), roughness=0.4))
     sc.add(table, au.box((-1.2, 0.0, -1.9), (0.0, 0.45, -1.1)))
-    dragon = scanned(*cgal_mesh(src, "ChineseDragon-10kv.off"), height=0.3, base=(-0.6, 0.45, -1.5), yaw=0.0, up="z")
+    dragon = scanned(*cgal_mesh(src, "ChineseDragon-10kv.off"), height=0.3, base=(-0.6, 0.45, -1.5), yaw=0.0)
     sc.add(sc.material(lambert("terracotta", (0.6, 0.32, 0.2))), dragon)
     # Two torchieres: spot lights aimed at the ceiling from lamps in two corners. Nothing the
     # camera sees is lit directly except the ceiling above them.
@@ -960,9 +960,9 @@ def build_bounce_interior(src):
 def build_city_san_francisco(src):
     return build_city(src, "san_francisco", "city-san-francisco",
                       camera=((-450.0, 300.0, 650.0), (120.0, 40.0, -50.0), 36.0),
-                      sun_elev=30.0, sun_azim=160.0, sun_e=(5.0, 4.7, 4.2),
+                      sun_elev=30.0, sun_azim=160.0, sun_e=(3.5, 3.3, 2.95),
                       sky=((0.16, 0.3, 0.72), (0.72, 0.8, 0.94), (0.25, 0.24, 0.22), (0.6, 0.55, 0.45)),
-                      spp=4096, note="Sun: directional light (KHR_lights_punctual); sky: sky.exr without the sun disc.",
+                      spp=12288, note="Sun: directional light (KHR_lights_punctual); sky: sky.exr without the sun disc.",
                       materials={"marble": ("facades", (0.66, 0.64, 0.6), 0.85),
                                  "metal": ("roofs", (0.3, 0.3, 0.32), 0.8),
                                  "concrete": ("terrain", (0.33, 0.34, 0.29), 0.95)})
