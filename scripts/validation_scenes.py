@@ -99,8 +99,9 @@ def read_off(path):
         k = int(words[i])
         faces.append(tuple(int(w) for w in words[i + 1:i + 1 + k]))
         i += 1 + k
-        # Optional per-face colour values follow the indices up to the end of the line; the
-        # meshes used here have none, which the vertex count check below would catch.
+    # OFF allows per-face colours after the indices; reading them as indices would go wrong
+    # silently, so a file with anything left over is refused.
+    assert i == len(words), f"{path}: per-face colours or trailing data are not supported"
     return verts, faces
 
 
@@ -187,20 +188,13 @@ def smooth_normals(p, t):
     return out
 
 
-def scanned(verts, faces, height, base=(0.0, 0.0, 0.0), yaw=0.0, up="y", flip=False):
-    """A scanned mesh made outward-facing, smooth-shaded, turned `yaw` degrees about +Y, scaled
-    to `height` metres and standing with its lowest point on `base` (centred in x and z).
-
-    `up` names the source's up axis; `flip` turns a mesh whose winding is the wrong way round
-    even where the signed volume cannot tell (open meshes)."""
-    tris = fan(faces)
-    p, t = clean(verts, tris)
-    if up == "z":
-        p = [(x, z, -y) for x, y, z in p]
-    elif up == "-z":
-        p = [(x, -z, y) for x, y, z in p]
-    vol = signed_volume(p, t)
-    if (vol < 0) != flip:
+def scanned(verts, faces, height, base=(0.0, 0.0, 0.0), yaw=0.0):
+    """A +Y-up scanned mesh made outward-facing, smooth-shaded, turned `yaw` degrees about +Y,
+    scaled to `height` metres and standing with its lowest point on `base` (centred in x and z).
+    The meshes used are closed (or nearly: a few boundary edges), so the sign of the volume tells
+    which way they are wound."""
+    p, t = clean(verts, fan(faces))
+    if signed_volume(p, t) < 0:
         t = [(a, c, b) for a, b, c in t]
     a = math.radians(yaw)
     ca, sa = math.cos(a), math.sin(a)
