@@ -426,7 +426,9 @@ class Scene:
 # Sky maps
 # ---------------------------------------------------------------------------------------------
 
-SKY_W, SKY_H = 512, 256
+# Texels are looked up nearest-neighbour: 1024 x 512 (0.35 degrees a row) with a gradient of
+# finite slope at the horizon keeps the rows from showing as bands in a wide sky.
+SKY_W, SKY_H = 1024, 512
 
 
 def make_sky(sun_dir, zenith, horizon, ground, glow):
@@ -436,7 +438,7 @@ def make_sky(sun_dir, zenith, horizon, ground, glow):
     def radiance(d):
         y = d[1]
         if y >= 0:
-            t = math.sqrt(y)
+            t = 1.0 - (1.0 - y) ** 2.5
             base = [horizon[k] * (1 - t) + zenith[k] * t for k in range(3)]
             ang = math.degrees(math.acos(max(-1.0, min(1.0, dot(d, sd)))))
             g = math.exp(-ang / 10.0) + 0.35 * math.exp(-ang / 45.0)
