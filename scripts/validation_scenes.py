@@ -910,11 +910,13 @@ def build_caustics(src):
     ring = au.lathe([[(0.14, 0.0), (0.15, 0.0)], [(0.15, 0.0), (0.15, 0.06)], [(0.15, 0.06), (0.14, 0.06)],
                      [(0.14, 0.06), (0.14, 0.0)]], 128, center=(0.22, 0.0, -0.3))
     sc.add(sc.material(metal("polished gold", (1.0, 0.8, 0.4), 0.02)), ring)
-    lamp = au.sphere((-0.9, 0.7, -0.9), 0.03, rings=12, segments=24)
-    sc.add(sc.material(mat("lamp", emission=(1500.0, 1400.0, 1250.0))), lamp)
+    # 6 cm: small enough for sharp caustics, large enough that BSDF-sampled paths through the
+    # glass find it often enough for a reference to converge.
+    lamp = au.sphere((-0.9, 0.7, -0.9), 0.06, rings=16, segments=32)
+    sc.add(sc.material(mat("lamp", emission=(375.0, 350.0, 312.5))), lamp)
     sc.environment = [("color", "[0.01, 0.01, 0.012]"), ("strength", "1.0")]
     sc.camera = ((0.1, 0.75, 1.3), (0.0, 0.08, -0.08), 34.0)
-    sc.comment = ["Light: one 3 cm spherical lamp and a very dim constant environment; most light"
+    sc.comment = ["Light: one 6 cm spherical lamp and a very dim constant environment; most light"
                   " on the floor arrives through glass or off the ring."]
     return sc
 
