@@ -137,10 +137,14 @@ class Mesh:
         return Mesh(list(g.p), list(g.t), list(g.n), list(g.uv))
 
     def extend(self, other):
-        assert (self.n is None) == (other.n is None) or not self.p, "mixing meshes with and without normals"
+        """Appends `other`. Normals must be on both or neither; UVs survive only if every part
+        has them (a scanned mesh has none, and untextured materials do not need them)."""
         if not self.p:
             self.n = None if other.n is None else []
             self.uv = None if other.uv is None else []
+        assert (self.n is None) == (other.n is None), "mixing meshes with and without normals"
+        if other.uv is None:
+            self.uv = None
         off = len(self.p)
         self.p += other.p
         self.t += [(a + off, b + off, c + off) for a, b, c in other.t]
@@ -296,6 +300,8 @@ class Scene:
         if isinstance(mesh, au.Geom):
             mesh = Mesh.of_geom(mesh)
         self.groups[material].extend(mesh)
+        textured = "baseColorTexture" in self.materials[material]["pbrMetallicRoughness"]
+        assert not textured or self.groups[material].uv is not None, "a textured material needs UVs"
 
     def light(self, light, position, target=None, direction=None):
         rot = None
