@@ -841,12 +841,13 @@ def build_thin_blinds(src):
     for (xa, xb, ya, yb) in ((-2, 2, 0, 0.8), (-2, 2, 2.2, 2.7), (-2, -1, 0.8, 2.2), (1, 2, 0.8, 2.2)):
         g.extend(au.quad((xa, ya, -2.5), (xb, ya, -2.5), (xb, yb, -2.5), (xa, yb, -2.5), (0, 0, 1)))
     sc.add(wall, g)
-    # Venetian blinds: 1.5 mm aluminium slats, 25 mm deep, every 35 mm, tilted 35 degrees.
+    # Venetian blinds: 1.5 mm aluminium slats, 25 mm deep, every 35 mm, tilted 35 degrees across
+    # the sun's rays, so that they block about three quarters of it and leave stripes.
     slat = sc.material(mat("painted aluminium slats", (0.85, 0.85, 0.83), roughness=0.4))
     blinds = au.Geom()
     y = 0.83
     while y < 2.19:
-        blinds.extend(oriented_box((0.0, y, -2.44), (2.02, 0.0015, 0.025), pitch=35.0))
+        blinds.extend(oriented_box((0.0, y, -2.44), (2.02, 0.0015, 0.025), pitch=-35.0))
         y += 0.035
     sc.add(slat, blinds)
     for x in (-0.9, 0.9):  # the cords
@@ -863,7 +864,7 @@ def build_thin_blinds(src):
         wires.extend(tube(add(c, mul(vs[a], r)), add(c, mul(vs[b], r)), 0.004, 6))
     sc.add(steel, wires)
     to_sun = normalize((0.35, 0.55, -1.0))
-    sc.sun(to_sun, (5.0, 4.7, 4.2))
+    sc.sun(to_sun, (7.0, 6.6, 5.9))
     sc.sky = make_sky(to_sun, (0.18, 0.32, 0.75), (0.75, 0.82, 0.95), (0.25, 0.24, 0.22), (0.6, 0.55, 0.45))
     sc.environment = [("map", '"sky.exr"'), ("strength", "1.0")]
     sc.camera = ((-0.4, 1.35, 2.2), (0.1, 0.9, -2.5), 50.0)
