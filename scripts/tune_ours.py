@@ -28,19 +28,31 @@ VARIANTS = [
     ("floor common 1", ["--crn-floor", "1"]), ("floor common 2", ["--crn-floor", "2"]),
     ("floor common 1 crn", ["--crn-floor", "1", "--crn-floor-source", "crn"]),
     ("floor independent 1", ["--crn-floor", "1", "--crn-floor-mode", "independent"]),
-    ("cross-fit", ["--cross-fit"]),
+    ("cross-fit", ["--folds", "halves"]),
     # The cross-bilateral filter behind the PT error estimates (--errors cbf).
     ("cbf exclude centre", ["--cbf-exclude-centre"]),
     ("cbf radius 2", ["--cbf-radius", "2"]), ("cbf radius 5", ["--cbf-radius", "5"]), ("cbf radius 7", ["--cbf-radius", "7"]),
     ("cbf sigma colour 0.1", ["--cbf-sigma-colour", "0.1"]), ("cbf sigma colour 0.5", ["--cbf-sigma-colour", "0.5"]),
     ("cbf sigma albedo 0.3", ["--cbf-sigma-albedo", "0.3"]), ("cbf sigma normal 0.5", ["--cbf-sigma-normal", "0.5"]),
+    # The bias of in-sample coefficients: out-of-sample folds, or the low frequencies from PT.
+    ("low-pass 0", ["--low-pass-sigma", "0"]), ("low-pass 2", ["--low-pass-sigma", "2"]), ("low-pass 4", ["--low-pass-sigma", "4"]),
+    ("low-pass 8", ["--low-pass-sigma", "8"]), ("low-pass 16", ["--low-pass-sigma", "16"]),
+    # The CV baseline (absolute relMSE; their ratios to `default` compare CV with ours).
+    ("cv", ["--method", "cv"]), ("cv ridge 1", ["--method", "cv", "--cv-ridge", "1"]), ("cv ridge 3", ["--method", "cv", "--cv-ridge", "3"]),
+    ("cv ridge 1 low-pass 8", ["--method", "cv", "--cv-ridge", "1", "--cv-low-pass-sigma", "8"]),
+    ("cv pt-noise", ["--method", "cv", "--cv-pt-noise"]),
+    ("cv pt-noise low-pass 8", ["--method", "cv", "--cv-pt-noise", "--cv-low-pass-sigma", "8"]),
+    ("cv pt-noise ridge 0.01 low-pass 8", ["--method", "cv", "--cv-pt-noise", "--cv-ridge", "0.01", "--cv-low-pass-sigma", "8"]),
 ]
 
 
 def relmse(streams, ref, extra, out):
-    cmd = [BIN, "--log", "warn", "reconstruct", streams, "--method", "ours", "--reference", ref, "-o", out, "--force", *extra]
+    """relMSE of `ours` (or of the method a variant names with its own `--method`)."""
+    method = extra[extra.index("--method") + 1] if "--method" in extra else "ours"
+    pick = [] if "--method" in extra else ["--method", "ours"]
+    cmd = [BIN, "--log", "warn", "reconstruct", streams, *pick, "--reference", ref, "-o", out, "--force", *extra]
     text = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
-    m = re.search(r"^ours\s+([0-9.eE+-]+)", text, re.M)
+    m = re.search(rf"^{re.escape(method)}\s+([0-9.eE+-]+)", text, re.M)
     return float(m.group(1))
 
 

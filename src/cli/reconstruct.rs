@@ -3,7 +3,7 @@ use crate::cli::estimator_args::EstimatorArgs;
 use crate::cli::registry;
 use anyhow::{bail, Context, Result};
 use cvtrace_reconstruct::{EstimatorSpec, Input, Instance, Output};
-use cvtrace_streams::exr_io::{read_rgb, write_rgb, AttrValue};
+use cvtrace_streams::exr_io::{put_rgb, read_rgb, AttrValue, ExrChannels};
 use cvtrace_streams::iduw_layout::{parse_iduw_name, read_iduw};
 use cvtrace_streams::preview::write_png;
 use cvtrace_streams::{atomic, StreamMeta, StreamSet};
@@ -244,8 +244,14 @@ fn write_output(path: &Path, args: &ReconstructArgs, source: &Path, estimator: &
     for (k, v) in &out.diagnostics.entries {
         attrs.push((format!("cvtrace.diag.{k}"), AttrValue::Text(v.to_string())));
     }
-    let borrowed: Vec<(&str, AttrValue)> = attrs.iter().map(|(k, v)| (k.as_str(), v.clone())).collect();
-    write_rgb(path, &out.image, &borrowed, args.force)?;
+    // The picture as the top-level R, G, B (what viewers show), each AOV as `<name>.R/G/B`.
+    let mut ch = ExrChannels::new(out.image.width, out.image.height);
+    put_rgb(&mut ch, "", &out.image);
+    for (name, layer) in &out.aovs {
+        put_rgb(&mut ch, &format!("{name}."), layer);
+    }
+    ch.attributes.extend(attrs);
+    ch.write(path, args.force)?;
     tracing::info!("wrote {}", path.display());
     Ok(())
 }

@@ -123,6 +123,16 @@ pub struct MethodResult {
     /// Relative variance of one seed's image.
     #[serde(default)]
     pub variance: Option<f64>,
+    /// The estimator's own predicted variance, weighted like `variance`; its ratio to
+    /// `variance` is the calibration of the prediction.
+    #[serde(default)]
+    pub predicted_variance: Option<f64>,
+    /// Per channel, the image mean over seeds relative to the reference's, minus 1.
+    #[serde(default)]
+    pub image_mean_offset: Option<[f64; 3]>,
+    /// Standard error over seeds of `image_mean_offset`.
+    #[serde(default)]
+    pub image_mean_offset_se: Option<[f64; 3]>,
     pub mse_mean: f64,
     #[serde(default)]
     pub relmse_per_seed: Vec<f64>,
@@ -192,6 +202,9 @@ impl MethodResult {
             relmse_se: stats.relmse_se,
             bias2: stats.bias2,
             variance: stats.variance,
+            predicted_variance: stats.predicted_variance,
+            image_mean_offset: Some(stats.image_mean_offset),
+            image_mean_offset_se: stats.image_mean_offset_se,
             mse_mean: stats.mse_mean,
             relmse_per_seed: stats.relmse_per_seed.clone(),
             time_seconds: StageTimes::default(),

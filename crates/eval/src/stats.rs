@@ -24,6 +24,11 @@ pub struct SeedAccumulator<'r> {
     mean: Vec<[f64; 3]>,
     m2: Vec<[f64; 3]>,
     per_seed: Vec<Metrics>,
+    /// Per seed, the image mean of each channel.
+    image_means: Vec<[f64; 3]>,
+    /// Per seed that came with one, the relMSE-weighted mean of the estimator's own
+    /// predicted per-pixel variance.
+    predicted: Vec<f64>,
 }
 
 /// What [`SeedAccumulator::finish`] reports for one method.
@@ -40,13 +45,28 @@ pub struct SeedStats {
     pub bias2: Option<f64>,
     /// Relative variance of one seed's image; `None` for one seed.
     pub variance: Option<f64>,
+    /// The estimator's own predicted variance, weighted like `variance` and averaged over
+    /// seeds; `None` when it predicts none.
+    pub predicted_variance: Option<f64>,
+    /// Per channel, the image mean over seeds relative to the reference's, minus 1.
+    pub image_mean_offset: [f64; 3],
+    /// Standard error of `image_mean_offset` over seeds; `None` for one seed.
+    pub image_mean_offset_se: Option<[f64; 3]>,
 }
 
 impl<'r> SeedAccumulator<'r> {
     /// `method` names the estimator in error messages.
     pub fn new(reference: &'r Reference, method: impl Into<String>) -> Self {
         let n = reference.image.len();
-        SeedAccumulator { reference, method: method.into(), mean: vec![[0.0; 3]; n], m2: vec![[0.0; 3]; n], per_seed: Vec::new() }
+        SeedAccumulator {
+            reference,
+            method: method.into(),
+            mean: vec![[0.0; 3]; n],
+            m2: vec![[0.0; 3]; n],
+            per_seed: Vec::new(),
+            image_means: Vec::new(),
+            predicted: Vec::new(),
+        }
     }
 
     /// Adds the next seed's image (label defaults to "`method` seed `k`").
@@ -68,7 +88,19 @@ impl<'r> SeedAccumulator<'r> {
             }
         }
         self.per_seed.push(metrics);
+        self.image_means.push(channel_means(image));
         Ok(metrics)
+    }
+
+    /// Adds the estimator's predicted per-pixel variance of the seed just added.
+    pub fn add_predicted_variance(&mut self, variance: &Image, label: &str) -> Result<(), EvalError> {
+        if !variance.same_size(&self.reference.image) {
+            return Err(EvalError::invalid(label, "its variance layer is not the size of the reference"));
+        }
+        let w = self.reference.weights();
+        let sum: f64 = variance.pixels.iter().zip(w).map(|(v, w)| w * v.iter().map(|x| *x as f64).sum::<f64>()).sum();
+        self.predicted.push(sum / (3 * variance.len()).max(1) as f64);
+        Ok(())
     }
 
     pub fn seeds(&self) -> usize {
@@ -127,8 +159,32 @@ impl<'r> SeedAccumulator<'r> {
         } else {
             (None, None)
         };
-        Ok(SeedStats { seeds: s, relmse_mean, relmse_se, relmse_per_seed: rel, mse_mean, mse_se, bias2, variance })
+        let predicted_variance = (!self.predicted.is_empty()).then(|| self.predicted.iter().sum::<f64>() / self.predicted.len() as f64);
+        let truth = channel_means(&self.reference.image);
+        let offsets: Vec<[f64; 3]> = self.image_means.iter().map(|m| std::array::from_fn(|c| m[c] / truth[c] - 1.0)).collect();
+        let per_channel = |c: usize| mean_and_se(&offsets.iter().map(|o| o[c]).collect::<Vec<_>>());
+        let image_mean_offset = std::array::from_fn(|c| per_channel(c).0);
+        let image_mean_offset_se = (s >= 2).then(|| std::array::from_fn(|c| per_channel(c).1.unwrap_or(0.0)));
+        Ok(SeedStats {
+            seeds: s,
+            relmse_mean,
+            relmse_se,
+            relmse_per_seed: rel,
+            mse_mean,
+            mse_se,
+            bias2,
+            variance,
+            predicted_variance,
+            image_mean_offset,
+            image_mean_offset_se,
+        })
     }
+}
+
+/// The mean of each channel over the pixels.
+fn channel_means(image: &Image) -> [f64; 3] {
+    let n = image.len().max(1) as f64;
+    std::array::from_fn(|c| image.pixels.iter().map(|p| p[c] as f64).sum::<f64>() / n)
 }
 
 /// Sample mean and its standard error (`None` with fewer than two values).

@@ -100,7 +100,7 @@ impl Estimator for Ivw {
         let mut d = Diagnostics::default();
         let mean_w = weights.iter().flatten().sum::<f64>() / (3 * weights.len()).max(1) as f64;
         d.float("crn_weight_mean", mean_w);
-        Ok(Output { image: Image { width: set.width, height: set.height, pixels }, diagnostics: d })
+        Ok(Output::new(Image { width: set.width, height: set.height, pixels }, d))
     }
 }
 

@@ -48,11 +48,11 @@ fn extra_variants() -> Vec<(String, Tweak)> {
         }
     }
     if std::env::var("CROSSFIT").is_ok() {
-        v.push(("ours cross-fit".into(), Box::new(|o: &mut ImperfectCvOptions| o.cross_fit = true)));
+        v.push(("ours cross-fit".into(), Box::new(|o: &mut ImperfectCvOptions| o.folds = Folds::Halves)));
         v.push((
             "ours cross-fit common floor 1".into(),
             Box::new(|o: &mut ImperfectCvOptions| {
-                o.cross_fit = true;
+                o.folds = Folds::Halves;
                 o.crn_floor = 1.0;
             }),
         ));

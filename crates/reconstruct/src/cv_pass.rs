@@ -34,9 +34,32 @@ pub struct CvPass<'a> {
     pub include_centre: bool,
     /// The noise floor on the CRN covariance (ours only: needs the centre first).
     pub floor: Option<Floor<'a>>,
-    /// Cross-fitting: coefficients from one half of the batches, applied to the other half's
-    /// CRN means, and the two results averaged (needs at least 4 batches).
-    pub cross_fit: bool,
+    /// Which batches each set of coefficients is estimated from and applied to.
+    pub folds: Folds,
+    /// Also return each pixel's predicted variance (Eq. 7 at the chosen β).
+    pub variance: bool,
+}
+
+/// What a pass returns: the image, its predicted variance when asked for, and the statistics.
+pub struct PassOutput {
+    pub image: Image,
+    /// Per pixel and channel, `s·‖d_c − Σ β_j d_j‖² + Σ β_j² e_j`: the CRN batch covariance
+    /// (with the floor, where one is set) and the PT error estimates `e` before the penalty,
+    /// at the coefficients the pass used; averaged over the folds.
+    pub variance: Option<Image>,
+    pub stats: PassStats,
+}
+
+crate::named::named_enum! {
+    /// How the CRN batches are split between estimating β and the CRN values β weights.
+    pub enum Folds: "folds" {
+        /// β from all batches, applied to the stream mean.
+        All => "all",
+        /// β from one half of the batches applied to the other half's mean, and vice versa,
+        /// the two results averaged (needs an even batch count ≥ 4): the coefficients never
+        /// see the values they weight.
+        Halves => "halves",
+    }
 }
 
 /// Sums over pixel-channel solves.
@@ -124,30 +147,40 @@ impl<const P: usize> Scratch<P> {
     }
 }
 
-/// The batches one set of coefficients is estimated from, and the CRN means it is applied to.
-/// Without cross-fitting there is one half (all batches, the stream mean); with it, two
-/// (batches `0..B/2` and `B/2..B`, each with its own mean), and the coefficients estimated on
-/// one are applied to the other's means.
+/// The batches one set of coefficients is estimated from (as a deviation cube), and the CRN
+/// values it is applied to; the pass averages the folds' results with equal weights.
 struct Half<'a> {
     cube: BatchCube,
     mean: &'a [[f32; 3]],
 }
 
+/// `s` of `V = s·Σ d·dᵀ`: the covariance of the full mean of `batches` batches estimated from
+/// the deviations of `m` of them (a single batch's covariance is `Σ d·dᵀ/(m − 1)`).
+fn scale(batches: usize, m: usize) -> f64 {
+    1.0 / (batches * (m - 1)) as f64
+}
+
 impl CvPass<'_> {
-    pub fn run(&self) -> (Image, PassStats) {
+    pub fn run(&self) -> PassOutput {
         let b = self.set.batch_count();
         debug_assert!((2..=MAX_BATCHES).contains(&b));
         let crn = &self.set.crn;
-        let split: Vec<Stream>;
-        let parts: Vec<(&Stream, &[[f32; 3]])> = if self.cross_fit {
-            let h = b / 2;
-            split = vec![Stream::from_batches(crn.batches[..h].to_vec()), Stream::from_batches(crn.batches[h..2 * h].to_vec())];
-            split.iter().map(|st| (st, st.mean.pixels.as_slice())).collect()
-        } else {
-            vec![(crn, crn.mean.pixels.as_slice())]
+        // (coefficient batches, the values they are applied to)
+        let coefficient_streams: Vec<Stream>;
+        let parts: Vec<(&Stream, &[[f32; 3]])> = match self.folds {
+            Folds::All => vec![(crn, crn.mean.pixels.as_slice())],
+            Folds::Halves => {
+                let h = b / 2;
+                coefficient_streams =
+                    vec![Stream::from_batches(crn.batches[..h].to_vec()), Stream::from_batches(crn.batches[h..2 * h].to_vec())];
+                vec![
+                    (&coefficient_streams[0], coefficient_streams[1].mean.pixels.as_slice()),
+                    (&coefficient_streams[1], coefficient_streams[0].mean.pixels.as_slice()),
+                ]
+            }
         };
         let bh = parts[0].0.batches.len();
-        let s = 1.0 / (parts.len() * bh * (bh - 1)) as f64;
+        let s = scale(b, bh);
         let halves = |stride: usize| -> Vec<Half> {
             parts
                 .iter()
@@ -171,37 +204,81 @@ impl CvPass<'_> {
         }
     }
 
-    fn run_width<const P: usize>(&self, halves: &[Half]) -> (Image, PassStats) {
+    fn run_width<const P: usize>(&self, halves: &[Half]) -> PassOutput {
         let (w, h) = (self.set.width, self.set.height);
         let mut image = Image::new(w, h);
+        let mut variance = Image::new(w, h);
         let mut rows = vec![PassStats::default(); h];
-        image.pixels.par_chunks_mut(w).zip(rows.par_iter_mut()).enumerate().for_each_init(Scratch::<P>::new, |sc, (y, (row, st))| {
-            #[cfg(target_arch = "x86_64")]
-            if crate::simd::use_avx2() {
-                // SAFETY: the CPU supports AVX2 (checked just above).
-                unsafe { self.row_avx2::<P>(halves, y, row, sc, st) };
-                return;
-            }
-            self.row::<P, Portable>(halves, y, row, sc, st);
-        });
-        let mut total = PassStats::default();
+        image.pixels.par_chunks_mut(w).zip(variance.pixels.par_chunks_mut(w)).zip(rows.par_iter_mut()).enumerate().for_each_init(
+            Scratch::<P>::new,
+            |sc, (y, ((row, var), st))| {
+                #[cfg(target_arch = "x86_64")]
+                if crate::simd::use_avx2() {
+                    // SAFETY: the CPU supports AVX2 (checked just above).
+                    unsafe { self.row_avx2::<P>(halves, y, row, var, sc, st) };
+                    return;
+                }
+                self.row::<P, Portable>(halves, y, row, var, sc, st);
+            },
+        );
+        let mut stats = PassStats::default();
         for r in &rows {
-            total.add(r);
+            stats.add(r);
         }
-        (image, total)
+        PassOutput { image, variance: self.variance.then_some(variance), stats }
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn row_avx2<const P: usize>(&self, halves: &[Half], y: usize, row: &mut [[f32; 3]], sc: &mut Scratch<P>, st: &mut PassStats) {
-        self.row::<P, crate::simd::Avx2>(halves, y, row, sc, st);
+    unsafe fn row_avx2<const P: usize>(
+        &self,
+        halves: &[Half],
+        y: usize,
+        row: &mut [[f32; 3]],
+        var: &mut [[f32; 3]],
+        sc: &mut Scratch<P>,
+        st: &mut PassStats,
+    ) {
+        self.row::<P, crate::simd::Avx2>(halves, y, row, var, sc, st);
     }
 
     #[inline(always)]
-    fn row<const P: usize, S: Simd>(&self, halves: &[Half], y: usize, row: &mut [[f32; 3]], sc: &mut Scratch<P>, st: &mut PassStats) {
-        for (x, px) in row.iter_mut().enumerate() {
-            *px = self.pixel::<P, S>(halves, x, y, sc, st);
+    fn row<const P: usize, S: Simd>(
+        &self,
+        halves: &[Half],
+        y: usize,
+        row: &mut [[f32; 3]],
+        var: &mut [[f32; 3]],
+        sc: &mut Scratch<P>,
+        st: &mut PassStats,
+    ) {
+        for (x, (px, v)) in row.iter_mut().zip(var.iter_mut()).enumerate() {
+            let (value, variance) = self.pixel::<P, S>(halves, x, y, sc, st);
+            *px = value;
+            *v = variance;
         }
+    }
+
+    /// Eq. 7 at `beta` for channel `ch`: `s·‖d_c − Σ β_j d_j‖² + Σ β_j² e_j`, the CRN part
+    /// from the fold's deviations (so it includes the floor's column) and the PT part from
+    /// the unpenalised error estimates.
+    #[inline(always)]
+    fn predicted_variance(&self, cube: &BatchCube, c: usize, idx: &[u32], beta: &[f64], ch: usize, s: f64) -> f64 {
+        let mut residual = [0.0f64; MAX_BATCHES];
+        let r = &mut residual[..cube.batches];
+        for (dst, v) in r.iter_mut().zip(cube.row(c, ch)) {
+            *dst = *v as f64;
+        }
+        let mut pt = 0.0;
+        for (&i, &b) in idx.iter().zip(beta) {
+            for (dst, v) in r.iter_mut().zip(cube.row(i as usize, ch)) {
+                *dst -= b * *v as f64;
+            }
+            if let Some(e) = self.errors {
+                pt += b * b * e[i as usize][ch] as f64;
+            }
+        }
+        s * r.iter().map(|x| x * x).sum::<f64>() + pt
     }
 
     /// `W` for control variate `i` of centre `c` in channel `ch` (summed over channels when shared).
@@ -228,28 +305,27 @@ impl CvPass<'_> {
     }
 
     #[inline(always)]
-    fn pixel<const P: usize, S: Simd>(&self, halves: &[Half], x: usize, y: usize, sc: &mut Scratch<P>, st: &mut PassStats) -> [f32; 3] {
+    fn pixel<const P: usize, S: Simd>(&self, halves: &[Half], x: usize, y: usize, sc: &mut Scratch<P>, st: &mut PassStats) -> ([f32; 3], [f32; 3]) {
         let c = y * self.set.width + x;
         let n = self.selector.select(x, y, &mut sc.select, &mut sc.idx);
         let idx = &sc.idx[..n];
         let hm = &self.set.pt.mean.pixels;
         let nh = halves.len();
         let b = halves[0].cube.batches;
-        // Covariances of the full CRN mean: with nh halves of b batches each, a half's batch
-        // covariance Σd²/(b(b−1)) estimates the covariance of a half's mean, nh times that of
-        // the full mean.
-        let s = 1.0 / (nh * b * (b - 1)) as f64;
+        let s = scale(self.set.batch_count(), b);
         st.pixels += 1;
         st.set_size += n as u64;
         if n == 0 {
-            return self.set.crn.mean.pixels[c];
+            return (self.set.crn.mean.pixels[c], [0.0; 3]);
         }
         debug_assert!(self.floor.is_none() || (self.include_centre && idx[0] as usize == c));
         let mut acc = [0.0f64; 3];
+        let mut var = [0.0f64; 3];
+        let finish = |acc: [f64; 3], var: [f64; 3]| (acc.map(|v| (v / nh as f64) as f32), var.map(|v| (v / nh as f64) as f32));
         if let Some(p) = sc.panel.as_deref_mut() {
-            for (hi, half) in halves.iter().enumerate() {
+            for half in halves {
                 let cube = &half.cube;
-                let target = halves[(hi + 1) % nh].mean;
+                let target = half.mean;
                 let mut delta_c = [0.0f64; 3];
                 let centre: [&[f32; P]; 3] = std::array::from_fn(|ch| cube.row_padded::<P>(c, ch));
                 let mut rows = Rows { d: centre.map(|r| [r; MAX_K]), dc: centre };
@@ -284,15 +360,18 @@ impl CvPass<'_> {
                     let beta = &mut p.beta[ch][..n];
                     st.record(outcomes[ch], beta, self.include_centre);
                     acc[ch] += combine(target[c][ch] as f64, &sc.gs3[ch][..n], &sc.hs3[ch][..n], beta);
+                    if self.variance {
+                        var[ch] += self.predicted_variance(cube, c, idx, beta, ch, s);
+                    }
                 }
             }
-            return acc.map(|v| (v / nh as f64) as f32);
+            return finish(acc, var);
         }
         let ws = sc.ws.as_deref_mut().expect("general workspace");
         let channels: &[usize] = if self.shared { &[0] } else { &[0, 1, 2] };
-        for (hi, half) in halves.iter().enumerate() {
+        for half in halves {
             let cube = &half.cube;
-            let target = halves[(hi + 1) % nh].mean;
+            let target = half.mean;
             for &ch in channels {
                 let m = if self.shared { 3 * b } else { b };
                 let source = |i: usize| if self.shared { cube.pixel(i) } else { cube.row(i, ch) };
@@ -331,9 +410,12 @@ impl CvPass<'_> {
                         sc.hs[j] = hm[i as usize][oc] as f64;
                     }
                     acc[oc] += combine(target[c][oc] as f64, &sc.gs[..n], &sc.hs[..n], beta);
+                    if self.variance {
+                        var[oc] += self.predicted_variance(cube, c, idx, beta, oc, s);
+                    }
                 }
             }
         }
-        acc.map(|v| (v / nh as f64) as f32)
+        finish(acc, var)
     }
 }

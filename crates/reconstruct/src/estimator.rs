@@ -11,12 +11,25 @@ use std::time::Instant;
 pub struct Output {
     pub image: Image,
     pub diagnostics: Diagnostics,
+    /// Further per-pixel layers (AOVs), written as `<name>.R/G/B`; `ours` gives `variance`,
+    /// its predicted variance per pixel.
+    pub aovs: Vec<(String, Image)>,
 }
 
 impl Output {
     /// An image without diagnostics.
     pub fn image(image: Image) -> Self {
-        Output { image, diagnostics: Diagnostics::default() }
+        Output::new(image, Diagnostics::default())
+    }
+
+    /// An image with its diagnostics and no further layers.
+    pub fn new(image: Image, diagnostics: Diagnostics) -> Self {
+        Output { image, diagnostics, aovs: Vec::new() }
+    }
+
+    /// The layer called `name`, if the estimator gave one.
+    pub fn aov(&self, name: &str) -> Option<&Image> {
+        self.aovs.iter().find(|(n, _)| n == name).map(|(_, im)| im)
     }
 }
 

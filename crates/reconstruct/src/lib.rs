@@ -50,6 +50,7 @@
 mod batch_stats;
 pub mod control_variate;
 mod cv_pass;
+mod low_pass;
 mod diagnostics;
 mod error;
 mod estimator;
@@ -78,6 +79,7 @@ pub use error::{ParseNameError, ReconError};
 pub use estimator::{Estimator, Instance, Output};
 pub use estimators::{ClassicCvOptions, IduwOptions, ImperfectCvOptions, GAMMA_GRID};
 pub use floor::{FloorMode, FloorSource};
+pub use cv_pass::Folds;
 pub use input::{stream_set_from_batches, BatchNeed, Input, Needs, MAX_VALUE};
 pub use penalty::Penalty;
 pub use pt_error::{CbfOptions, ErrorEstimate};
@@ -101,7 +103,8 @@ pub use spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples, Val
 ///   [`PassStats`](blocks::PassStats) report the shares of regularised and degenerate solves.
 pub mod blocks {
     pub use crate::batch_stats::{group_means, variance_of_mean, BatchCube};
-    pub use crate::cv_pass::{CvPass, PassStats};
+    pub use crate::cv_pass::{CvPass, Folds, PassOutput, PassStats};
+    pub use crate::low_pass::{low_pass_variance, restore_low_frequencies};
     pub use crate::floor::{Floor, FloorMode, FloorSource};
     pub use crate::penalty::Penalty;
     pub use crate::pt_error::{cross_bilateral, pt_errors, CbfOptions, ErrorEstimate};

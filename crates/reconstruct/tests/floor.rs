@@ -6,7 +6,7 @@ use common::dense::{batch_mean, set_of, variance_of_mean, Fit, Rule};
 use common::{normal, stream_set, stream_set_rgb};
 use cvtrace_reconstruct::estimators::ImperfectCv;
 use cvtrace_reconstruct::{
-    ErrorEstimate, Estimator, FloorMode, FloorSource, ImperfectCvOptions, Input, Penalty, ReconError, Selection, StreamSet,
+    ErrorEstimate, Estimator, FloorMode, FloorSource, Folds, ImperfectCvOptions, Input, Penalty, ReconError, Selection, StreamSet,
 };
 
 const W: usize = 21;
@@ -119,7 +119,7 @@ fn cross_fit_end_points_are_pt_and_crn() {
     let truth = |i: usize| 1.0 + (i % 5) as f64 * 0.1;
     let noisy_crn = stream_set(W, W, 16, 64, truth, |b, i| 0.3 * normal(7, (b * 4096 + i) as u64), |_, _| 0.0);
     let est = ours(|o| {
-        o.cross_fit = true;
+        o.folds = Folds::Halves;
         o.k = 5;
         o.crn_floor = 0.0;
     });
@@ -162,14 +162,13 @@ fn cross_fit_applies_each_half_s_coefficients_to_the_other_half() {
         |bb, i, ch| truth(i, ch) + 0.2 * (normal(31, (bb * 3 + ch) as u64) + normal(32, bb as u64 * n + (i * 3 + ch) as u64)),
         |bb, i, ch| truth(i, ch) + 0.15 * normal(33, bb as u64 * n + (i * 3 + ch) as u64),
     );
-    let est = |cross_fit: bool| {
+    let est = |folds: Folds| {
         ours(|o| {
-            (o.select, o.errors, o.penalty, o.crn_floor, o.cross_fit) =
-                (Selection::Window, ErrorEstimate::Variance, Penalty::None, 0.0, cross_fit);
+            (o.select, o.errors, o.penalty, o.crn_floor, o.folds) = (Selection::Window, ErrorEstimate::Variance, Penalty::None, 0.0, folds);
         })
     };
-    let fitted = est(true).reconstruct(&Input::new(&set)).unwrap().image;
-    let plain = est(false).reconstruct(&Input::new(&set)).unwrap().image;
+    let fitted = est(Folds::Halves).reconstruct(&Input::new(&set)).unwrap().image;
+    let plain = est(Folds::All).reconstruct(&Input::new(&set)).unwrap().image;
     let halves = [0..4, 4..8];
     let (mut gap_plain, mut gap_swapped) = (0.0f64, 0.0f64);
     for (x, y) in [(10, 7), (3, 4), (0, 0), (20, 14), (15, 1)] {
@@ -217,7 +216,7 @@ fn bad_floor_and_cross_fit_settings_are_rejected() {
     assert!("sideways".parse::<FloorMode>().unwrap_err().to_string().contains("common, independent"));
     assert!("oracle".parse::<FloorSource>().unwrap_err().to_string().contains("pt, crn"));
     // Cross-fitting needs two equal halves of at least two batches each.
-    let est = cvtrace_reconstruct::build("ours", &cvtrace_reconstruct::Overrides::parse(["ours.cross_fit=true"]).unwrap()).unwrap();
+    let est = cvtrace_reconstruct::build("ours", &cvtrace_reconstruct::Overrides::parse(["ours.folds=halves"]).unwrap()).unwrap();
     for (b, needle) in [(5usize, "even"), (2, "at least 4")] {
         let set =
             stream_set(8, 8, b, 16, |_| 1.0, |bb, i| 0.1 * normal(1, (bb * 64 + i) as u64), |bb, i| 0.1 * normal(2, (bb * 64 + i) as u64));

@@ -216,17 +216,23 @@ impl Study<'_> {
             accumulate_variance(&mut pt_variance, set, self.seeds);
             let input = Input::new(set).named(&streams.name, &reference.label).with_reference(&reference.image);
             for (k, c) in cols.iter().enumerate() {
+                let mut predicted = None;
                 let (img, t) = match &c.kind {
                     ColumnKind::Estimator(est) => {
-                        let out = est.run(&input)?;
+                        let mut out = est.run(&input)?;
                         diagnostics[k].add(&out.diagnostics);
+                        predicted = out.aovs.iter().position(|(n, _)| n == "variance").map(|i| out.aovs.swap_remove(i).1);
                         // An estimator of one stream needs only that stream: half the pair's render time.
                         let render = c.samples.render_share() * streams.seconds;
                         (out.image, StageTimes { render, reconstruct: out.diagnostics.seconds })
                     }
                     ColumnKind::Pt2n => (pt2n.value.clone(), StageTimes { render: pt2n.seconds, reconstruct: 0.0 }),
                 };
-                accs[k].add_labelled(&img, &format!("{} ({})", c.key, streams.name))?;
+                let label = format!("{} ({})", c.key, streams.name);
+                accs[k].add_labelled(&img, &label)?;
+                if let Some(v) = &predicted {
+                    accs[k].add_predicted_variance(v, &label)?;
+                }
                 times[k].render += t.render / seeds;
                 times[k].reconstruct += t.reconstruct / seeds;
                 if keep_images && i == 0 {

@@ -1,15 +1,24 @@
-//! `cv`: the classic control-variate baseline. The PT means are taken as exact expectations
-//! (`V_h = 0`), so the centre must be left out of the set (with it, `β = e_c` would promise
-//! zero variance and return plain PT). `β` solves `(V_g + ridge) β = V_fg` from CRN batch
-//! covariances. Without `V_h` nothing guards against the PT noise it copies in, and with
-//! fewer batches than control variates `V_g` is singular, so the ridge is essential.
+//! `cv`: the control-variate baseline, `F̂_c = ḡ_c − Σ_{i≠c} β_i (ḡ_i − h̄_i)` over the same
+//! k-NN set as `ours` but **without the centre**: the centre's own PT value never enters, so the
+//! estimator can only explain the centre's CRN value by its neighbours. That is the one thing
+//! `ours` adds (with the centre, `β = e_c` returns PT), which is what makes `ours ÷ cv` the
+//! effect of the centre in the set.
+//!
+//! By default `β` solves `(V_g + V_h' + ridge) β = V_fg` with the covariances of `ours` (CRN
+//! batch covariances, the PT error filter's estimates with the `avg` penalty) and the low-pass
+//! correction of `ours`. The classic form (`pt_noise = false`, `low_pass_sigma = 0`, the
+//! `cv-classic` variant) takes the PT means as exact expectations (`V_h = 0`); nothing then
+//! guards against the PT noise it copies in, and with fewer batches than control variates `V_g`
+//! is singular, so the ridge is essential. See docs/estimators.md for both, measured.
 use super::ours::check_selection;
-use crate::cv_pass::CvPass;
+use crate::cv_pass::{CvPass, Folds};
 use crate::input::BatchNeed;
+use crate::low_pass::restore_low_frequencies;
 use crate::penalty::Penalty;
+use crate::pt_error::{pt_errors, CbfOptions, ErrorEstimate};
 use crate::selection::{Selection, Selector, MAX_SEARCH_WINDOW};
 use crate::solve::{MAX_BATCHES, MAX_K};
-use crate::spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples};
+use crate::spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples, Variant};
 use crate::{Diagnostics, Estimator, Input, Needs, Output, ReconError};
 
 pub static SPEC: EstimatorSpec = EstimatorSpec {
@@ -56,6 +65,20 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
             alias: Some("shared-coefficients"),
         },
         ParamSpec {
+            name: "pt_noise",
+            kind: ParamKind::Bool,
+            default: "true",
+            doc: "Model the noise of the PT means as `ours` does (cross-bilateral error estimates, `avg` penalty) instead of taking them as exact expectations.",
+            alias: Some("cv-pt-noise"),
+        },
+        ParamSpec {
+            name: "low_pass_sigma",
+            kind: ParamKind::Float(Bounds::at_least(0.0)),
+            default: "8",
+            doc: "σ in pixels of the Gaussian below which the output's frequencies are taken from the PT mean (0 = off).",
+            alias: Some("cv-low-pass-sigma"),
+        },
+        ParamSpec {
             name: "seed",
             kind: ParamKind::Int { min: 0, max: i64::MAX },
             default: "0",
@@ -65,7 +88,11 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
     ],
     needs: |p| needs(p.choice("select")),
     build: |p| Ok(Box::new(ClassicCv::new(ClassicCvOptions::from_params(p))?)),
-    variants: &[],
+    variants: &[Variant {
+        key: "cv-classic",
+        label: "CV, PT means as exact (classic)",
+        params: &[("pt_noise", "false"), ("low_pass_sigma", "0")],
+    }],
 };
 
 fn needs(select: Selection) -> Needs {
@@ -89,7 +116,12 @@ pub struct ClassicCvOptions {
     pub shared_coefficients: bool,
     /// Seed of `select = random`.
     pub seed: u64,
+    /// Whether the solve models the PT means' noise (`V_h` from the error filter of `ours`).
+    pub pt_noise: bool,
+    /// σ (pixels) of the low-pass correction towards the PT mean; 0 = off.
+    pub low_pass_sigma: f64,
 }
+
 
 impl Default for ClassicCvOptions {
     fn default() -> Self {
@@ -107,6 +139,8 @@ impl ClassicCvOptions {
             ridge: p.float("ridge"),
             shared_coefficients: p.bool("shared_coefficients"),
             seed: p.int("seed") as u64,
+            pt_noise: p.bool("pt_noise"),
+            low_pass_sigma: p.float("low_pass_sigma"),
         }
     }
 
@@ -136,22 +170,25 @@ impl Estimator for ClassicCv {
     fn reconstruct(&self, input: &Input) -> Result<Output, ReconError> {
         let o = &self.options;
         let set = input.streams;
+        let errors = o.pt_noise.then(|| pt_errors(ErrorEstimate::Cbf, set, None, &CbfOptions::default()));
         let pass = CvPass {
             set,
             selector: Selector::new(o.select, o.neighbours, o.search_window, false, o.seed, set),
             k: o.neighbours,
-            errors: None,
-            penalty: Penalty::None,
+            errors: errors.as_deref(),
+            penalty: if o.pt_noise { Penalty::Avg } else { Penalty::None },
             ridge: o.ridge,
             shared: o.shared_coefficients,
             include_centre: false,
             floor: None,
-            cross_fit: false,
+            folds: Folds::All,
+            variance: false,
         };
-        let (image, st) = pass.run();
+        let out = pass.run();
+        let image = restore_low_frequencies(&out.image, &set.pt.mean, o.low_pass_sigma);
         let mut d = Diagnostics::default();
-        st.report(&mut d);
+        out.stats.report(&mut d);
         d.int("batches", set.batch_count() as i64);
-        Ok(Output { image, diagnostics: d })
+        Ok(Output::new(image, d))
     }
 }

@@ -428,6 +428,6 @@ impl Estimator for Iduw {
         d.float("gamma", gamma as f64)
             .float("neighbour_weight_mean", wsum.iter().sum::<f64>() / (3 * w * h) as f64)
             .int("window", win as i64);
-        Ok(Output { image, diagnostics: d })
+        Ok(Output::new(image, d))
     }
 }

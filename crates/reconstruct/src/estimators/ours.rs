@@ -6,8 +6,9 @@
 //! set, the estimator ranges over PT (`β = e_c`), CRN (`β = 0`) and every blend of
 //! neighbours in between. See docs/estimators.md for the defaults and their measurements.
 use crate::batch_stats::variance_of_mean;
-use crate::cv_pass::CvPass;
+use crate::cv_pass::{CvPass, Folds};
 use crate::floor::{Floor, FloorMode, FloorSource};
+use crate::low_pass::{low_pass_variance, restore_low_frequencies};
 use crate::input::BatchNeed;
 use crate::penalty::Penalty;
 use crate::pt_error::{cross_bilateral, pt_errors, CbfOptions, ErrorEstimate, MAX_RADIUS};
@@ -45,11 +46,13 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
         param("crn_floor", ParamKind::Float(Bounds::at_least(0.0)), "0.05", "τ of the floor on the CRN covariance, as a fraction of the floor's variance (0 = off).", Some("crn-floor")),
         param("crn_floor_mode", ParamKind::Choice(FloorMode::NAMES), "common", "Shape of the floor: common (noise shared by the set) or independent (diagonal).", Some("crn-floor-mode")),
         param("crn_floor_source", ParamKind::Choice(FloorSource::NAMES), "pt", "The floor's variance: pt (the PT error estimates) or crn (filtered CRN variance).", Some("crn-floor-source")),
-        param("cross_fit", ParamKind::Bool, "false", "Estimate β on one half of the CRN batches and apply it to the other half (and vice versa); needs an even batch count ≥ 4.", Some("cross-fit")),
+        param("low_pass_sigma", ParamKind::Float(Bounds::at_least(0.0)), "8", "σ in pixels of the Gaussian below which the output's frequencies are taken from the PT mean, which removes the estimator's bias at coarser scales (0 = off).", Some("low-pass-sigma")),
+        param("folds", ParamKind::Choice(Folds::NAMES), "all", "Which CRN batches β is estimated from and applied to: all, or halves (each half's β applied to the other half's mean; even batch count ≥ 4).", Some("folds")),
     ],
     needs: |p| needs(&ImperfectCvOptions::from_params(p)),
     build: |p| Ok(Box::new(ImperfectCv::new(ImperfectCvOptions::from_params(p))?)),
     variants: &[
+        Variant { key: "ours-no-low-pass", label: "Ours, no low-pass correction", params: &[("low_pass_sigma", "0")] },
         Variant { key: "ours-no-penalty", label: "Ours, no penalty (CBF errors)", params: &[("penalty", "none")] },
         Variant { key: "ours-oracle", label: "Ours, oracle errors", params: &[("errors", "oracle")] },
         Variant { key: "ours-oracle-no-penalty", label: "Ours, oracle errors, no penalty", params: &[("errors", "oracle"), ("penalty", "none")] },
@@ -86,10 +89,11 @@ pub struct ImperfectCvOptions {
     pub crn_floor_mode: FloorMode,
     /// Where the floor's per-pixel variance comes from.
     pub crn_floor_source: FloorSource,
-    /// Cross-fitting: β estimated from one half of the CRN batches is applied to the other
-    /// half's means (and vice versa, averaged), so that the coefficients are independent of
-    /// the CRN values they weight. Needs an even number of batches, at least 4.
-    pub cross_fit: bool,
+    /// Which CRN batches β is estimated from and applied to ([`Folds`]): with `halves` the
+    /// coefficients are independent of the CRN values they weight.
+    pub folds: Folds,
+    /// σ (pixels) of the low-pass correction towards the PT mean ([`crate::low_pass`]); 0 = off.
+    pub low_pass_sigma: f64,
 }
 
 impl Default for ImperfectCvOptions {
@@ -120,14 +124,15 @@ impl ImperfectCvOptions {
             crn_floor: p.float("crn_floor"),
             crn_floor_mode: p.choice("crn_floor_mode"),
             crn_floor_source: p.choice("crn_floor_source"),
-            cross_fit: p.bool("cross_fit"),
+            folds: p.choice("folds"),
+            low_pass_sigma: p.float("low_pass_sigma"),
         }
     }
 }
 
 fn needs(o: &ImperfectCvOptions) -> Needs {
     Needs {
-        batches: BatchNeed::Range { min: if o.cross_fit { 4 } else { 2 }, max: MAX_BATCHES },
+        batches: BatchNeed::Range { min: match o.folds { Folds::All => 2, Folds::Halves => 4 }, max: MAX_BATCHES },
         features: (o.select == Selection::Gbuffer).then_some("with --select gbuffer"),
         reference: o.errors == ErrorEstimate::Oracle,
         spp: false,
@@ -189,13 +194,13 @@ impl Estimator for ImperfectCv {
         let start = Instant::now();
         let o = &self.options;
         let set = input.streams;
-        if o.cross_fit && set.batch_count() % 2 == 1 {
+        if o.folds == Folds::Halves && set.batch_count() % 2 == 1 {
             return Err(ReconError::BatchCount {
                 origin: input.streams_name.to_string(),
                 method: SPEC.name,
                 requirement: "an even number of".into(),
                 found: set.batch_count(),
-                hint: "cross-fitting splits the batches into two equal halves; re-render with an even --batches or drop --cross-fit".into(),
+                hint: "cross-fitting splits the batches into two equal halves; re-render with an even --batches or choose other --folds".into(),
             });
         }
         let errors = pt_errors(o.errors, set, input.reference, &o.cbf);
@@ -217,15 +222,24 @@ impl Estimator for ImperfectCv {
             shared: o.shared_coefficients,
             include_centre: true,
             floor,
-            cross_fit: o.cross_fit,
+            folds: o.folds,
+            variance: true,
         };
-        let (image, st) = pass.run();
+        let out = pass.run();
+        let st = out.stats;
+        let image = restore_low_frequencies(&out.image, &set.pt.mean, o.low_pass_sigma);
+        let mut variance = out.variance.expect("asked for the variance");
+        for (v, add) in variance.pixels.iter_mut().zip(low_pass_variance(&errors, set.width, set.height, o.low_pass_sigma)) {
+            for ch in 0..3 {
+                v[ch] = (v[ch] as f64 + add[ch]) as f32;
+            }
+        }
         let mut d = Diagnostics::default();
         d.float("centre_weight_mean", st.centre_weight / st.solves.max(1) as f64);
         st.report(&mut d);
         d.float("set_size_mean", st.set_size as f64 / st.pixels.max(1) as f64)
             .int("batches", set.batch_count() as i64)
             .float("seconds_prepare", t_prepare);
-        Ok(Output { image, diagnostics: d })
+        Ok(Output { image, diagnostics: d, aovs: vec![("variance".into(), variance)] })
     }
 }

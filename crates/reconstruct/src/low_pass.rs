@@ -1,0 +1,121 @@
+//! Restoring the low frequencies of an estimate from an unbiased, spatially independent one.
+//!
+//! A control-variate estimate whose coefficients come from the same samples as the values
+//! they weight is biased: where a pixel's batches happen to be bright, its estimated variance
+//! is large too and its values are trusted less, so bright realisations are down-weighted and
+//! the image comes out darker. Estimating the coefficients out of sample removes the bias but
+//! also the estimator's grip on its own outliers, and costs far more variance than the bias
+//! it removes. Instead, `x ← x + G_σ ∗ (h̄ − x)` keeps the estimate's high frequencies and takes
+//! its low ones from the PT mean `h̄`, which is unbiased and independent across pixels: the
+//! bias is removed at every scale coarser than `σ`, and the PT noise that comes in is averaged
+//! over `≈ 4πσ²` pixels. The Gaussian is truncated at 3σ and renormalised at the borders.
+//!
+//! Each output pixel is a fixed-order sum over its own footprint, so the result is
+//! bit-identical for any thread count.
+use cvtrace_streams::Image;
+use rayon::prelude::*;
+
+/// The normalised 1-D Gaussian taps `w[0..=r]` (centre first), `r = ⌈3σ⌉`.
+fn taps(sigma: f64) -> Vec<f64> {
+    let r = (3.0 * sigma).ceil() as usize;
+    (0..=r).map(|d| (-0.5 * (d as f64 / sigma).powi(2)).exp()).collect()
+}
+
+/// One separable pass along rows or columns, renormalised at borders; with `squared`, the
+/// squares of the normalised weights (what a blur does to independent variances).
+fn blur_1d(src: &[[f64; 3]], w: usize, h: usize, taps: &[f64], along_columns: bool, squared: bool) -> Vec<[f64; 3]> {
+    let r = taps.len() - 1;
+    let mut out = vec![[0.0f64; 3]; w * h];
+    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for (x, px) in row.iter_mut().enumerate() {
+            let (c, n) = if along_columns { (y, h) } else { (x, w) };
+            let (lo, hi) = (c.saturating_sub(r), (c + r).min(n - 1));
+            let (mut acc, mut norm) = ([0.0f64; 3], 0.0f64);
+            for t in lo..=hi {
+                let wt = taps[t.abs_diff(c)];
+                let v = if along_columns { src[t * w + x] } else { src[y * w + t] };
+                let a = if squared { wt * wt } else { wt };
+                for ch in 0..3 {
+                    acc[ch] += a * v[ch];
+                }
+                norm += wt;
+            }
+            let norm = if squared { norm * norm } else { norm };
+            *px = acc.map(|a| a / norm);
+        }
+    });
+    out
+}
+
+/// `estimate + G_σ ∗ (unbiased − estimate)`, per channel; `sigma ≤ 0` returns the estimate.
+pub fn restore_low_frequencies(estimate: &Image, unbiased: &Image, sigma: f64) -> Image {
+    assert_eq!((estimate.width, estimate.height), (unbiased.width, unbiased.height), "images of different sizes");
+    if !(sigma > 0.0) || estimate.is_empty() {
+        return estimate.clone();
+    }
+    let (w, h) = (estimate.width, estimate.height);
+    let taps = taps(sigma);
+    let diff: Vec<[f64; 3]> =
+        estimate.pixels.iter().zip(&unbiased.pixels).map(|(e, u)| std::array::from_fn(|ch| u[ch] as f64 - e[ch] as f64)).collect();
+    let low = blur_1d(&blur_1d(&diff, w, h, &taps, false, false), w, h, &taps, true, false);
+    let pixels = estimate.pixels.iter().zip(&low).map(|(e, l)| std::array::from_fn(|ch| (e[ch] as f64 + l[ch]) as f32)).collect();
+    Image { width: w, height: h, pixels }
+}
+
+/// The variance [`restore_low_frequencies`] adds: `Σ_j G_σ(c, j)² e_j`, with `e` the PT mean's
+/// per-pixel variance (independent across pixels). What the low-pass removes of the
+/// estimate's own noise is left out: the estimate's noise is mostly of high frequency.
+pub fn low_pass_variance(errors: &[[f32; 3]], w: usize, h: usize, sigma: f64) -> Vec<[f64; 3]> {
+    if !(sigma > 0.0) || errors.is_empty() {
+        return vec![[0.0; 3]; errors.len()];
+    }
+    let taps = taps(sigma);
+    let e: Vec<[f64; 3]> = errors.iter().map(|v| v.map(|x| x as f64)).collect();
+    blur_1d(&blur_1d(&e, w, h, &taps, false, true), w, h, &taps, true, true)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::{hash4, uniform};
+
+    fn noise(w: usize, h: usize, seed: u64) -> Image {
+        Image::from_fn(w, h, |x, y| std::array::from_fn(|ch| uniform(hash4(seed, x as u64, y as u64, ch as u64)) as f32))
+    }
+
+    #[test]
+    fn a_constant_offset_is_removed_and_the_high_frequencies_are_kept() {
+        let (w, h) = (40, 30);
+        let truth = noise(w, h, 1);
+        // The estimate: the truth 2% too dark, plus a fine checker the unbiased image lacks.
+        let est = Image::from_fn(w, h, |x, y| truth.pixels[y * w + x].map(|v| 0.98 * v + if (x + y) % 2 == 0 { 0.01 } else { -0.01 }));
+        let out = restore_low_frequencies(&est, &truth, 4.0);
+        let mean = |im: &Image| im.pixels.iter().map(|p| p[0] as f64).sum::<f64>() / im.len() as f64;
+        assert!((mean(&out) / mean(&truth) - 1.0).abs() < 1e-3, "{} vs {}", mean(&out), mean(&truth));
+        // The checker survives almost untouched (a Gaussian of σ = 4 passes nothing at the
+        // Nyquist frequency), far from the borders.
+        let c = 15 * w + 20;
+        let checker = out.pixels[c][0] - out.pixels[c + 1][0] - (truth.pixels[c][0] - truth.pixels[c + 1][0]);
+        assert!((checker - 0.02).abs() < 5e-3, "{checker}");
+    }
+
+    #[test]
+    fn the_added_variance_of_a_constant_is_that_of_the_weighted_mean() {
+        // Far from the borders, Σ w² for a normalised 2-D Gaussian of σ = 3 is ≈ 1/(4πσ²).
+        let v = low_pass_variance(&vec![[1.0; 3]; 61 * 61], 61, 61, 3.0);
+        let got = v[30 * 61 + 30][0];
+        let want = 1.0 / (4.0 * std::f64::consts::PI * 9.0);
+        assert!((got / want - 1.0).abs() < 0.02, "{got} vs {want}");
+        // At a corner the footprint is a quarter: four times the variance.
+        assert!((v[0][0] / got - 4.0).abs() < 0.1, "{}", v[0][0] / got);
+    }
+
+    #[test]
+    fn equal_images_are_unchanged_and_sigma_zero_is_off() {
+        let a = noise(17, 9, 2);
+        let b = noise(17, 9, 3);
+        let same = restore_low_frequencies(&a, &a, 3.0);
+        assert!(same.pixels.iter().zip(&a.pixels).all(|(x, y)| (0..3).all(|c| (x[c] - y[c]).abs() < 1e-6)));
+        assert_eq!(restore_low_frequencies(&a, &b, 0.0), a);
+    }
+}
