@@ -11,6 +11,7 @@ macro_rules! say {
 pub(crate) use say;
 pub mod compare;
 pub mod estimator_args;
+pub mod farm;
 pub mod merge;
 pub mod reconstruct;
 pub mod render;
