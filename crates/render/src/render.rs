@@ -104,16 +104,18 @@ impl RenderSettings {
 
     /// About the peak memory in bytes of a stream render of these settings: per pixel and RGB
     /// image (2 × (batches + 1) of them plus the features), the tiles' results, the assembled
-    /// images and the EXR planes written from them; measured at 45–52 bytes.
+    /// images and the EXR planes written from them, measured at 45–52 bytes; plus the exact
+    /// sums (13 i128 per pixel, in the tiles and in the image) and, for a part file, their
+    /// 104 planes and the writer's copy of them.
     pub fn stream_memory_estimate(&self) -> u64 {
-        self.width as u64 * self.height as u64 * (2 * (self.batches as u64 + 1) + 2) * 54
+        self.width as u64 * self.height as u64 * ((2 * (self.batches as u64 + 1) + 2) * 54 + 13 * 16 * 2 + 104 * 4 * 2)
     }
 
-    /// About the peak memory in bytes of a reference render: per pixel the f64 sums, the mean
-    /// and the written planes (measured at 63 bytes), and with `checkpoints` (more than one pass)
-    /// the checkpoint's 15 planes as well (161 bytes).
+    /// About the peak memory in bytes of a reference render: per pixel the sums, the mean and
+    /// the written planes (measured at 63 bytes with f64 sums; the exact sums take 24 more), and
+    /// with `checkpoints` (more than one pass) the checkpoint's 27 planes and their copy as well.
     pub fn reference_memory_estimate(&self, checkpoints: bool) -> u64 {
-        self.width as u64 * self.height as u64 * if checkpoints { 170 } else { 70 }
+        self.width as u64 * self.height as u64 * if checkpoints { 94 + 27 * 4 * 2 } else { 94 }
     }
 
     fn limits(&self) -> PathLimits {
