@@ -7,14 +7,14 @@
 //! pixel it was taken in.
 use crate::camera::CameraFrame;
 use crate::exact;
-use crate::film::{tiles, PixelSums, Tile, TileResult, TileStream};
+use crate::film::{tiles, Tile, TileResult, TileStream};
 use crate::integrator::{radiance_from_hit, FirstHit, PathLimits};
 use crate::intersect::{Hit, Intersector, Ray};
 use crate::part::{StreamPart, StreamSums};
 use crate::sampler::{dims, SampleSampler, StreamKind, StreamSampler};
 use crate::scene::Scene;
 use cvtrace_streams::{Image, StreamSet};
-use glam::Vec3A;
+use glam::{DVec3, Vec3A};
 use rayon::prelude::*;
 use std::ops::Range;
 
@@ -132,9 +132,11 @@ struct Context<'a, T: Intersector> {
     width: u32,
 }
 
-/// Camera rays traced together: consecutive samples of one pixel, or of neighbouring pixels in
-/// a tile row when a pixel has few, start in a small footprint and point alike, which Embree's
-/// coherent mode traces about 2.5x cheaper per ray (see `Intersector::intersect_coherent`).
+/// Camera rays traced together: one sample of neighbouring pixels of a tile (the renders call
+/// [`Context::tile_samples`] one sample index at a time, so the groups do not depend on how the
+/// samples are split into batches, passes or parts) start in a small footprint and point alike,
+/// which Embree's coherent mode traces about 2.5x cheaper per ray (see
+/// `Intersector::intersect_coherent`).
 const CAMERA_BATCH: usize = 64;
 
 /// One batch of camera rays, with the tile pixel, sample index and sampler of each.
@@ -239,7 +241,6 @@ pub fn render_stream_part<T: Intersector>(
     let (spp, nb) = (settings.spp, batches.len());
     let per_batch = spp / settings.batches;
     let samples = batches.start * per_batch..batches.end * per_batch;
-    let last = samples.end - 1;
     let batch_of = |s: u32| ((s - samples.start) / per_batch) as usize;
 
     let render_tile = |tile: &Tile| -> TileResult {
@@ -248,42 +249,45 @@ pub fn render_stream_part<T: Intersector>(
             tile: *tile,
             pt: TileStream::new(n, nb),
             crn: TileStream::new(n, nb),
-            albedo: Vec::with_capacity(n),
-            normal: Vec::with_capacity(n),
-            depth: Vec::with_capacity(n),
+            albedo: vec![[0; 3]; n],
+            normal: vec![[0; 3]; n],
+            depth: vec![0; n],
             non_finite: 0,
         };
-        // PT with features, pixel by pixel: a pixel's last sample closes its sums.
-        let mut sums = PixelSums::default();
-        let (mut albedo, mut normal, mut depth) = ([0i128; 3], [0i128; 3], 0i128);
-        ctx.tile_samples(&pt, tile, samples.clone(), true, |_, s, v, bad, fh| {
-            r.non_finite += bad as u64;
-            sums.add(v);
-            exact::add3(&mut albedo, exact::fixed3(fh.albedo.to_array()));
-            exact::add3(&mut normal, exact::fixed3(fh.normal.to_array()));
-            depth += exact::fixed(fh.depth);
+        // Sample by sample over the tile's pixels, so that the camera rays traced together (and
+        // so Embree's coherent traversal of them) are the same whichever batches or passes a
+        // render covers: a part draws exactly the one-shot render's samples.
+        let mut batch = vec![DVec3::ZERO; n];
+        let close_batch = |batch: &mut Vec<DVec3>| -> Vec<[f32; 3]> {
+            batch.iter_mut().map(|b| (std::mem::take(b) / per_batch as f64).as_vec3().to_array()).collect()
+        };
+        // PT with features.
+        r.pt.sum = vec![[0; 3]; n];
+        for s in samples.clone() {
+            ctx.tile_samples(&pt, tile, s..s + 1, true, |i, _, v, bad, fh| {
+                r.non_finite += bad as u64;
+                exact::add3(&mut r.pt.sum[i], exact::fixed3(v.to_array()));
+                batch[i] += v.as_dvec3();
+                exact::add3(&mut r.albedo[i], exact::fixed3(fh.albedo.to_array()));
+                exact::add3(&mut r.normal[i], exact::fixed3(fh.normal.to_array()));
+                r.depth[i] += exact::fixed(fh.depth);
+            });
             if (s + 1) % per_batch == 0 {
-                r.pt.batches[batch_of(s)].push(sums.take_batch_mean(per_batch));
+                r.pt.batches[batch_of(s)] = close_batch(&mut batch);
             }
-            if s == last {
-                r.pt.sum.push(std::mem::take(&mut sums).total);
-                r.albedo.push(std::mem::take(&mut albedo));
-                r.normal.push(std::mem::take(&mut normal));
-                r.depth.push(std::mem::take(&mut depth));
-            }
-        });
+        }
         // CRN.
-        let mut sums = PixelSums::default();
-        ctx.tile_samples(&crn, tile, samples.clone(), false, |_, s, v, bad, _| {
-            r.non_finite += bad as u64;
-            sums.add(v);
+        r.crn.sum = vec![[0; 3]; n];
+        for s in samples.clone() {
+            ctx.tile_samples(&crn, tile, s..s + 1, false, |i, _, v, bad, _| {
+                r.non_finite += bad as u64;
+                exact::add3(&mut r.crn.sum[i], exact::fixed3(v.to_array()));
+                batch[i] += v.as_dvec3();
+            });
             if (s + 1) % per_batch == 0 {
-                r.crn.batches[batch_of(s)].push(sums.take_batch_mean(per_batch));
+                r.crn.batches[batch_of(s)] = close_batch(&mut batch);
             }
-            if s == last {
-                r.crn.sum.push(std::mem::take(&mut sums).total);
-            }
-        });
+        }
         progress(n as u64 * samples.len() as u64 * 2);
         r
     };
@@ -457,10 +461,13 @@ pub fn render_reference_pass<T: Intersector>(
         .map(|tile| {
             let mut out: Vec<[i128; 3]> = tile.pixels().map(|(x, y)| sums[y as usize * width + x as usize]).collect();
             let mut bad_count = 0u64;
-            ctx.tile_samples(&pt, tile, sample_range.clone(), false, |i, _, v, bad, _| {
-                bad_count += bad as u64;
-                exact::add3(&mut out[i], exact::fixed3(v.to_array()));
-            });
+            // Sample by sample, as the streams: the same rays are traced together whatever the passes.
+            for s in sample_range.clone() {
+                ctx.tile_samples(&pt, tile, s..s + 1, false, |i, _, v, bad, _| {
+                    bad_count += bad as u64;
+                    exact::add3(&mut out[i], exact::fixed3(v.to_array()));
+                });
+            }
             progress(tile.pixel_count() as u64 * sample_range.len() as u64);
             (*tile, out, bad_count)
         })
@@ -483,6 +490,7 @@ pub fn render_reference_pass<T: Intersector>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::film::PixelSums;
     use crate::integrator::radiance;
     use crate::testing::{cornell_box, BruteForce};
 
