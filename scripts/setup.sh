@@ -11,13 +11,14 @@
 #   openimageio-tools   oiiotool/idiff, used by tests to cross-check EXR output
 #   assimp-utils        model conversion for new scenes
 #   chromium            headless browser for the viewer test
+#   slurm-wlm munge     a real Slurm cluster on this machine (scripts/slurm_local.sh) for the farm tests
 set -euo pipefail
 
 verbose=0
 [[ "${1:-}" == "-v" ]] && { verbose=1; shift; }
 say() { if (( verbose )); then echo "setup: $*"; fi; }
 
-packages=(libembree-dev embree-tools openimageio-tools clang libclang-dev pkg-config assimp-utils chromium "$@")
+packages=(libembree-dev embree-tools openimageio-tools clang libclang-dev pkg-config assimp-utils chromium slurm-wlm munge "$@")
 
 missing=()
 for p in "${packages[@]}"; do

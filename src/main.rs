@@ -1,4 +1,4 @@
-//! The `cvtrace` command line: render, reconstruct, study, compare, report.
+//! The `cvtrace` command line: render, merge, reconstruct, study, compare, report (and farm).
 mod cli;
 
 use clap::{Parser, Subcommand};
@@ -27,6 +27,10 @@ enum Command {
     Render(cli::render::RenderArgs),
     /// Reconstruct an image from a stream file with one or all estimators.
     Reconstruct(cli::reconstruct::ReconstructArgs),
+    /// Render in parts on a Slurm cluster: job folders, submission, status.
+    Farm(cli::farm::FarmArgs),
+    /// Join the parts of a render (`render --part`) into the file one render writes.
+    Merge(cli::merge::MergeArgs),
     /// Render, reconstruct and score every estimator over seeds (the paper's protocol).
     Study(cli::study::StudyArgs),
     /// Score finished images against a reference: a table, CSV or JSON.
@@ -130,6 +134,8 @@ fn main() -> std::process::ExitCode {
     let result = match cli.command {
         Command::Render(a) => cli::render::run(a),
         Command::Reconstruct(a) => cli::reconstruct::run(a),
+        Command::Merge(a) => cli::merge::run(a),
+        Command::Farm(a) => cli::farm::run(a),
         Command::Study(a) => cli::study::run(a),
         Command::Compare(a) => cli::compare::run(a),
         Command::Report(a) => cli::report::run(a),

@@ -10,11 +10,11 @@
 use crate::embree::{set_flush_denormals, BuildOptions, Device, EmbreeError, EmbreeScene};
 use crate::throughput::PhaseClock;
 use cvtrace_render::checkpoint::{self, checkpoint_path};
+use cvtrace_render::part::{write_reference, write_reference_part, write_stream_file, PartError, PartSpec};
 use cvtrace_render::{
-    render_reference_pass, render_streams, Camera, ReferenceAccum, RenderDefaults, RenderError, RenderSettings, Scene, SceneError,
+    render_reference_pass, render_stream_part, Camera, ReferenceAccum, RenderDefaults, RenderError, RenderSettings, Scene, SceneError,
 };
 use cvtrace_streams::atomic::{check_extension, check_writable};
-use cvtrace_streams::exr_io::{write_rgb, AttrValue};
 use cvtrace_streams::output_lock::{lock_path_for, OutputLock};
 use cvtrace_streams::{Provenance, StreamError};
 use glam::Vec3A;
@@ -97,6 +97,8 @@ pub struct StreamJob {
     pub seed: u64,
     /// Replace an existing output.
     pub overwrite: bool,
+    /// Render only this part's batches into a part file (`cvtrace merge` joins the parts).
+    pub part: Option<PartSpec>,
 }
 
 /// A PT-only image in the reference format (R, G, B), rendered progressively in passes of
@@ -115,6 +117,9 @@ pub struct ReferenceJob {
     pub extend: bool,
     /// Stop (keeping the checkpoint) after this many passes.
     pub stop_after_passes: Option<u32>,
+    /// Render only this part's passes into a part file (no checkpoint: a part is one job of
+    /// a farm, which reruns it whole).
+    pub part: Option<PartSpec>,
 }
 
 impl ReferenceJob {
@@ -130,6 +135,7 @@ impl ReferenceJob {
             overwrite: true,
             extend: false,
             stop_after_passes: None,
+            part: None,
         }
     }
 }
@@ -233,6 +239,8 @@ pub enum SessionError {
     Settings { scene: PathBuf, cause: RenderError },
     #[error("cannot start {threads} render threads (ask for fewer with --threads): {message}")]
     Threads { threads: usize, message: String },
+    #[error(transparent)]
+    Part(#[from] PartError),
     #[error("{0}")]
     Invalid(String),
 }
@@ -343,28 +351,40 @@ impl RenderSession {
         // instead of rendering in full and then finding the file taken.
         let _claim = OutputLock::acquire(&lock_path_for(&job.output), &job.output)?;
         let engine = self.engine()?;
-        let total = s.width as u64 * s.height as u64 * s.spp as u64 * 2;
+        let batches = match job.part {
+            Some(spec) => spec.range(s.batches, "batches")?,
+            None => 0..s.batches,
+        };
+        let total = s.width as u64 * s.height as u64 * (s.spp / s.batches * batches.len() as u32) as u64 * 2;
         tracing::info!(
-            "rendering {}x{}, {} spp x 2 streams ({} batches), max depth {}, seed {} on {} threads",
+            "rendering {}x{}, {} spp x 2 streams ({}), max depth {}, seed {} on {} threads",
             s.width,
             s.height,
             s.spp,
-            s.batches,
+            match job.part {
+                Some(spec) => format!("part {spec}: batches {}..{} of {}", batches.start, batches.end, s.batches),
+                None => format!("{} batches", s.batches),
+            },
             s.max_depth,
             s.seed,
             engine.pool.current_num_threads()
         );
         progress.start(total, 0);
         let clock = PhaseClock::start();
-        let result = engine.pool.install(|| render_streams(&self.scene, &engine.tracer, s, &|k| progress.advance(k)));
+        let result = engine.pool.install(|| render_stream_part(&self.scene, &engine.tracer, s, batches, &|k| progress.advance(k)));
         progress.finish();
-        let mut set = result?;
+        let part = result?;
         clock.log_rate("render", total);
-        set.meta.scene = self.path.to_string_lossy().into_owned();
+        let scene = self.path.to_string_lossy().into_owned();
         let t = Instant::now();
-        let mut file = set.to_exr(&job.output)?;
-        plan.provenance.write_to(&mut file.attributes);
-        file.write(&job.output, job.overwrite)?;
+        match job.part {
+            Some(spec) => part.write(&job.output, &plan.provenance, &scene, spec, job.overwrite)?,
+            None => {
+                let mut set = part.into_stream_set(s.seed, s.max_depth).expect("a render of every batch");
+                set.meta.scene = scene;
+                write_stream_file(&job.output, &set, &plan.provenance, job.overwrite)?;
+            }
+        }
         tracing::info!("wrote {} in {:.1} ms", job.output.display(), ms(t));
         Ok(())
     }
@@ -382,6 +402,9 @@ impl RenderSession {
         // A reference takes many passes and a checkpoint: a second process on the same output
         // would repeat the work and race over both files.
         let _claim = OutputLock::acquire(&lock_path_for(&job.output), &job.output)?;
+        if let Some(spec) = job.part {
+            return self.render_reference_part(job, spec, &plan, progress);
+        }
         let checkpoint = checkpoint_path(&job.output);
         // An interrupted extension left a checkpoint, which is exact: it comes first.
         let mut accum = match checkpoint::load(&checkpoint, &plan.provenance, s)? {
@@ -449,13 +472,8 @@ impl RenderSession {
 
         let t = Instant::now();
         // The provenance (scene hash and camera included) lets a later --extend check what it continues.
-        let provenance = Provenance { spp: Some(accum.samples_done), ..plan.provenance.clone() };
-        let mut attributes = provenance.attributes();
-        attributes.extend([
-            ("cvtrace.scene", AttrValue::Text(self.path.to_string_lossy().into_owned())),
-            ("cvtrace.nonFiniteSamples", AttrValue::Text(accum.non_finite_samples.to_string())),
-        ]);
-        if let Err(e) = write_rgb(&job.output, &accum.mean(), &attributes, job.overwrite || job.extend) {
+        let scene = self.path.to_string_lossy();
+        if let Err(e) = write_reference(&job.output, &accum, &plan.provenance, &scene, job.overwrite || job.extend) {
             // Keep the finished work: the next run with the same settings only has to write.
             let _ = save_checkpoint(&checkpoint, &accum, &plan.provenance);
             return Err(e.into());
@@ -465,6 +483,55 @@ impl RenderSession {
             std::fs::remove_file(&checkpoint)
                 .map_err(|e| SessionError::Invalid(format!("{}: could not remove the finished checkpoint: {e}", checkpoint.display())))?;
         }
+        Ok(ReferenceOutcome::Finished { spp: accum.samples_done })
+    }
+
+    /// Renders the passes of part `spec` of the reference of `job` into a part file.
+    fn render_reference_part(
+        &self,
+        job: &ReferenceJob,
+        spec: PartSpec,
+        plan: &Plan,
+        progress: &dyn Progress,
+    ) -> Result<ReferenceOutcome, SessionError> {
+        if job.extend || job.stop_after_passes.is_some() {
+            return Err(SessionError::Invalid("--part renders a range of passes in one go: no --extend or --stop-after-passes".into()));
+        }
+        let s = &plan.settings;
+        let passes = spec.range(s.spp.div_ceil(job.pass_spp), "passes")?;
+        let samples = passes.start * job.pass_spp..(passes.end * job.pass_spp).min(s.spp);
+        let engine = self.engine()?;
+        let pixels = s.width as u64 * s.height as u64;
+        tracing::info!(
+            "rendering part {spec} of a reference {}x{}: passes {}..{} of {} spp each (samples {}..{} of {}), seed {} on {} threads",
+            s.width,
+            s.height,
+            passes.start,
+            passes.end,
+            job.pass_spp,
+            samples.start,
+            samples.end,
+            s.spp,
+            s.seed,
+            engine.pool.current_num_threads()
+        );
+        let mut accum = ReferenceAccum { first: samples.start, ..ReferenceAccum::new(s) };
+        progress.start(pixels * samples.len() as u64, 0);
+        let clock = PhaseClock::start();
+        for pass in passes.clone() {
+            let range = pass * job.pass_spp..((pass + 1) * job.pass_spp).min(s.spp);
+            let r =
+                engine.pool.install(|| render_reference_pass(&self.scene, &engine.tracer, s, &mut accum, range, &|k| progress.advance(k)));
+            if let Err(e) = r {
+                progress.finish();
+                return Err(e.into());
+            }
+        }
+        progress.finish();
+        clock.log_rate("render", pixels * samples.len() as u64);
+        let t = Instant::now();
+        write_reference_part(&job.output, &accum, &plan.provenance, &self.path.to_string_lossy(), spec, job.overwrite)?;
+        tracing::info!("wrote {} in {:.1} ms", job.output.display(), ms(t));
         Ok(ReferenceOutcome::Finished { spp: accum.samples_done })
     }
 

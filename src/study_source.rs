@@ -47,7 +47,15 @@ impl<'a> RenderSource<'a> {
 
     /// The stream job of `seed` with `spp` samples per stream into `output`.
     pub fn stream_job(&self, spp: u32, batches: u32, seed: u64, output: &Path) -> Job {
-        Job::Streams(StreamJob { output: output.to_path_buf(), view: self.view, spp: Some(spp), batches, seed, overwrite: true })
+        Job::Streams(StreamJob {
+            output: output.to_path_buf(),
+            view: self.view,
+            spp: Some(spp),
+            batches,
+            seed,
+            overwrite: true,
+            part: None,
+        })
     }
 
     fn file(&mut self, n: u32, seed: u64, suffix: &str) -> Result<PathBuf, SourceError> {

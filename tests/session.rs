@@ -64,7 +64,7 @@ fn one_session_renders_streams_and_references_on_one_bvh() {
     let view = View { width: Some(16), height: Some(12), max_depth: Some(4), rr_depth: None };
     let stream = |seed: u64| {
         let output = dir.path().join(format!("s{seed}.streams.exr"));
-        Job::Streams(StreamJob { output, view, spp: Some(4), batches: 2, seed, overwrite: false })
+        Job::Streams(StreamJob { output, view, spp: Some(4), batches: 2, seed, overwrite: false, part: None })
     };
     let reference = Job::Reference(ReferenceJob::replacing(dir.path().join("r.exr"), view, 6, 9));
     for job in [stream(1), stream(2), reference.clone()] {

@@ -11,6 +11,8 @@ macro_rules! say {
 pub(crate) use say;
 pub mod compare;
 pub mod estimator_args;
+pub mod farm;
+pub mod merge;
 pub mod reconstruct;
 pub mod render;
 pub mod report;

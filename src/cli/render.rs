@@ -15,6 +15,7 @@ use cvtrace::session::{
     self, CameraView, Job, Progress, ReferenceJob, ReferenceOutcome, RenderSession, SessionError, SessionOptions, StreamJob, View,
     DEFAULT_BATCHES, DEFAULT_WIDTH,
 };
+use cvtrace_render::part::PartSpec;
 use cvtrace_render::RenderDefaults;
 use glam::Vec3A;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -59,6 +60,11 @@ pub struct RenderArgs {
     /// result equals a one-shot render of --spp to f32 rounding (the file keeps means, not sums).
     #[arg(long, requires = "reference")]
     pub extend: bool,
+    /// Render only part I of N (counted from 0) into a part file: a contiguous range of whole
+    /// batches (or, with --reference, of whole passes of --pass-spp). `cvtrace merge` joins
+    /// the N parts into exactly the file one render writes.
+    #[arg(long, value_name = "I/N", value_parser = parse_part)]
+    pub part: Option<PartSpec>,
     /// Testing aid: with --reference, stop (keeping the checkpoint) after this many passes.
     #[arg(long, hide = true, requires = "reference")]
     pub stop_after_passes: Option<u32>,
@@ -115,7 +121,7 @@ pub fn open_session(scene: &std::path::Path, options: &SessionOptions) -> Result
 /// The batch count when `--batches` is not given: the largest of 16, 8, 4, 2, 1 that divides
 /// `--spp` (16 where the count comes from the scene), so `render --spp 8` just works. A value
 /// given that does not divide stays an error.
-fn default_batches(spp: Option<u32>) -> u32 {
+pub fn default_batches(spp: Option<u32>) -> u32 {
     let Some(n) = spp else { return DEFAULT_BATCHES };
     let b = [DEFAULT_BATCHES, 8, 4, 2, 1].into_iter().find(|b| n % b == 0).unwrap_or(1);
     if b != DEFAULT_BATCHES {
@@ -134,6 +140,15 @@ pub fn run(args: RenderArgs) -> Result<()> {
     };
     if args.reference && args.pass_spp == 0 {
         bail!("--pass-spp must be at least 1");
+    }
+    if args.part.is_some() && args.preview.is_some() {
+        bail!("--preview: a part has no finished image; preview the merged file");
+    }
+    if let Some(spec) = args.part {
+        if !args.reference {
+            // More parts than batches is refused before the scene loads.
+            spec.range(batches, "batches")?;
+        }
     }
     if args.stop_after_passes == Some(0) {
         bail!("--stop-after-passes 0: must be at least 1 (a reference stops after its last pass anyway)");
@@ -157,9 +172,18 @@ pub fn run(args: RenderArgs) -> Result<()> {
             overwrite: args.force,
             extend: args.extend,
             stop_after_passes: args.stop_after_passes,
+            part: args.part,
         })
     } else {
-        Job::Streams(StreamJob { output: args.output.clone(), view, spp: args.spp, batches, seed: args.seed, overwrite: args.force })
+        Job::Streams(StreamJob {
+            output: args.output.clone(),
+            view,
+            spp: args.spp,
+            batches,
+            seed: args.seed,
+            overwrite: args.force,
+            part: args.part,
+        })
     };
     // Missing folders of the output are made, as `study` makes its own; taken back if the
     // render fails.
@@ -245,6 +269,10 @@ impl Progress for TerminalProgress {
             bar.finish_and_clear();
         }
     }
+}
+
+fn parse_part(s: &str) -> Result<PartSpec, String> {
+    s.parse()
 }
 
 /// Eye, target and vertical field of view from `--camera`.

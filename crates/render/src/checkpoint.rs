@@ -11,21 +11,17 @@ use std::path::{Path, PathBuf};
 /// The attribute that tells a checkpoint from a finished reference, and the one layout this
 /// reader knows: another value is another layout of the sums.
 pub const KIND_ATTR: &str = "cvtrace.checkpoint";
-pub const KIND: &str = "reference-v1";
+pub const KIND: &str = "reference-v2";
 /// Samples per pixel in the sums so far (EXR `int`).
 pub const ATTR_SAMPLES_DONE: &str = "cvtrace.samplesDone";
 const ATTR_NON_FINITE: &str = "cvtrace.nonFiniteSamples";
 /// The version whose samples a checkpoint or reference may be continued with.
 const VERSION: &str = env!("CARGO_PKG_VERSION");
 
-/// The f64 running sums are stored exactly, as four 16-bit pieces per value in f32 channels
-/// (integers below 2^24 are exact in f32); R, G, B hold the mean so far for viewing.
-const SUM_PIECES: usize = 4;
-
-/// `sum.R.w0` … `sum.B.w3`: piece `piece` (bits `16·piece` to `16·piece + 15`) of the f64 sum of
-/// colour channel `c`.
+/// `sum.R.w0` … `sum.B.w7`: piece `piece` (bits `16·piece` to `16·piece + 15`) of the exact sum
+/// of colour channel `c` ([`crate::exact`]); R, G, B hold the mean so far for viewing.
 pub fn sum_channel(c: usize, piece: usize) -> String {
-    format!("sum.{}.w{piece}", ["R", "G", "B"][c])
+    crate::exact::piece_channel(&format!("sum.{}", ["R", "G", "B"][c]), piece)
 }
 
 /// `cbox.ref.exr` → `cbox.ref.checkpoint.exr` (other names get `.checkpoint.exr` appended).
@@ -43,11 +39,8 @@ pub fn save(path: &Path, accum: &ReferenceAccum, provenance: &Provenance) -> Res
     let mean = accum.mean();
     for (c, name) in ["R", "G", "B"].iter().enumerate() {
         ch.insert(*name, mean.channel(c));
-        for piece in 0..SUM_PIECES {
-            let plane = accum.sum.iter().map(|s| ((s[c].to_bits() >> (16 * piece)) & 0xffff) as f32).collect();
-            ch.insert(sum_channel(c, piece), plane);
-        }
     }
+    crate::exact::insert_sums3(&mut ch, "sum.", ["R", "G", "B"], &accum.sum);
     provenance.without_counts().write_to(&mut ch.attributes);
     ch.attributes.insert(KIND_ATTR.into(), AttrValue::Text(KIND.into()));
     ch.attributes.insert(ATTR_SAMPLES_DONE.into(), AttrValue::Int(accum.samples_done as i32));
@@ -89,23 +82,7 @@ fn read(path: &Path, planned: &Provenance, s: &RenderSettings) -> Result<Referen
         _ => return Err(invalid(format!("checkpoint lacks a valid {ATTR_SAMPLES_DONE}"))),
     };
     let non_finite_samples = ch.attr(ATTR_NON_FINITE).and_then(|v| v.as_text().parse().ok()).unwrap_or(0);
-    let n = ch.width * ch.height;
-    let mut bits = vec![[0u64; 3]; n];
-    for c in 0..3 {
-        for piece in 0..SUM_PIECES {
-            let plane = ch.take(path, &sum_channel(c, piece))?;
-            for (b, v) in bits.iter_mut().zip(plane) {
-                if !(0.0..=65535.0).contains(&v) || v.fract() != 0.0 {
-                    return Err(invalid(format!("channel {} is corrupt", sum_channel(c, piece))));
-                }
-                b[c] |= (v as u64) << (16 * piece);
-            }
-        }
-    }
-    let sum: Vec<[f64; 3]> = bits.iter().map(|b| b.map(f64::from_bits)).collect();
-    if sum.iter().flatten().any(|v| !v.is_finite()) {
-        return Err(invalid("checkpoint sums are not finite".into()));
-    }
+    let sum = crate::exact::take_sums3(&mut ch, path, "sum.", ["R", "G", "B"])?;
     Ok(ReferenceAccum { sum, samples_done, non_finite_samples, ..ReferenceAccum::new(s) })
 }
 
@@ -198,7 +175,7 @@ mod tests {
         let s = settings();
         let mut accum = ReferenceAccum::new(&s);
         for (i, v) in accum.sum.iter_mut().enumerate() {
-            *v = [0.1 * i as f64, 1.0 / 3.0, 1e300 / (i + 1) as f64];
+            *v = [i as i128 * 12345, -(1 << 100), i128::MAX / (i as i128 + 1)];
         }
         accum.samples_done = 3;
         accum.non_finite_samples = 2;
@@ -229,7 +206,7 @@ mod tests {
         attrs.retain(|(k, _)| *k != "cvtrace.sceneHash");
         cvtrace_streams::exr_io::write_rgb(&p, &Image::from_fn(3, 2, |x, _| [x as f32, 1.0, 2.0]), &attrs, false).unwrap();
         let a = load_finished(&p, &planned(&s), &s).unwrap();
-        assert_eq!((a.samples_done, a.sum[1][0]), (4, 4.0));
+        assert_eq!((a.samples_done, a.sum[1][0]), (4, crate::exact::fixed(4.0)));
         let few = RenderSettings { spp: 4, ..s.clone() };
         let e = load_finished(&p, &planned(&few), &few).unwrap_err().to_string();
         assert!(e.contains("already holds 4 spp"), "{e}");

@@ -1,8 +1,9 @@
 //! Image tiles and their accumulation buffers.
 //!
 //! Each tile is rendered independently into its own buffers and then copied into the image,
-//! so per-pixel sums never depend on which thread ran which tile. Sums are kept in f64 and
-//! accumulated in sample-index order.
+//! so per-pixel sums never depend on which thread ran which tile. A batch's sum is kept in f64
+//! and accumulated in sample-index order; the totals over all samples are exact fixed-point
+//! sums ([`crate::exact`]), so any split of the batches adds up to the same total.
 use glam::{DVec3, Vec3A};
 
 /// Tile edge length in pixels: small enough to balance 2 cores, large enough to amortise overhead.
@@ -42,16 +43,15 @@ pub fn tiles(width: u32, height: u32) -> Vec<Tile> {
 /// One stream of one pixel: the running total over all samples and the current batch's sum.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct PixelSums {
-    pub total: DVec3,
+    pub total: [i128; 3],
     pub batch: DVec3,
 }
 
 impl PixelSums {
     #[inline]
     pub fn add(&mut self, v: Vec3A) {
-        let v = v.as_dvec3();
-        self.total += v;
-        self.batch += v;
+        crate::exact::add3(&mut self.total, crate::exact::fixed3(v.to_array()));
+        self.batch += v.as_dvec3();
     }
 
     /// Ends the current batch of `n` samples, returning its mean.
@@ -66,14 +66,15 @@ impl PixelSums {
 /// One stream's results for the pixels of one tile.
 #[derive(Clone, Debug, Default)]
 pub struct TileStream {
-    pub mean: Vec<[f32; 3]>,
+    /// Exact sums of the pixels' samples in the rendered batches.
+    pub sum: Vec<[i128; 3]>,
     /// `batches[b][i]`: batch `b` of the tile's pixel `i`.
     pub batches: Vec<Vec<[f32; 3]>>,
 }
 
 impl TileStream {
     pub fn new(pixels: usize, batches: usize) -> TileStream {
-        TileStream { mean: Vec::with_capacity(pixels), batches: (0..batches).map(|_| Vec::with_capacity(pixels)).collect() }
+        TileStream { sum: Vec::with_capacity(pixels), batches: (0..batches).map(|_| Vec::with_capacity(pixels)).collect() }
     }
 }
 
@@ -83,8 +84,9 @@ pub struct TileResult {
     pub tile: Tile,
     pub pt: TileStream,
     pub crn: TileStream,
-    pub albedo: Vec<[f32; 3]>,
-    pub normal: Vec<[f32; 3]>,
-    pub depth: Vec<f32>,
+    /// Exact sums of the first-hit features over the PT samples.
+    pub albedo: Vec<[i128; 3]>,
+    pub normal: Vec<[i128; 3]>,
+    pub depth: Vec<i128>,
     pub non_finite: u64,
 }

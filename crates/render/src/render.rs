@@ -6,12 +6,14 @@
 //! mean and the stream mean are stored. The pixel filter is a box: a sample only counts in the
 //! pixel it was taken in.
 use crate::camera::CameraFrame;
-use crate::film::{tiles, PixelSums, Tile, TileResult, TileStream};
+use crate::exact;
+use crate::film::{tiles, Tile, TileResult, TileStream};
 use crate::integrator::{radiance_from_hit, FirstHit, PathLimits};
 use crate::intersect::{Hit, Intersector, Ray};
+use crate::part::{StreamPart, StreamSums};
 use crate::sampler::{dims, SampleSampler, StreamKind, StreamSampler};
 use crate::scene::Scene;
-use cvtrace_streams::{Features, Image, Stream, StreamMeta, StreamSet};
+use cvtrace_streams::{Image, StreamSet};
 use glam::{DVec3, Vec3A};
 use rayon::prelude::*;
 use std::ops::Range;
@@ -102,16 +104,18 @@ impl RenderSettings {
 
     /// About the peak memory in bytes of a stream render of these settings: per pixel and RGB
     /// image (2 × (batches + 1) of them plus the features), the tiles' results, the assembled
-    /// images and the EXR planes written from them; measured at 45–52 bytes.
+    /// images and the EXR planes written from them, measured at 45–52 bytes; plus the exact
+    /// sums (13 i128 per pixel, in the tiles and in the image) and, for a part file, their
+    /// 104 planes and the writer's copy of them.
     pub fn stream_memory_estimate(&self) -> u64 {
-        self.width as u64 * self.height as u64 * (2 * (self.batches as u64 + 1) + 2) * 54
+        self.width as u64 * self.height as u64 * ((2 * (self.batches as u64 + 1) + 2) * 54 + 13 * 16 * 2 + 104 * 4 * 2)
     }
 
-    /// About the peak memory in bytes of a reference render: per pixel the f64 sums, the mean
-    /// and the written planes (measured at 63 bytes), and with `checkpoints` (more than one pass)
-    /// the checkpoint's 15 planes as well (161 bytes).
+    /// About the peak memory in bytes of a reference render: per pixel the sums, the mean and
+    /// the written planes (measured at 63 bytes with f64 sums; the exact sums take 24 more), and
+    /// with `checkpoints` (more than one pass) the checkpoint's 27 planes and their copy as well.
     pub fn reference_memory_estimate(&self, checkpoints: bool) -> u64 {
-        self.width as u64 * self.height as u64 * if checkpoints { 170 } else { 70 }
+        self.width as u64 * self.height as u64 * if checkpoints { 94 + 27 * 4 * 2 } else { 94 }
     }
 
     fn limits(&self) -> PathLimits {
@@ -128,9 +132,11 @@ struct Context<'a, T: Intersector> {
     width: u32,
 }
 
-/// Camera rays traced together: consecutive samples of one pixel, or of neighbouring pixels in
-/// a tile row when a pixel has few, start in a small footprint and point alike, which Embree's
-/// coherent mode traces about 2.5x cheaper per ray (see `Intersector::intersect_coherent`).
+/// Camera rays traced together: one sample of neighbouring pixels of a tile (the renders call
+/// [`Context::tile_samples`] one sample index at a time, so the groups do not depend on how the
+/// samples are split into batches, passes or parts) start in a small footprint and point alike,
+/// which Embree's coherent mode traces about 2.5x cheaper per ray (see
+/// `Intersector::intersect_coherent`).
 const CAMERA_BATCH: usize = 64;
 
 /// One batch of camera rays, with the tile pixel, sample index and sampler of each.
@@ -211,116 +217,131 @@ pub fn render_streams<T: Intersector>(
     settings: &RenderSettings,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<StreamSet, RenderError> {
+    let part = render_stream_part(scene, tracer, settings, 0..settings.batches, progress)?;
+    Ok(part.into_stream_set(settings.seed, settings.max_depth).expect("a part of every batch is a whole render"))
+}
+
+/// Renders batches `batches` (of `settings.batches`) of both streams: their batch means and the
+/// exact sums of their samples, which [`StreamPart::append`] joins with the other batches'
+/// into exactly what one render of every batch gives.
+pub fn render_stream_part<T: Intersector>(
+    scene: &Scene,
+    tracer: &T,
+    settings: &RenderSettings,
+    batches: Range<u32>,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<StreamPart, RenderError> {
     settings.validate()?;
+    if batches.is_empty() || batches.end > settings.batches {
+        return Err(RenderError::InvalidSettings(format!("batches {batches:?} are not a range of the {} batches", settings.batches)));
+    }
     let ctx = context(scene, tracer, settings)?;
     let pt = StreamSampler::new(settings.seed, StreamKind::Pt);
     let crn = StreamSampler::new(settings.seed, StreamKind::Crn);
-    let (spp, nb) = (settings.spp, settings.batches);
-    let per_batch = spp / nb;
+    let (spp, nb) = (settings.spp, batches.len());
+    let per_batch = spp / settings.batches;
+    let samples = batches.start * per_batch..batches.end * per_batch;
+    let batch_of = |s: u32| ((s - samples.start) / per_batch) as usize;
 
     let render_tile = |tile: &Tile| -> TileResult {
         let n = tile.pixel_count();
         let mut r = TileResult {
             tile: *tile,
-            pt: TileStream::new(n, nb as usize),
-            crn: TileStream::new(n, nb as usize),
-            albedo: Vec::with_capacity(n),
-            normal: Vec::with_capacity(n),
-            depth: Vec::with_capacity(n),
+            pt: TileStream::new(n, nb),
+            crn: TileStream::new(n, nb),
+            albedo: vec![[0; 3]; n],
+            normal: vec![[0; 3]; n],
+            depth: vec![0; n],
             non_finite: 0,
         };
-        // PT with features, pixel by pixel: a pixel's last sample closes its sums.
-        let mut sums = PixelSums::default();
-        let (mut albedo, mut normal, mut depth) = (DVec3::ZERO, DVec3::ZERO, 0.0f64);
-        ctx.tile_samples(&pt, tile, 0..spp, true, |_, s, v, bad, fh| {
-            r.non_finite += bad as u64;
-            sums.add(v);
-            albedo += fh.albedo.as_dvec3();
-            normal += fh.normal.as_dvec3();
-            depth += fh.depth as f64;
+        // Sample by sample over the tile's pixels, so that the camera rays traced together (and
+        // so Embree's coherent traversal of them) are the same whichever batches or passes a
+        // render covers: a part draws exactly the one-shot render's samples.
+        let mut batch = vec![DVec3::ZERO; n];
+        let close_batch = |batch: &mut Vec<DVec3>| -> Vec<[f32; 3]> {
+            batch.iter_mut().map(|b| (std::mem::take(b) / per_batch as f64).as_vec3().to_array()).collect()
+        };
+        // PT with features.
+        r.pt.sum = vec![[0; 3]; n];
+        for s in samples.clone() {
+            ctx.tile_samples(&pt, tile, s..s + 1, true, |i, _, v, bad, fh| {
+                r.non_finite += bad as u64;
+                exact::add3(&mut r.pt.sum[i], exact::fixed3(v.to_array()));
+                batch[i] += v.as_dvec3();
+                exact::add3(&mut r.albedo[i], exact::fixed3(fh.albedo.to_array()));
+                exact::add3(&mut r.normal[i], exact::fixed3(fh.normal.to_array()));
+                r.depth[i] += exact::fixed(fh.depth);
+            });
             if (s + 1) % per_batch == 0 {
-                r.pt.batches[(s / per_batch) as usize].push(sums.take_batch_mean(per_batch));
+                r.pt.batches[batch_of(s)] = close_batch(&mut batch);
             }
-            if s + 1 == spp {
-                r.pt.mean.push((std::mem::take(&mut sums).total / spp as f64).as_vec3().to_array());
-                let inv = 1.0 / spp as f64;
-                r.albedo.push((std::mem::take(&mut albedo) * inv).as_vec3().to_array());
-                r.normal.push((std::mem::take(&mut normal) * inv).as_vec3().to_array());
-                r.depth.push((std::mem::take(&mut depth) * inv) as f32);
-            }
-        });
+        }
         // CRN.
-        let mut sums = PixelSums::default();
-        ctx.tile_samples(&crn, tile, 0..spp, false, |_, s, v, bad, _| {
-            r.non_finite += bad as u64;
-            sums.add(v);
+        r.crn.sum = vec![[0; 3]; n];
+        for s in samples.clone() {
+            ctx.tile_samples(&crn, tile, s..s + 1, false, |i, _, v, bad, _| {
+                r.non_finite += bad as u64;
+                exact::add3(&mut r.crn.sum[i], exact::fixed3(v.to_array()));
+                batch[i] += v.as_dvec3();
+            });
             if (s + 1) % per_batch == 0 {
-                r.crn.batches[(s / per_batch) as usize].push(sums.take_batch_mean(per_batch));
+                r.crn.batches[batch_of(s)] = close_batch(&mut batch);
             }
-            if s + 1 == spp {
-                r.crn.mean.push((std::mem::take(&mut sums).total / spp as f64).as_vec3().to_array());
-            }
-        });
-        progress(n as u64 * spp as u64 * 2);
+        }
+        progress(n as u64 * samples.len() as u64 * 2);
         r
     };
     let results: Vec<TileResult> = tiles(settings.width, settings.height).par_iter().map(render_tile).collect();
 
     let (w, h) = (settings.width as usize, settings.height as usize);
     let blank = || Image::new(w, h);
-    let mut pt_mean = blank();
-    let mut crn_mean = blank();
     let mut pt_batches: Vec<Image> = (0..nb).map(|_| blank()).collect();
     let mut crn_batches: Vec<Image> = (0..nb).map(|_| blank()).collect();
-    let mut albedo = blank();
-    let mut normal = blank();
-    let mut depth = vec![0.0f32; w * h];
+    let mut sums = StreamSums::zero(w * h);
     let mut non_finite = 0u64;
     for r in &results {
         let tile = r.tile;
         non_finite += r.non_finite;
         for (i, (x, y)) in tile.pixels().enumerate() {
             let p = y as usize * w + x as usize;
-            pt_mean.pixels[p] = r.pt.mean[i];
-            crn_mean.pixels[p] = r.crn.mean[i];
-            for b in 0..nb as usize {
+            sums.pt[p] = r.pt.sum[i];
+            sums.crn[p] = r.crn.sum[i];
+            for b in 0..nb {
                 pt_batches[b].pixels[p] = r.pt.batches[b][i];
                 crn_batches[b].pixels[p] = r.crn.batches[b][i];
             }
-            albedo.pixels[p] = r.albedo[i];
-            normal.pixels[p] = r.normal[i];
-            depth[p] = r.depth[i];
+            sums.albedo[p] = r.albedo[i];
+            sums.normal[p] = r.normal[i];
+            sums.depth[p] = r.depth[i];
         }
     }
     if non_finite > 0 {
         tracing::warn!("{non_finite} samples were NaN or infinite and were replaced by zero");
     }
-    Ok(StreamSet {
+    Ok(StreamPart {
         width: w,
         height: h,
-        pt: Stream { mean: pt_mean, batches: pt_batches },
-        crn: Stream { mean: crn_mean, batches: crn_batches },
-        features: Some(Features { albedo, normal, depth }),
-        meta: StreamMeta {
-            spp,
-            seed: settings.seed,
-            max_depth: settings.max_depth,
-            scene: String::new(),
-            version: env!("CARGO_PKG_VERSION").to_string(),
-            non_finite_samples: non_finite,
-            settings: Default::default(),
-        },
+        spp,
+        batches: settings.batches,
+        range: batches,
+        pt: pt_batches,
+        crn: crn_batches,
+        sums,
+        non_finite,
     })
 }
 
-/// Running sums of a progressive PT reference render. Samples are added to each pixel's f64
-/// sum in sample-index order, so N samples give bit-identical results however the render is
-/// split into passes, and equal the PT stream mean of [`render_streams`] at the same seed.
+/// Running sums of a progressive PT reference render, or of one part of it: samples
+/// `first..first + samples_done` of every pixel. The sums are exact ([`crate::exact`]), so N
+/// samples give bit-identical results however the render is split into passes or parts, and
+/// equal the PT stream mean of [`render_streams`] at the same seed.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ReferenceAccum {
     pub width: u32,
     pub height: u32,
-    pub sum: Vec<[f64; 3]>,
+    pub sum: Vec<[i128; 3]>,
+    /// The first sample index in the sums (0 but for a part).
+    pub first: u32,
     pub samples_done: u32,
     pub seed: u64,
     pub max_depth: i32,
@@ -334,7 +355,8 @@ impl ReferenceAccum {
         ReferenceAccum {
             width: settings.width,
             height: settings.height,
-            sum: vec![[0.0; 3]; settings.width as usize * settings.height as usize],
+            sum: vec![[0; 3]; settings.width as usize * settings.height as usize],
+            first: 0,
             samples_done: 0,
             seed: settings.seed,
             max_depth: settings.max_depth,
@@ -355,7 +377,7 @@ impl ReferenceAccum {
         let mut acc = ReferenceAccum::new(settings);
         let n = samples_done as f64;
         for (s, m) in acc.sum.iter_mut().zip(&mean.pixels) {
-            *s = [m[0] as f64 * n, m[1] as f64 * n, m[2] as f64 * n];
+            *s = m.map(|v| exact::fixed_f64(v as f64 * n));
         }
         acc.samples_done = samples_done;
         Ok(acc)
@@ -367,13 +389,32 @@ impl ReferenceAccum {
         if self.samples_done == 0 {
             return Image::new(w, h);
         }
-        let n = self.samples_done as f64;
-        Image { width: w, height: h, pixels: self.sum.iter().map(|s| [(s[0] / n) as f32, (s[1] / n) as f32, (s[2] / n) as f32]).collect() }
+        let n = self.samples_done as u64;
+        Image { width: w, height: h, pixels: self.sum.iter().map(|s| exact::mean3(*s, n)).collect() }
+    }
+
+    /// Adds the samples of `next`, which must be the same render's and start where these end.
+    pub fn append(&mut self, next: &ReferenceAccum) -> Result<(), RenderError> {
+        let end = self.first + self.samples_done;
+        if (next.width, next.height, next.seed, next.max_depth, next.rr_depth)
+            != (self.width, self.height, self.seed, self.max_depth, self.rr_depth)
+        {
+            return Err(RenderError::ReferenceMismatch("the sums are of different renders".into()));
+        }
+        if next.first != end {
+            return Err(RenderError::ReferenceMismatch(format!("samples from {} follow samples ending at {end}", next.first)));
+        }
+        for (a, b) in self.sum.iter_mut().zip(&next.sum) {
+            exact::add3(a, *b);
+        }
+        self.samples_done += next.samples_done;
+        self.non_finite_samples += next.non_finite_samples;
+        Ok(())
     }
 }
 
 /// Adds PT samples `sample_range` of every pixel to `accum` (the range must start at
-/// `accum.samples_done`). Sample `s` uses the same random numbers as sample `s` of the PT
+/// `accum.first + accum.samples_done`). Sample `s` uses the same random numbers as sample `s` of the PT
 /// stream in [`render_streams`]. `progress(k)`: `k` more pixel-samples done.
 pub fn render_reference_pass<T: Intersector>(
     scene: &Scene,
@@ -400,8 +441,13 @@ pub fn render_reference_pass<T: Intersector>(
             accum.seed, accum.max_depth, accum.rr_depth, settings.seed, settings.max_depth, settings.rr_depth
         ));
     }
-    if sample_range.start != accum.samples_done {
-        return mismatch(format!("pass starts at sample {} but {} samples are done", sample_range.start, accum.samples_done));
+    if sample_range.start != accum.first + accum.samples_done {
+        return mismatch(format!(
+            "pass starts at sample {} but samples {}..{} are done",
+            sample_range.start,
+            accum.first,
+            accum.first + accum.samples_done
+        ));
     }
     if sample_range.end <= sample_range.start {
         return Err(RenderError::InvalidSettings(format!("empty sample range {sample_range:?}")));
@@ -410,16 +456,18 @@ pub fn render_reference_pass<T: Intersector>(
     let pt = StreamSampler::new(settings.seed, StreamKind::Pt);
     let width = settings.width as usize;
     let sums = &accum.sum;
-    let results: Vec<(Tile, Vec<[f64; 3]>, u64)> = tiles(settings.width, settings.height)
+    let results: Vec<(Tile, Vec<[i128; 3]>, u64)> = tiles(settings.width, settings.height)
         .par_iter()
         .map(|tile| {
-            let mut out: Vec<DVec3> = tile.pixels().map(|(x, y)| DVec3::from_array(sums[y as usize * width + x as usize])).collect();
+            let mut out: Vec<[i128; 3]> = tile.pixels().map(|(x, y)| sums[y as usize * width + x as usize]).collect();
             let mut bad_count = 0u64;
-            ctx.tile_samples(&pt, tile, sample_range.clone(), false, |i, _, v, bad, _| {
-                bad_count += bad as u64;
-                out[i] += v.as_dvec3();
-            });
-            let out: Vec<[f64; 3]> = out.iter().map(DVec3::to_array).collect();
+            // Sample by sample, as the streams: the same rays are traced together whatever the passes.
+            for s in sample_range.clone() {
+                ctx.tile_samples(&pt, tile, s..s + 1, false, |i, _, v, bad, _| {
+                    bad_count += bad as u64;
+                    exact::add3(&mut out[i], exact::fixed3(v.to_array()));
+                });
+            }
             progress(tile.pixel_count() as u64 * sample_range.len() as u64);
             (*tile, out, bad_count)
         })
@@ -435,13 +483,14 @@ pub fn render_reference_pass<T: Intersector>(
         tracing::warn!("{non_finite} reference samples were NaN or infinite and were replaced by zero");
     }
     accum.non_finite_samples += non_finite;
-    accum.samples_done = sample_range.end;
+    accum.samples_done = sample_range.end - accum.first;
     Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::film::PixelSums;
     use crate::integrator::radiance;
     use crate::testing::{cornell_box, BruteForce};
 
@@ -469,11 +518,11 @@ mod tests {
         for y in 0..settings.height {
             for x in 0..settings.width {
                 let p = (y * settings.width + x) as usize;
-                let (mut sums, mut crn_sums, mut albedo) = (PixelSums::default(), PixelSums::default(), DVec3::ZERO);
+                let (mut sums, mut crn_sums, mut albedo) = (PixelSums::default(), PixelSums::default(), [0i128; 3]);
                 for s in 0..settings.spp {
                     let mut fh = FirstHit::default();
                     sums.add(one(&pt, x, y, s, Some(&mut fh)));
-                    albedo += fh.albedo.as_dvec3();
+                    exact::add3(&mut albedo, exact::fixed3(fh.albedo.to_array()));
                     crn_sums.add(one(&crn, x, y, s, None));
                     if (s + 1) % 2 == 0 {
                         let b = (s / 2) as usize;
@@ -481,11 +530,14 @@ mod tests {
                         assert_eq!(set.crn.batches[b].pixels[p], crn_sums.take_batch_mean(2), "CRN batch {b} of pixel ({x}, {y})");
                     }
                 }
-                assert_eq!(set.pt.mean.pixels[p], (sums.total / 6.0).as_vec3().to_array(), "PT mean of ({x}, {y})");
-                assert_eq!(set.crn.mean.pixels[p], (crn_sums.total / 6.0).as_vec3().to_array(), "CRN mean of ({x}, {y})");
-                assert_eq!(features.albedo.pixels[p], (albedo / 6.0).as_vec3().to_array(), "albedo of ({x}, {y})");
-                let sum: DVec3 = (0..9).map(|s| one(&pt, x, y, s, None).as_dvec3()).sum();
-                assert_eq!(reference.sum[p], sum.to_array(), "reference sum of ({x}, {y})");
+                assert_eq!(set.pt.mean.pixels[p], exact::mean3(sums.total, 6), "PT mean of ({x}, {y})");
+                assert_eq!(set.crn.mean.pixels[p], exact::mean3(crn_sums.total, 6), "CRN mean of ({x}, {y})");
+                assert_eq!(features.albedo.pixels[p], exact::mean3(albedo, 6), "albedo of ({x}, {y})");
+                let mut sum = [0i128; 3];
+                for s in 0..9 {
+                    exact::add3(&mut sum, exact::fixed3(one(&pt, x, y, s, None).to_array()));
+                }
+                assert_eq!(reference.sum[p], sum, "reference sum of ({x}, {y})");
             }
         }
     }

@@ -1,0 +1,617 @@
+//! cvtrace on a Slurm cluster. A render is split into parts (`cvtrace render --part I/N`), run
+//! as one sbatch job array, and joined by a merge job that depends on the parts (`afterok`):
+//! Slurm schedules, places and retries; this crate writes the job folder, submits it, and tells
+//! which parts are done, failed or missing. Nothing here renders or needs Embree.
+//!
+//! A job folder is self-contained: `manifest.json` (the plan), `commands.txt` (the exact
+//! command of every part and of the merge), `parts.sbatch` (the array, one part per task),
+//! `merge.sbatch`, and what running it leaves: `parts/part-NNN.exr`, `logs/`, `status/` (each
+//! task's exit code, written by the script itself, since clusters without accounting forget
+//! finished jobs) and `submissions.json` (the job ids).
+use cvtrace_render::part::PartHeader;
+use cvtrace_streams::atomic::{create_dir_all, write_atomically};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// The layout of `manifest.json` this crate writes and reads.
+pub const FORMAT: &str = "cvtrace-farm-v1";
+
+#[derive(Debug, thiserror::Error)]
+pub enum FarmError {
+    #[error("{path}: {message}")]
+    Folder { path: PathBuf, message: String },
+    #[error(transparent)]
+    File(#[from] cvtrace_streams::StreamError),
+    #[error("{command}: {message}")]
+    Slurm { command: String, message: String },
+}
+
+fn folder_error(path: &Path, message: impl Into<String>) -> FarmError {
+    FarmError::Folder { path: path.to_path_buf(), message: message.into() }
+}
+
+/// What a farm job renders: everything that goes into the parts' commands.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Plan {
+    /// `streams` or `reference`.
+    pub kind: String,
+    /// The cvtrace binary every task runs (absolute).
+    pub cvtrace: PathBuf,
+    /// The folder the commands run in (absolute): the scene and output are as the user gave
+    /// them, so the merged file records the same scene path as a one-shot render there.
+    pub workdir: PathBuf,
+    pub scene: String,
+    pub output: String,
+    /// The flags of every part's render (samples, batches or pass size, seed, view), exact.
+    pub render_args: Vec<String>,
+    /// Batches (stream renders) or passes (references), and the parts they are split into.
+    pub units: u32,
+    /// Samples per pass of a reference (its parts record sample ranges).
+    pub pass_spp: Option<u32>,
+    pub parts: u32,
+    /// Whether the merge may replace an existing output.
+    pub replace_output: bool,
+}
+
+/// One part: its range of units, its file and its exact command.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PartEntry {
+    pub index: u32,
+    pub first: u32,
+    pub end: u32,
+    pub file: PathBuf,
+    pub command: Vec<String>,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Manifest {
+    pub format: String,
+    pub plan: Plan,
+    pub parts: Vec<PartEntry>,
+    pub merge: Vec<String>,
+}
+
+/// The job ids of the folder's submissions, oldest first.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Submissions {
+    pub arrays: Vec<ArraySubmission>,
+    pub merges: Vec<String>,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ArraySubmission {
+    pub job: String,
+    pub tasks: Vec<u32>,
+}
+
+/// A job folder on disk.
+#[derive(Clone, Debug)]
+pub struct JobFolder {
+    pub dir: PathBuf,
+    pub manifest: Manifest,
+}
+
+impl Manifest {
+    /// The manifest of `plan` with its parts in `dir` (absolute).
+    pub fn new(plan: Plan, dir: &Path) -> Manifest {
+        let unit_flag = "--part";
+        let parts = (0..plan.parts)
+            .map(|i| {
+                let at = |i: u32| (i as u64 * plan.units as u64 / plan.parts as u64) as u32;
+                let file = dir.join("parts").join(format!("part-{i:03}.exr"));
+                let mut command = vec![plan.cvtrace.to_string_lossy().into_owned(), "render".into(), plan.scene.clone()];
+                command.extend(plan.render_args.iter().cloned());
+                command.extend([unit_flag.into(), format!("{i}/{}", plan.parts), "-o".into(), file.to_string_lossy().into_owned()]);
+                // A part's file belongs to the farm: a rerun replaces what an earlier run left.
+                command.push("--force".into());
+                PartEntry { index: i, first: at(i), end: at(i + 1), file, command }
+            })
+            .collect::<Vec<_>>();
+        let mut merge = vec![plan.cvtrace.to_string_lossy().into_owned(), "merge".into()];
+        merge.extend(parts.iter().map(|p| p.file.to_string_lossy().into_owned()));
+        merge.extend(["-o".into(), plan.output.clone()]);
+        if plan.replace_output {
+            merge.push("--force".into());
+        }
+        Manifest { format: FORMAT.into(), plan, parts, merge }
+    }
+
+    /// "batches 2..4" or "passes 2..4".
+    pub fn describe(&self, p: &PartEntry) -> String {
+        let unit = if self.plan.kind == "streams" { "batches" } else { "passes" };
+        format!("{unit} {}..{}", p.first, p.end)
+    }
+}
+
+/// Quotes `s` for bash when it holds anything but plain path characters.
+pub fn quote(s: &str) -> String {
+    if !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c)) {
+        s.to_string()
+    } else {
+        format!("'{}'", s.replace('\'', r"'\''"))
+    }
+}
+
+fn command_line(args: &[String]) -> String {
+    args.iter().map(|a| quote(a)).collect::<Vec<_>>().join(" ")
+}
+
+fn write_text(path: &Path, text: &str) -> Result<(), FarmError> {
+    write_atomically(path, true, |tmp| std::fs::write(tmp, text))?;
+    Ok(())
+}
+
+impl JobFolder {
+    /// Writes the job folder of `plan` at `dir`, or opens the one there if it was written for
+    /// the same plan; a folder of another plan is an error (nothing is changed).
+    pub fn create(dir: &Path, plan: Plan) -> Result<JobFolder, FarmError> {
+        let dir = std::path::absolute(dir).map_err(|e| folder_error(dir, e.to_string()))?;
+        let manifest = Manifest::new(plan, &dir);
+        if dir.join("manifest.json").exists() {
+            let existing = JobFolder::open(&dir)?;
+            if existing.manifest != manifest {
+                let (a, b) = (&existing.manifest.plan, &manifest.plan);
+                let what = if a.scene != b.scene || a.kind != b.kind {
+                    "another scene or kind of render"
+                } else if a.render_args != b.render_args {
+                    "other render settings"
+                } else if a.parts != b.parts {
+                    "another number of parts"
+                } else {
+                    "another output, binary or folder"
+                };
+                return Err(folder_error(
+                    &dir,
+                    format!(
+                        "holds a farm job of {what} ({}); give another --dir, or remove the folder to start over",
+                        command_line(&existing.manifest.parts[0].command)
+                    ),
+                ));
+            }
+            return Ok(existing);
+        }
+        if dir.exists() && std::fs::read_dir(&dir).map(|mut d| d.next().is_some()).unwrap_or(true) {
+            return Err(folder_error(&dir, "exists and is not a farm job folder (no manifest.json); give an empty or new --dir"));
+        }
+        for sub in ["", "parts", "logs", "status"] {
+            create_dir_all(&dir.join(sub))?;
+        }
+        let folder = JobFolder { dir, manifest };
+        folder.write_scripts()?;
+        let json = serde_json::to_string_pretty(&folder.manifest).expect("a manifest serialises");
+        write_text(&folder.dir.join("manifest.json"), &(json + "\n"))?;
+        Ok(folder)
+    }
+
+    /// Opens the job folder at `dir`.
+    pub fn open(dir: &Path) -> Result<JobFolder, FarmError> {
+        let dir = std::path::absolute(dir).map_err(|e| folder_error(dir, e.to_string()))?;
+        let path = dir.join("manifest.json");
+        let text = std::fs::read_to_string(&path).map_err(|e| folder_error(&path, format!("not a farm job folder: {e}")))?;
+        let manifest: Manifest = serde_json::from_str(&text).map_err(|e| folder_error(&path, format!("not a farm manifest: {e}")))?;
+        if manifest.format != FORMAT {
+            return Err(folder_error(&path, format!("manifest format {:?}, this cvtrace reads {FORMAT:?}", manifest.format)));
+        }
+        Ok(JobFolder { dir, manifest })
+    }
+
+    fn status_file(&self, what: &str) -> PathBuf {
+        self.dir.join("status").join(format!("{what}.exit"))
+    }
+
+    fn write_scripts(&self) -> Result<(), FarmError> {
+        let m = &self.manifest;
+        let d = self.dir.to_string_lossy();
+        let workdir = quote(&m.plan.workdir.to_string_lossy());
+        let mut cases = String::new();
+        for p in &m.parts {
+            cases += &format!("    {}) {} ;;\n", p.index, command_line(&p.command));
+        }
+        let parts = format!(
+            "#!/bin/bash\n\
+             #SBATCH --job-name=cvtrace-part\n\
+             #SBATCH --output={d}/logs/part-%a.out\n\
+             # One part of the render per array task: sbatch --array=0-{last} {d}/parts.sbatch\n\
+             # (commands.txt lists the same commands). The task's exit code goes to status/, which\n\
+             # `cvtrace farm status` reads: a cluster without accounting forgets finished jobs.\n\
+             set -euo pipefail\n\
+             task=${{SLURM_ARRAY_TASK_ID:?submit this script with sbatch --array}}\n\
+             status=$(printf '%s/status/part-%03d.exit' {dq} \"$task\")\n\
+             rm -f \"$status\"\n\
+             trap 'echo $? > \"$status\"' EXIT\n\
+             cd {workdir}\n\
+             case \"$task\" in\n\
+             {cases}    *) echo \"no part $task in this job\" >&2; exit 2 ;;\n\
+             esac\n",
+            last = m.parts.len() - 1,
+            dq = quote(&d),
+        );
+        let merge = format!(
+            "#!/bin/bash\n\
+             #SBATCH --job-name=cvtrace-merge\n\
+             #SBATCH --output={d}/logs/merge-%j.out\n\
+             # The merge of every part into the output; submitted with --dependency=afterok on the parts.\n\
+             set -euo pipefail\n\
+             status={status}\n\
+             rm -f \"$status\"\n\
+             trap 'echo $? > \"$status\"' EXIT\n\
+             cd {workdir}\n\
+             {merge}\n",
+            status = quote(&self.status_file("merge").to_string_lossy()),
+            merge = command_line(&m.merge),
+        );
+        let mut commands = format!("# cd {workdir}\n");
+        for p in &m.parts {
+            commands += &(command_line(&p.command) + "\n");
+        }
+        commands += &(command_line(&m.merge) + "\n");
+        write_text(&self.dir.join("parts.sbatch"), &parts)?;
+        write_text(&self.dir.join("merge.sbatch"), &merge)?;
+        write_text(&self.dir.join("commands.txt"), &commands)?;
+        Ok(())
+    }
+
+    pub fn submissions(&self) -> Result<Submissions, FarmError> {
+        let path = self.dir.join("submissions.json");
+        match std::fs::read_to_string(&path) {
+            Ok(t) => serde_json::from_str(&t).map_err(|e| folder_error(&path, format!("not a submissions record: {e}"))),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(Submissions::default()),
+            Err(e) => Err(folder_error(&path, e.to_string())),
+        }
+    }
+
+    fn save_submissions(&self, s: &Submissions) -> Result<(), FarmError> {
+        write_text(&self.dir.join("submissions.json"), &(serde_json::to_string_pretty(s).expect("serialises") + "\n"))
+    }
+
+    /// The exit code a finished task wrote for `what` (`part-003`, `merge`).
+    fn exit_code(&self, what: &str) -> Option<i32> {
+        std::fs::read_to_string(self.status_file(what)).ok()?.trim().parse().ok()
+    }
+
+    /// Whether part `p`'s file is there and is that part (its header reads and holds its range).
+    fn part_done(&self, p: &PartEntry) -> bool {
+        let Ok(h) = PartHeader::read(&p.file) else { return false };
+        match self.manifest.plan.pass_spp {
+            None => h.range == (p.first..p.end),
+            // A reference part records its samples: whole passes, the last one maybe short.
+            Some(pass) => {
+                let spp = h.provenance.spp.unwrap_or(0);
+                h.range == (p.first * pass..(p.end * pass).min(spp))
+            }
+        }
+    }
+
+    /// The state of every part and of the merge, from the files and from `slurm`.
+    pub fn status(&self, slurm: &dyn Scheduler) -> Result<Status, FarmError> {
+        let subs = self.submissions()?;
+        // The newest submission of each task, and what Slurm says of it (nothing once the job
+        // has aged out of the controller).
+        let mut latest: Vec<Option<(String, Option<String>)>> = vec![None; self.manifest.parts.len()];
+        for a in &subs.arrays {
+            let states = slurm.states(&a.job).unwrap_or_default();
+            for &t in &a.tasks {
+                let state = states.iter().find(|(task, _)| *task == Some(t)).map(|(_, s)| s.clone());
+                if let Some(slot) = latest.get_mut(t as usize) {
+                    *slot = Some((a.job.clone(), state));
+                }
+            }
+        }
+        let parts = self
+            .manifest
+            .parts
+            .iter()
+            .map(|p| {
+                let submitted = latest[p.index as usize].clone();
+                let slurm_state = submitted.as_ref().and_then(|(_, s)| s.clone());
+                let state = if self.part_done(p) {
+                    PartState::Done
+                } else if let Some(s) = slurm_state.as_deref().filter(|s| is_active(s)) {
+                    PartState::Queued(s.to_string())
+                } else if let Some(code) = self.exit_code(&format!("part-{:03}", p.index)).filter(|c| *c != 0) {
+                    PartState::Failed(format!("exit code {code}"))
+                } else if let Some(s) = slurm_state.filter(|s| s != "COMPLETED") {
+                    PartState::Failed(s.to_lowercase())
+                } else if self.exit_code(&format!("part-{:03}", p.index)) == Some(0) {
+                    PartState::Failed("exited 0 but its file is missing or not this part".into())
+                } else {
+                    PartState::Missing
+                };
+                PartReport { part: p.clone(), job: submitted.map(|(j, _)| j), state }
+            })
+            .collect();
+        let merge_job = subs.merges.last().cloned();
+        let merge_slurm = merge_job.as_ref().and_then(|j| slurm.states(j).ok()).and_then(|s| s.first().map(|(_, s)| s.clone()));
+        let output = self.manifest.plan.workdir.join(&self.manifest.plan.output);
+        let merge = match (self.exit_code("merge"), merge_slurm) {
+            (_, Some(s)) if is_active(&s) => MergeState::Queued(s),
+            (Some(0), _) if output.is_file() => MergeState::Done,
+            (Some(code), _) if code != 0 => MergeState::Failed(format!("exit code {code}")),
+            (_, Some(s)) if s != "COMPLETED" => MergeState::Failed(s.to_lowercase()),
+            _ if merge_job.is_some() => MergeState::Failed("not run".into()),
+            _ => MergeState::NotSubmitted,
+        };
+        Ok(Status { parts, merge, merge_job, output })
+    }
+
+    /// Submits what is left: the parts that are missing or failed (one array), and a merge that
+    /// depends on every part not yet done. Parts still queued or running are left alone.
+    pub fn submit(&self, slurm: &dyn Scheduler, sbatch_args: &[String]) -> Result<Submitted, FarmError> {
+        let status = self.status(slurm)?;
+        if status.merge == MergeState::Done && status.parts.iter().all(|p| p.state == PartState::Done) {
+            return Ok(Submitted::default());
+        }
+        let todo: Vec<u32> =
+            status.parts.iter().filter(|p| matches!(p.state, PartState::Missing | PartState::Failed(_))).map(|p| p.part.index).collect();
+        if todo.is_empty() && matches!(status.merge, MergeState::Queued(_)) {
+            return Ok(Submitted { waiting: status.merge_job, ..Submitted::default() });
+        }
+        let mut subs = self.submissions()?;
+        // A merge still waiting on the earlier parts would run too: one merge is enough.
+        if let (Some(job), MergeState::Queued(_)) = (&status.merge_job, &status.merge) {
+            slurm.cancel(job)?;
+        }
+        let mut deps: Vec<String> = status
+            .parts
+            .iter()
+            .filter_map(|p| match (&p.state, &p.job) {
+                (PartState::Queued(_), Some(job)) => Some(format!("{job}_{}", p.part.index)),
+                _ => None,
+            })
+            .collect();
+        let mut array = None;
+        if !todo.is_empty() {
+            for &i in &todo {
+                let _ = std::fs::remove_file(self.status_file(&format!("part-{i:03}")));
+            }
+            let list = todo.iter().map(u32::to_string).collect::<Vec<_>>().join(",");
+            let mut args = sbatch_args.to_vec();
+            args.extend([format!("--array={list}"), self.dir.join("parts.sbatch").to_string_lossy().into_owned()]);
+            let job = slurm.submit(&args)?;
+            deps.insert(0, job.clone());
+            subs.arrays.push(ArraySubmission { job: job.clone(), tasks: todo.clone() });
+            self.save_submissions(&subs)?;
+            array = Some(job);
+        }
+        let _ = std::fs::remove_file(self.status_file("merge"));
+        let mut args = sbatch_args.to_vec();
+        if !deps.is_empty() {
+            // Without --kill-on-invalid-dep a merge after a failed part would wait forever on
+            // clusters that do not set DependencyParameters=kill_invalid_depend.
+            args.extend([format!("--dependency=afterok:{}", deps.join(":")), "--kill-on-invalid-dep=yes".into()]);
+        }
+        args.push(self.dir.join("merge.sbatch").to_string_lossy().into_owned());
+        let merge = slurm.submit(&args)?;
+        subs.merges.push(merge.clone());
+        self.save_submissions(&subs)?;
+        Ok(Submitted { array, tasks: todo, merge: Some(merge), waiting: None })
+    }
+
+    /// How to submit the folder by hand.
+    pub fn how_to_submit(&self) -> String {
+        let d = quote(&self.dir.to_string_lossy());
+        format!(
+            "array=$(sbatch --parsable --array=0-{} {d}/parts.sbatch)\n\
+             sbatch --dependency=afterok:$array --kill-on-invalid-dep=yes {d}/merge.sbatch\n",
+            self.manifest.parts.len() - 1
+        )
+    }
+}
+
+/// Slurm states in which a job may still run.
+fn is_active(state: &str) -> bool {
+    matches!(
+        state,
+        "PENDING" | "RUNNING" | "CONFIGURING" | "COMPLETING" | "REQUEUED" | "RESIZING" | "SUSPENDED" | "REQUEUE_HOLD" | "REQUEUE_FED"
+    )
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum PartState {
+    /// The part's file is there and is that part.
+    Done,
+    /// Submitted and pending or running (the Slurm state).
+    Queued(String),
+    /// Ran and failed (the exit code or the Slurm state).
+    Failed(String),
+    /// Never submitted, or gone from the cluster without a trace.
+    Missing,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum MergeState {
+    Done,
+    Queued(String),
+    Failed(String),
+    NotSubmitted,
+}
+
+#[derive(Clone, Debug)]
+pub struct PartReport {
+    pub part: PartEntry,
+    /// The job of the part's latest submission.
+    pub job: Option<String>,
+    pub state: PartState,
+}
+
+#[derive(Clone, Debug)]
+pub struct Status {
+    pub parts: Vec<PartReport>,
+    pub merge: MergeState,
+    pub merge_job: Option<String>,
+    pub output: PathBuf,
+}
+
+/// What [`JobFolder::submit`] did: nothing (all done), or the array of parts and the merge.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Submitted {
+    pub array: Option<String>,
+    pub tasks: Vec<u32>,
+    pub merge: Option<String>,
+    /// Nothing submitted: this merge job still waits on parts that are queued or running.
+    pub waiting: Option<String>,
+}
+
+/// The cluster, behind a trait so the bookkeeping is tested without one.
+pub trait Scheduler {
+    /// `sbatch --parsable ARGS`: the job id.
+    fn submit(&self, args: &[String]) -> Result<String, FarmError>;
+    /// The state of every task of `job` (`None` for a job that is no array).
+    fn states(&self, job: &str) -> Result<Vec<(Option<u32>, String)>, FarmError>;
+    fn cancel(&self, job: &str) -> Result<(), FarmError>;
+}
+
+/// The real Slurm commands on the PATH (with the environment's `SLURM_CONF`).
+pub struct Slurm;
+
+fn run(program: &str, args: &[String]) -> Result<String, FarmError> {
+    let line = format!("{program} {}", command_line(args));
+    let out = Command::new(program)
+        .args(args)
+        .output()
+        .map_err(|e| FarmError::Slurm { command: line.clone(), message: format!("could not run {program}: {e} (is Slurm installed?)") })?;
+    if !out.status.success() {
+        return Err(FarmError::Slurm { command: line, message: String::from_utf8_lossy(&out.stderr).trim().to_string() });
+    }
+    Ok(String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
+impl Scheduler for Slurm {
+    fn submit(&self, args: &[String]) -> Result<String, FarmError> {
+        let mut all = vec!["--parsable".to_string()];
+        all.extend(args.iter().cloned());
+        let out = run("sbatch", &all)?;
+        // `--parsable` prints `id` or `id;cluster`.
+        let id = out.trim().split(';').next().unwrap_or("").to_string();
+        if id.is_empty() || !id.chars().all(|c| c.is_ascii_digit()) {
+            return Err(FarmError::Slurm { command: "sbatch".into(), message: format!("unexpected output {out:?}") });
+        }
+        Ok(id)
+    }
+
+    fn states(&self, job: &str) -> Result<Vec<(Option<u32>, String)>, FarmError> {
+        let out = run(
+            "squeue",
+            &["-h".into(), "-t".into(), "all".into(), "--array".into(), "-j".into(), job.into(), "-o".into(), "%K %T".into()],
+        )?;
+        Ok(parse_states(&out))
+    }
+
+    fn cancel(&self, job: &str) -> Result<(), FarmError> {
+        run("scancel", &[job.to_string()]).map(|_| ())
+    }
+}
+
+/// `squeue -o "%K %T"` lines: the array task (`N/A` for a job that is no array) and the state.
+pub fn parse_states(out: &str) -> Vec<(Option<u32>, String)> {
+    out.lines()
+        .filter_map(|l| {
+            let mut it = l.split_whitespace();
+            let (task, state) = (it.next()?, it.next()?);
+            Some((task.parse().ok(), state.to_string()))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::cell::RefCell;
+
+    /// A cluster that records submissions and reports the states it is told.
+    #[derive(Default)]
+    struct Fake {
+        submitted: RefCell<Vec<Vec<String>>>,
+        states: RefCell<Vec<(String, Option<u32>, String)>>,
+        cancelled: RefCell<Vec<String>>,
+    }
+
+    impl Scheduler for Fake {
+        fn submit(&self, args: &[String]) -> Result<String, FarmError> {
+            self.submitted.borrow_mut().push(args.to_vec());
+            Ok((100 + self.submitted.borrow().len()).to_string())
+        }
+        fn states(&self, job: &str) -> Result<Vec<(Option<u32>, String)>, FarmError> {
+            Ok(self.states.borrow().iter().filter(|(j, _, _)| j == job).map(|(_, t, s)| (*t, s.clone())).collect())
+        }
+        fn cancel(&self, job: &str) -> Result<(), FarmError> {
+            self.cancelled.borrow_mut().push(job.into());
+            Ok(())
+        }
+    }
+
+    fn plan(dir: &Path) -> Plan {
+        Plan {
+            kind: "streams".into(),
+            cvtrace: "/opt/cvtrace".into(),
+            workdir: dir.to_path_buf(),
+            scene: "scene dir/cbox.gltf".into(),
+            output: "cbox.streams.exr".into(),
+            render_args: vec!["--spp".into(), "16".into(), "--batches".into(), "8".into()],
+            units: 8,
+            pass_spp: None,
+            parts: 3,
+            replace_output: false,
+        }
+    }
+
+    #[test]
+    fn folder_holds_every_command_and_refuses_another_plan() {
+        let tmp = tempfile::tempdir().unwrap();
+        let f = JobFolder::create(&tmp.path().join("job"), plan(tmp.path())).unwrap();
+        let ranges: Vec<_> = f.manifest.parts.iter().map(|p| (p.first, p.end)).collect();
+        assert_eq!(ranges, [(0, 2), (2, 5), (5, 8)]);
+        let script = std::fs::read_to_string(f.dir.join("parts.sbatch")).unwrap();
+        assert!(script.starts_with("#!/bin/bash\n") && script.contains("\nset -euo pipefail\n"), "{script}");
+        assert!(script.contains("1) /opt/cvtrace render 'scene dir/cbox.gltf' --spp 16 --batches 8 --part 1/3 -o "), "{script}");
+        let commands = std::fs::read_to_string(f.dir.join("commands.txt")).unwrap();
+        assert_eq!(commands.lines().filter(|l| l.contains(" render ")).count(), 3);
+        assert!(commands.lines().last().unwrap().contains(" merge ") && commands.contains("-o cbox.streams.exr"));
+        // The same plan opens the folder; another is refused.
+        JobFolder::create(&f.dir, plan(tmp.path())).unwrap();
+        let e = JobFolder::create(&f.dir, Plan { parts: 4, ..plan(tmp.path()) }).unwrap_err().to_string();
+        assert!(e.contains("another number of parts"), "{e}");
+    }
+
+    #[test]
+    fn only_missing_and_failed_parts_are_resubmitted() {
+        let tmp = tempfile::tempdir().unwrap();
+        let f = JobFolder::create(&tmp.path().join("job"), plan(tmp.path())).unwrap();
+        let slurm = Fake::default();
+        let s = f.submit(&slurm, &["--partition=x".into()]).unwrap();
+        assert_eq!((s.array.as_deref(), s.tasks.as_slice(), s.merge.as_deref()), (Some("101"), &[0, 1, 2][..], Some("102")));
+        let sub = slurm.submitted.borrow().clone();
+        assert!(sub[0].contains(&"--array=0,1,2".to_string()) && sub[0][0] == "--partition=x");
+        assert!(sub[1].contains(&"--dependency=afterok:101".to_string()), "{:?}", sub[1]);
+
+        // Part 0 failed, part 1 still runs, part 2 pends; the merge was cancelled.
+        std::fs::write(f.dir.join("status/part-000.exit"), "1\n").unwrap();
+        *slurm.states.borrow_mut() = vec![
+            ("101".into(), Some(0), "FAILED".into()),
+            ("101".into(), Some(1), "RUNNING".into()),
+            ("101".into(), Some(2), "PENDING".into()),
+            ("102".into(), None, "CANCELLED".into()),
+        ];
+        let st = f.status(&slurm).unwrap();
+        let states: Vec<_> = st.parts.iter().map(|p| p.state.clone()).collect();
+        assert_eq!(
+            states,
+            [PartState::Failed("exit code 1".into()), PartState::Queued("RUNNING".into()), PartState::Queued("PENDING".into())]
+        );
+        assert_eq!(st.merge, MergeState::Failed("cancelled".into()));
+        let s = f.submit(&slurm, &[]).unwrap();
+        assert_eq!(s.tasks, [0]);
+        let sub = slurm.submitted.borrow().clone();
+        assert!(sub[2].contains(&"--array=0".to_string()), "{:?}", sub[2]);
+        assert!(sub[3].contains(&"--dependency=afterok:103:101_1:101_2".to_string()), "{:?}", sub[3]);
+        assert!(slurm.cancelled.borrow().is_empty());
+    }
+
+    #[test]
+    fn squeue_lines_parse() {
+        assert_eq!(parse_states("3 FAILED\nN/A PENDING\n\n"), [(Some(3), "FAILED".to_string()), (None, "PENDING".to_string())]);
+        assert_eq!(quote("a b'c"), r"'a b'\''c'");
+        assert_eq!(quote("--spp=3"), "--spp=3");
+    }
+}

@@ -1,0 +1,175 @@
+//! `cvtrace farm` against a real Slurm cluster: `scripts/slurm_local.sh` brings up munged, a
+//! slurmctld and two slurmd on free ports in a scratch folder; the Cornell box is rendered in 4
+//! parts as a job array with a dependent merge, and the merged files must be the bytes of a
+//! one-shot render. A part made to fail leaves the merge cancelled, `farm status` names it, and
+//! submitting again runs only that part and then the merge.
+//!
+//! Needs root and Debian's slurm-wlm and munge (scripts/setup.sh); skipped without them unless
+//! CVTRACE_REQUIRE_TOOLS is set (as `make test` does), then it fails.
+mod common;
+
+use common::{cvtrace, ok, scene, stdout, SMALL};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+
+/// The cluster of one test, taken down when dropped (also when the test fails).
+struct Cluster {
+    dir: PathBuf,
+    conf: String,
+}
+
+impl Cluster {
+    fn up(dir: &Path) -> Cluster {
+        // Made first, so that a half-started cluster is taken down too.
+        let mut cluster = Cluster { dir: dir.to_path_buf(), conf: String::new() };
+        let out = Command::new("bash").arg(script()).args(["up", dir.to_str().unwrap()]).output().unwrap();
+        assert!(out.status.success(), "slurm_local.sh up failed:\n{}", String::from_utf8_lossy(&out.stderr));
+        let conf = stdout(&out).lines().find_map(|l| l.strip_prefix("export SLURM_CONF=")).map(str::to_string);
+        cluster.conf = conf.expect("up prints SLURM_CONF");
+        cluster
+    }
+}
+
+impl Drop for Cluster {
+    fn drop(&mut self) {
+        let _ = Command::new("bash").arg(script()).args(["down", self.dir.to_str().unwrap()]).output();
+    }
+}
+
+fn script() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/slurm_local.sh")
+}
+
+fn available() -> bool {
+    let root = unsafe { libc::geteuid() } == 0;
+    let tools = ["munged", "slurmctld", "slurmd", "sbatch", "squeue"]
+        .iter()
+        .all(|t| Command::new("which").arg(t).output().is_ok_and(|o| o.status.success()));
+    let required = std::env::var_os("CVTRACE_REQUIRE_TOOLS").is_some();
+    assert!(
+        (root && tools) || !required,
+        "CVTRACE_REQUIRE_TOOLS is set, but this test needs root and slurm-wlm + munge (scripts/setup.sh)"
+    );
+    if !(root && tools) {
+        eprintln!("skipped: needs root and slurm-wlm + munge (scripts/setup.sh)");
+    }
+    root && tools
+}
+
+fn farm(dir: &Path, conf: &str, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_cvtrace")).env("SLURM_CONF", conf).args(args).current_dir(dir).output().unwrap()
+}
+
+/// Polls `farm status` until its merge line starts with one of `ends` and no part is still
+/// queued or running (a failed part cancels the merge while others still run); returns the
+/// last report.
+fn wait_for(dir: &Path, conf: &str, folder: &str, ends: &[&str]) -> String {
+    let start = Instant::now();
+    loop {
+        let out = farm(dir, conf, &["--log", "warn", "farm", "status", folder]);
+        ok(&out);
+        let report = stdout(&out);
+        let merge = report.lines().find_map(|l| l.strip_prefix("merge: ")).unwrap_or("").to_string();
+        let busy = ["pending", "running", "configuring", "completing"].iter().any(|s| report.contains(&format!(": {s}")));
+        if ends.iter().any(|e| merge.starts_with(e)) && !busy {
+            return report;
+        }
+        assert!(start.elapsed() < Duration::from_secs(180), "the farm job did not end in time:\n{report}");
+        std::thread::sleep(Duration::from_millis(300));
+    }
+}
+
+fn same_bytes(a: &Path, b: &Path) {
+    assert!(std::fs::read(a).unwrap() == std::fs::read(b).unwrap(), "{} and {} differ", a.display(), b.display());
+}
+
+#[test]
+fn farm_renders_on_a_real_slurm_cluster_merge_exactly_and_rerun_only_failed_parts() {
+    if !available() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let cluster = Cluster::up(&tmp.path().join("slurm"));
+    let conf = cluster.conf.clone();
+    // `up` again finds the running cluster.
+    let out = Command::new("bash").arg(script()).args(["up", cluster.dir.to_str().unwrap()]).output().unwrap();
+    assert!(out.status.success() && String::from_utf8_lossy(&out.stderr).contains("already up"), "{out:?}");
+    assert!(stdout(&out).contains(&conf), "{out:?}");
+    let work = tmp.path().join("work");
+    std::fs::create_dir(&work).unwrap();
+    let d = work.as_path();
+    let s = scene();
+    let sp = s.to_str().unwrap();
+
+    // A stream file in 4 parts of 8 batches, against the one-shot render.
+    let streams = [&["--spp", "16", "--batches", "8", "--seed", "3"][..], SMALL].concat();
+    ok(&cvtrace(d, &[&["--log", "warn", "render", sp, "-o", "one.streams.exr"][..], &streams].concat()));
+    let out = farm(
+        d,
+        &conf,
+        &[&["--log", "warn", "farm", "render", sp, "--parts", "4", "-o", "cbox.streams.exr", "--submit"][..], &streams].concat(),
+    );
+    ok(&out);
+    assert!(stdout(&out).contains("submitted parts 0,1,2,3 as array job"), "{}", stdout(&out));
+    let report = wait_for(d, &conf, "cbox.streams.farm", &["done", "failed", "cancelled"]);
+    assert!(report.contains("4 of 4 parts done"), "{report}");
+    same_bytes(&d.join("one.streams.exr"), &d.join("cbox.streams.exr"));
+    for name in ["parts.sbatch", "merge.sbatch", "commands.txt", "manifest.json"] {
+        assert!(d.join("cbox.streams.farm").join(name).is_file(), "{name}");
+    }
+
+    // A reference in 4 ranges of passes (6 passes of 4 samples, the last of 2).
+    let reference = [&["--reference", "--spp", "22", "--pass-spp", "4", "--seed", "1"][..], SMALL].concat();
+    ok(&cvtrace(d, &[&["--log", "warn", "render", sp, "-o", "one.ref.exr"][..], &reference].concat()));
+    ok(&farm(
+        d,
+        &conf,
+        &[&["--log", "warn", "farm", "render", sp, "--parts", "4", "-o", "cbox.ref.exr", "--submit"][..], &reference].concat(),
+    ));
+    let report = wait_for(d, &conf, "cbox.ref.farm", &["done", "failed", "cancelled"]);
+    assert!(report.contains("4 of 4 parts done"), "{report}");
+    same_bytes(&d.join("one.ref.exr"), &d.join("cbox.ref.exr"));
+
+    // A part that fails: a folder where part 2 must write its file.
+    let other = [&["--spp", "8", "--batches", "4", "--seed", "9"][..], SMALL].concat();
+    ok(&cvtrace(d, &[&["--log", "warn", "render", sp, "-o", "one9.streams.exr"][..], &other].concat()));
+    let submit = [&["--log", "warn", "farm", "render", sp, "--parts", "4", "-o", "nine.streams.exr"][..], &other].concat();
+    let out = farm(d, &conf, &submit);
+    ok(&out);
+    assert!(stdout(&out).contains("sbatch --parsable --array=0-3"), "without --submit it says how: {}", stdout(&out));
+    std::fs::create_dir(d.join("nine.streams.farm/parts/part-002.exr")).unwrap();
+    let submit: Vec<&str> = [&submit[..], &["--submit"]].concat();
+    ok(&farm(d, &conf, &submit));
+    let report = wait_for(d, &conf, "nine.streams.farm", &["done", "failed", "cancelled"]);
+    assert!(report.lines().any(|l| l.starts_with("part 2 (batches 2..3): failed")), "{report}");
+    assert!(report.contains("merge: cancelled") && report.contains("3 of 4 parts done, 1 failed"), "{report}");
+    assert!(!d.join("nine.streams.exr").exists());
+
+    std::fs::remove_dir(d.join("nine.streams.farm/parts/part-002.exr")).unwrap();
+    let out = farm(d, &conf, &submit);
+    ok(&out);
+    assert!(stdout(&out).contains("submitted parts 2 as array job"), "only the failed part is submitted again: {}", stdout(&out));
+    let report = wait_for(d, &conf, "nine.streams.farm", &["done", "failed", "cancelled"]);
+    assert!(report.contains("merge: done") && report.contains("4 of 4 parts done"), "{report}");
+    same_bytes(&d.join("one9.streams.exr"), &d.join("nine.streams.exr"));
+    let out = farm(d, &conf, &submit);
+    assert!(stdout(&out).contains("nothing to submit"), "{}", stdout(&out));
+    // `down` ends what `up` started, and again is harmless.
+    let slurm_dir = cluster.dir.clone();
+    drop(cluster);
+    let out = Command::new("bash").arg(script()).args(["down", slurm_dir.to_str().unwrap()]).output().unwrap();
+    assert!(out.status.success(), "{out:?}");
+    assert_eq!(processes_using(&slurm_dir), Vec::<String>::new(), "processes of the cluster are left");
+}
+
+/// The command lines of running processes that name `dir`.
+fn processes_using(dir: &Path) -> Vec<String> {
+    let needle = format!("{}/", dir.display());
+    std::fs::read_dir("/proc")
+        .unwrap()
+        .filter_map(|e| std::fs::read(e.ok()?.path().join("cmdline")).ok())
+        .map(|c| String::from_utf8_lossy(&c).replace('\0', " "))
+        .filter(|c| c.contains(&needle))
+        .collect()
+}
