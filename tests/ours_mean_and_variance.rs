@@ -44,7 +44,12 @@ fn ours_keeps_the_image_mean_and_predicts_its_variance_at_32_spp() {
     let se = ours.image_mean_offset_se.expect("4 seeds give a standard error");
     for ch in 0..3 {
         let allowed = 0.002f64.max(3.0 * se[ch]);
-        assert!(offset[ch].abs() <= allowed, "channel {ch}: image mean off by {:+.3}% (allowed ±{:.3}%)", 100.0 * offset[ch], 100.0 * allowed);
+        assert!(
+            offset[ch].abs() <= allowed,
+            "channel {ch}: image mean off by {:+.3}% (allowed ±{:.3}%)",
+            100.0 * offset[ch],
+            100.0 * allowed
+        );
     }
     let calibration = ours.predicted_variance.expect("ours predicts its variance") / ours.variance.unwrap();
     assert!((0.8..=1.25).contains(&calibration), "predicted ÷ measured variance {calibration:.3}");
@@ -57,7 +62,8 @@ fn reconstruct_writes_the_variance_layer_beside_the_picture() {
     let tmp = tempfile::tempdir().unwrap();
     let streams = tmp.path().join("s.exr");
     let scene = scene();
-    let mut args = vec!["--log", "warn", "render", scene.to_str().unwrap(), "--spp", "8", "--batches", "4", "-o", streams.to_str().unwrap()];
+    let mut args =
+        vec!["--log", "warn", "render", scene.to_str().unwrap(), "--spp", "8", "--batches", "4", "-o", streams.to_str().unwrap()];
     args.extend_from_slice(common::SMALL);
     ok(&cvtrace(tmp.path(), &args));
     let out = tmp.path().join("ours.exr");

@@ -305,7 +305,14 @@ impl CvPass<'_> {
     }
 
     #[inline(always)]
-    fn pixel<const P: usize, S: Simd>(&self, halves: &[Half], x: usize, y: usize, sc: &mut Scratch<P>, st: &mut PassStats) -> ([f32; 3], [f32; 3]) {
+    fn pixel<const P: usize, S: Simd>(
+        &self,
+        halves: &[Half],
+        x: usize,
+        y: usize,
+        sc: &mut Scratch<P>,
+        st: &mut PassStats,
+    ) -> ([f32; 3], [f32; 3]) {
         let c = y * self.set.width + x;
         let n = self.selector.select(x, y, &mut sc.select, &mut sc.idx);
         let idx = &sc.idx[..n];

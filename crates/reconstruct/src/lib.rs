@@ -50,7 +50,6 @@
 mod batch_stats;
 pub mod control_variate;
 mod cv_pass;
-mod low_pass;
 mod diagnostics;
 mod error;
 mod estimator;
@@ -58,6 +57,7 @@ pub mod estimators;
 mod fast_exp;
 mod floor;
 mod input;
+mod low_pass;
 mod named;
 mod panel;
 mod penalty;
@@ -72,6 +72,7 @@ pub mod synthetic;
 mod window;
 
 pub use batch_stats::variance_of_mean;
+pub use cv_pass::Folds;
 /// The input types, re-exported so that library callers need no second import.
 pub use cvtrace_streams::{Features, Image, Stream, StreamMeta, StreamSet};
 pub use diagnostics::{DiagValue, Diagnostics};
@@ -79,7 +80,6 @@ pub use error::{ParseNameError, ReconError};
 pub use estimator::{Estimator, Instance, Output};
 pub use estimators::{ClassicCvOptions, IduwOptions, ImperfectCvOptions, GAMMA_GRID};
 pub use floor::{FloorMode, FloorSource};
-pub use cv_pass::Folds;
 pub use input::{stream_set_from_batches, BatchNeed, Input, Needs, MAX_VALUE};
 pub use penalty::Penalty;
 pub use pt_error::{CbfOptions, ErrorEstimate};
@@ -104,8 +104,8 @@ pub use spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples, Val
 pub mod blocks {
     pub use crate::batch_stats::{group_means, variance_of_mean, BatchCube};
     pub use crate::cv_pass::{CvPass, Folds, PassOutput, PassStats};
-    pub use crate::low_pass::{low_pass_variance, restore_low_frequencies};
     pub use crate::floor::{Floor, FloorMode, FloorSource};
+    pub use crate::low_pass::{low_pass_variance, restore_low_frequencies};
     pub use crate::penalty::Penalty;
     pub use crate::pt_error::{cross_bilateral, pt_errors, CbfOptions, ErrorEstimate};
     pub use crate::selection::{SelectScratch, Selection, Selector, MAX_SEARCH_WINDOW};

@@ -15,9 +15,9 @@
 use cvtrace_streams::Image;
 use rayon::prelude::*;
 
-/// The normalised 1-D Gaussian taps `w[0..=r]` (centre first), `r = ⌈3σ⌉`.
-fn taps(sigma: f64) -> Vec<f64> {
-    let r = (3.0 * sigma).ceil() as usize;
+/// The 1-D Gaussian taps `w[0..=r]` (centre first), `r = ⌈3σ⌉`, no wider than the image.
+fn taps(sigma: f64, longest_side: usize) -> Vec<f64> {
+    let r = ((3.0 * sigma).ceil() as usize).min(longest_side);
     (0..=r).map(|d| (-0.5 * (d as f64 / sigma).powi(2)).exp()).collect()
 }
 
@@ -47,14 +47,19 @@ fn blur_1d(src: &[[f64; 3]], w: usize, h: usize, taps: &[f64], along_columns: bo
     out
 }
 
-/// `estimate + G_σ ∗ (unbiased − estimate)`, per channel; `sigma ≤ 0` returns the estimate.
+/// Whether `sigma` turns the correction on (a positive, finite width).
+fn active(sigma: f64) -> bool {
+    sigma.is_finite() && sigma > 0.0
+}
+
+/// `estimate + G_σ ∗ (unbiased − estimate)`, per channel; `sigma ≤ 0` (or not finite) returns the estimate.
 pub fn restore_low_frequencies(estimate: &Image, unbiased: &Image, sigma: f64) -> Image {
     assert_eq!((estimate.width, estimate.height), (unbiased.width, unbiased.height), "images of different sizes");
-    if !(sigma > 0.0) || estimate.is_empty() {
+    if !active(sigma) || estimate.is_empty() {
         return estimate.clone();
     }
     let (w, h) = (estimate.width, estimate.height);
-    let taps = taps(sigma);
+    let taps = taps(sigma, w.max(h));
     let diff: Vec<[f64; 3]> =
         estimate.pixels.iter().zip(&unbiased.pixels).map(|(e, u)| std::array::from_fn(|ch| u[ch] as f64 - e[ch] as f64)).collect();
     let low = blur_1d(&blur_1d(&diff, w, h, &taps, false, false), w, h, &taps, true, false);
@@ -66,10 +71,10 @@ pub fn restore_low_frequencies(estimate: &Image, unbiased: &Image, sigma: f64) -
 /// per-pixel variance (independent across pixels). What the low-pass removes of the
 /// estimate's own noise is left out: the estimate's noise is mostly of high frequency.
 pub fn low_pass_variance(errors: &[[f32; 3]], w: usize, h: usize, sigma: f64) -> Vec<[f64; 3]> {
-    if !(sigma > 0.0) || errors.is_empty() {
+    if !active(sigma) || errors.is_empty() {
         return vec![[0.0; 3]; errors.len()];
     }
-    let taps = taps(sigma);
+    let taps = taps(sigma, w.max(h));
     let e: Vec<[f64; 3]> = errors.iter().map(|v| v.map(|x| x as f64)).collect();
     blur_1d(&blur_1d(&e, w, h, &taps, false, true), w, h, &taps, true, true)
 }

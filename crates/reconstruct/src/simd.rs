@@ -311,7 +311,7 @@ mod dispatch_tests {
             ("ours", &["ours.k=40"], 36),                                               // width 64
             ("ours", &[], 32),                                                          // B ≥ k: the general f64 solve
             ("ours", &["ours.shared_coefficients=true"], 16),                           // general, 3·B columns
-            ("ours", &["ours.folds=halves"], 16),                                     // two halves, width 8
+            ("ours", &["ours.folds=halves"], 16),                                       // two halves, width 8
             ("cv", &[], 16),
             ("iduw", &[], 16), // γ criterion and output
         ];

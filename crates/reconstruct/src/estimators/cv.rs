@@ -122,7 +122,6 @@ pub struct ClassicCvOptions {
     pub low_pass_sigma: f64,
 }
 
-
 impl Default for ClassicCvOptions {
     fn default() -> Self {
         ClassicCvOptions::from_params(&Params::defaults(&SPEC))

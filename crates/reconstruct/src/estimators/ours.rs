@@ -8,8 +8,8 @@
 use crate::batch_stats::variance_of_mean;
 use crate::cv_pass::{CvPass, Folds};
 use crate::floor::{Floor, FloorMode, FloorSource};
-use crate::low_pass::{low_pass_variance, restore_low_frequencies};
 use crate::input::BatchNeed;
+use crate::low_pass::{low_pass_variance, restore_low_frequencies};
 use crate::penalty::Penalty;
 use crate::pt_error::{cross_bilateral, pt_errors, CbfOptions, ErrorEstimate, MAX_RADIUS};
 use crate::selection::{Selection, Selector, MAX_SEARCH_WINDOW};
@@ -132,7 +132,13 @@ impl ImperfectCvOptions {
 
 fn needs(o: &ImperfectCvOptions) -> Needs {
     Needs {
-        batches: BatchNeed::Range { min: match o.folds { Folds::All => 2, Folds::Halves => 4 }, max: MAX_BATCHES },
+        batches: BatchNeed::Range {
+            min: match o.folds {
+                Folds::All => 2,
+                Folds::Halves => 4,
+            },
+            max: MAX_BATCHES,
+        },
         features: (o.select == Selection::Gbuffer).then_some("with --select gbuffer"),
         reference: o.errors == ErrorEstimate::Oracle,
         spp: false,
@@ -200,7 +206,8 @@ impl Estimator for ImperfectCv {
                 method: SPEC.name,
                 requirement: "an even number of".into(),
                 found: set.batch_count(),
-                hint: "cross-fitting splits the batches into two equal halves; re-render with an even --batches or choose other --folds".into(),
+                hint: "cross-fitting splits the batches into two equal halves; re-render with an even --batches or choose other --folds"
+                    .into(),
             });
         }
         let errors = pt_errors(o.errors, set, input.reference, &o.cbf);
