@@ -53,6 +53,7 @@ fn ours_matches_a_dense_solve_of_eq7_from_the_batches() {
         "ours.penalty=none",
         "ours.crn_floor=0",
         "ours.shared_coefficients=false",
+        "ours.low_pass_sigma=0",
     ])
     .unwrap();
     // (B, k): panel widths 8, 16, 32 and 64, then B ≥ k (the general f64 solve).
@@ -79,10 +80,10 @@ fn ours_matches_a_dense_solve_of_eq7_from_the_batches() {
 
 #[test]
 fn cv_matches_a_dense_solve_without_the_centre() {
-    // V_h = 0, Ω' the k = 24 pixels nearest by CRN colour (default) or spatially, the centre
-    // left out; (V_g + λ·I) β = V_fg with λ = 0.3 · mean diag(V_g) over Ω'.
+    // The classic form: V_h = 0, no low-pass; Ω' the k = 24 pixels nearest by CRN colour
+    // (default) or spatially, the centre left out; (V_g + λ·I) β = V_fg with λ = 0.3 · mean diag(V_g) over Ω'.
     for (rule, select) in [(Rule::Knn, "knn"), (Rule::Window, "window")] {
-        let options = Overrides::default().with("cv", &[("select", select)]);
+        let options = Overrides::default().with("cv", &[("select", select), ("pt_noise", "false"), ("low_pass_sigma", "0")]);
         // Panel width 16 (B = 16 < 24) and the general solve (B = 32).
         for b in [16usize, 32] {
             let (w, h) = (17, 15);
@@ -106,7 +107,7 @@ fn cv_matches_a_dense_solve_without_the_centre() {
 
 #[test]
 fn cv_removes_shared_crn_noise_that_pt_cannot() {
-    // CRN noise fully shared by the pixels (σ = 0.3 per batch), independent PT noise (σ_h).
+    // The classic form. CRN noise fully shared by the pixels (σ = 0.3 per batch), independent PT noise (σ_h).
     // Then V_g ≈ σ²·1·1ᵀ over the 24 neighbours and β ≈ 1/(24 + 0.3) each (the ridge is 0.3 of
     // the mean diagonal), so F̂_c ≈ ḡ_c − mean(ḡ_i) + mean(h̄_i): the shared noise cancels up to
     // 1 − 24/24.3 of it and the PT noise is averaged over 24 pixels. Expected
@@ -122,7 +123,8 @@ fn cv_removes_shared_crn_noise_that_pt_cannot() {
         |bb, i, ch| truth(i, ch) + 0.3 * normal(21, (bb * 3 + ch) as u64),
         |bb, i, ch| truth(i, ch) + 0.2 * normal(22, (bb * w * h * 3 + i * 3 + ch) as u64),
     );
-    let out = build("cv", &Overrides::default()).unwrap().run(&Input::new(&set)).unwrap().image;
+    let classic = Overrides::default().with("cv", &[("pt_noise", "false"), ("low_pass_sigma", "0")]);
+    let out = build("cv", &classic).unwrap().run(&Input::new(&set)).unwrap().image;
     let truth_image = Image { width: w, height: h, pixels: (0..w * h).map(|i| std::array::from_fn(|ch| truth(i, ch) as f32)).collect() };
     let (e_cv, e_pt) = (msd(&out, &truth_image), msd(&set.pt.mean, &truth_image));
     assert!(e_cv < 0.2 * e_pt, "cv {e_cv:.3e} vs PT {e_pt:.3e}");

@@ -19,8 +19,10 @@ fn degenerate_set() -> StreamSet {
     stream_set(W, W, 16, 64, |_| 0.0, |_, _| 0.0, |b, _| if b % 2 == 0 { M + 0.3 } else { M - 0.3 })
 }
 
+/// `ours` with the given changes and without the low-pass correction, so that a pixel's value
+/// is the control-variate pass's alone.
 fn ours(f: impl Fn(&mut ImperfectCvOptions)) -> ImperfectCv {
-    let mut o = ImperfectCvOptions::default();
+    let mut o = ImperfectCvOptions { low_pass_sigma: 0.0, ..Default::default() };
     f(&mut o);
     ImperfectCv::new(o).unwrap()
 }
