@@ -7,6 +7,7 @@ use crate::session::{Job, Progress, ReferenceJob, RenderSession, StreamJob, View
 use cvtrace_streams::exr_io::read_rgb;
 use cvtrace_streams::provenance::describe_all;
 use cvtrace_streams::{Image, Provenance, StreamSet};
+use cvtrace_study::files::{self, Cell, CellKind};
 use cvtrace_study::{Rendered, Source, SourceError};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -26,7 +27,7 @@ pub struct RenderSource<'a> {
 
 /// The folder of the renders with `n` spp per stream.
 pub fn spp_dir(study: &Path, n: u32) -> PathBuf {
-    study.join(format!("spp{n:05}"))
+    files::spp_dir(study, n)
 }
 
 impl<'a> RenderSource<'a> {
@@ -58,15 +59,36 @@ impl<'a> RenderSource<'a> {
         })
     }
 
-    fn file(&mut self, n: u32, seed: u64, suffix: &str) -> Result<PathBuf, SourceError> {
-        let i =
+    fn file(&mut self, n: u32, seed: u64, kind: CellKind) -> Result<PathBuf, SourceError> {
+        let index =
             seed.checked_sub(self.first_seed).ok_or_else(|| format!("seed {seed} is before the study's first seed {}", self.first_seed))?;
+        let index = u32::try_from(index).map_err(|_| format!("seed {seed}: too far after the study's first seed {}", self.first_seed))?;
         let dir = spp_dir(&self.folder, n);
-        if !dir.exists() {
-            std::fs::create_dir(&dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
-            self.made.push(dir.clone());
+        // Farm tasks render cells of one folder at the same time: the folder may appear meanwhile.
+        match std::fs::create_dir(&dir) {
+            Ok(()) => self.made.push(dir.clone()),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && dir.is_dir() => {}
+            Err(e) => return Err(format!("{}: cannot create: {e}", dir.display()).into()),
         }
-        Ok(dir.join(format!("seed-{i:03}.{suffix}")))
+        Ok(files::cell_file(&self.folder, Cell { kind, spp: n, index }))
+    }
+
+    /// Renders one cell of the study into its file (unless it is there and finished), as the
+    /// study would when it comes to it: the same file, job and timing sidecar.
+    pub fn render_cell(&mut self, cell: Cell, batches: u32) -> Result<PathBuf, SourceError> {
+        let seed = self.first_seed + cell.index as u64;
+        let path = self.file(cell.spp, seed, cell.kind)?;
+        let job = match cell.kind {
+            CellKind::Streams => self.stream_job(cell.spp, batches, seed, &path),
+            CellKind::Pt2n => self.pt_job(&path, cell.spp, seed),
+        };
+        self.ensure_rendered(job)?;
+        Ok(path)
+    }
+
+    /// The PT(2n) job of the streams with `n` spp and seed `stream_seed`.
+    fn pt_job(&self, path: &Path, n: u32, stream_seed: u64) -> Job {
+        Job::Reference(ReferenceJob::replacing(path.to_path_buf(), self.view, 2 * n, stream_seed + cvtrace_study::PT2N_SEED_OFFSET))
     }
 
     /// Renders `job` unless its output is already there, finished (with its timing file) and
@@ -74,7 +96,7 @@ impl<'a> RenderSource<'a> {
     /// studies still report real times).
     fn ensure_rendered(&self, job: Job) -> Result<f64, SourceError> {
         let path = job.output().to_path_buf();
-        let timing = path.with_extension("seconds");
+        let timing = files::timing_file(&path);
         if path.exists() {
             if let Some(t) = std::fs::read_to_string(&timing).ok().and_then(|s| s.trim().parse::<f64>().ok()) {
                 let planned = self.session.plan(&job)?.provenance;
@@ -101,7 +123,7 @@ impl<'a> RenderSource<'a> {
 
 impl Source for RenderSource<'_> {
     fn streams(&mut self, n: u32, batches: u32, seed: u64) -> Result<Rendered<StreamSet>, SourceError> {
-        let path = self.file(n, seed, "streams.exr")?;
+        let path = self.file(n, seed, CellKind::Streams)?;
         let seconds = self.ensure_rendered(self.stream_job(n, batches, seed, &path))?;
         Ok(Rendered { value: StreamSet::read(&path)?, seconds, name: path.display().to_string() })
     }
@@ -111,8 +133,11 @@ impl Source for RenderSource<'_> {
         // streams' seed plus the offset.
         let stream_seed =
             seed.checked_sub(cvtrace_study::PT2N_SEED_OFFSET).ok_or_else(|| format!("seed {seed}: not the seed of a PT(2n) image"))?;
-        let path = self.file(spp / 2, stream_seed, "pt2n.exr")?;
-        let seconds = self.ensure_rendered(Job::Reference(ReferenceJob::replacing(path.clone(), self.view, spp, seed)))?;
+        if !spp.is_multiple_of(2) {
+            return Err(format!("{spp} spp: not the PT(2n) image of a stream pair").into());
+        }
+        let path = self.file(spp / 2, stream_seed, CellKind::Pt2n)?;
+        let seconds = self.ensure_rendered(self.pt_job(&path, spp / 2, stream_seed))?;
         Ok(Rendered { value: read_rgb(&path)?, seconds, name: path.display().to_string() })
     }
 }

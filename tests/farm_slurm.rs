@@ -2,13 +2,14 @@
 //! slurmctld and two slurmd on free ports in a scratch folder; the Cornell box is rendered in 4
 //! parts as a job array with a dependent merge, and the merged files must be the bytes of a
 //! one-shot render. A part made to fail leaves the merge cancelled, `farm status` names it, and
-//! submitting again runs only that part and then the merge.
+//! submitting again runs only that part and then the merge. A tiny study run as a farm job (a
+//! render per task, the statistics after them) gives the numbers of `cvtrace study` itself.
 //!
 //! Needs root and Debian's slurm-wlm and munge (scripts/setup.sh); skipped without them unless
 //! CVTRACE_REQUIRE_TOOLS is set (as `make test` does), then it fails.
 mod common;
 
-use common::{cvtrace, ok, scene, stdout, SMALL};
+use common::{cvtrace, ok, scene, stderr, stdout, SMALL};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::{Duration, Instant};
@@ -61,16 +62,16 @@ fn farm(dir: &Path, conf: &str, args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_cvtrace")).env("SLURM_CONF", conf).args(args).current_dir(dir).output().unwrap()
 }
 
-/// Polls `farm status` until its merge line starts with one of `ends` and no part is still
-/// queued or running (a failed part cancels the merge while others still run); returns the
-/// last report.
+/// Polls `farm status` until its merge (or study) line starts with one of `ends` and no part is
+/// still queued or running (a failed part cancels the merge while others still run); returns
+/// the last report.
 fn wait_for(dir: &Path, conf: &str, folder: &str, ends: &[&str]) -> String {
     let start = Instant::now();
     loop {
         let out = farm(dir, conf, &["--log", "warn", "farm", "status", folder]);
         ok(&out);
         let report = stdout(&out);
-        let merge = report.lines().find_map(|l| l.strip_prefix("merge: ")).unwrap_or("").to_string();
+        let merge = report.lines().find_map(|l| l.strip_prefix("merge: ").or_else(|| l.strip_prefix("study: "))).unwrap_or("").to_string();
         let busy = ["pending", "running", "configuring", "completing"].iter().any(|s| report.contains(&format!(": {s}")));
         if ends.iter().any(|e| merge.starts_with(e)) && !busy {
             return report;
@@ -155,6 +156,9 @@ fn farm_renders_on_a_real_slurm_cluster_merge_exactly_and_rerun_only_failed_part
     same_bytes(&d.join("one9.streams.exr"), &d.join("nine.streams.exr"));
     let out = farm(d, &conf, &submit);
     assert!(stdout(&out).contains("nothing to submit"), "{}", stdout(&out));
+
+    farm_study_matches_the_study(d, &conf);
+
     // `down` ends what `up` started, and again is harmless.
     let slurm_dir = cluster.dir.clone();
     drop(cluster);
@@ -172,4 +176,134 @@ fn processes_using(dir: &Path) -> Vec<String> {
         .map(|c| String::from_utf8_lossy(&c).replace('\0', " "))
         .filter(|c| c.contains(&needle))
         .collect()
+}
+
+/// A tiny study: 2 spp values × 2 seeds, each with its streams and its PT(2n) image.
+const STUDY: &[&str] = &["--spp", "4,8", "--batches", "4", "--seeds", "2", "--width", "32", "--height", "32", "--max-depth", "6"];
+
+/// [`STUDY`] with `flag` set to `value` instead.
+fn study_with(flag: &str, value: &'static str) -> Vec<&'static str> {
+    let mut v = STUDY.to_vec();
+    let at = v.iter().position(|a| *a == flag).expect("a flag of STUDY") + 1;
+    v[at] = value;
+    v
+}
+
+/// The reference of the tiny study (a seed none of its renders use).
+fn study_reference(d: &Path) {
+    let sp = scene();
+    let args =
+        [&["--log", "warn", "render", sp.to_str().unwrap(), "--reference", "--spp", "64", "--seed", "77", "-o", "ref.exr"][..], SMALL];
+    ok(&cvtrace(d, &args.concat()));
+}
+
+/// The numbers of a results.json: every method's relMSE statistics and the convergence points.
+fn numbers(results: &Path) -> Vec<String> {
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(results).unwrap()).unwrap();
+    let scene = &v["scenes"][0];
+    let mut out = Vec::new();
+    for m in scene["methods"].as_array().unwrap() {
+        let f = |k: &str| m[k].to_string();
+        out.push(format!("{} {} relmse {} se {} bias2 {}", f("name"), f("spp_total"), f("relmse_mean"), f("relmse_se"), f("bias2")));
+    }
+    for p in scene["convergence"].as_array().unwrap() {
+        out.push(format!("{} {} relmse {}", p["method"], p["spp_total"], p["relmse"]));
+    }
+    out
+}
+
+/// `farm study --submit` on the cluster, against `cvtrace study` with the same arguments.
+fn farm_study_matches_the_study(d: &Path, conf: &str) {
+    study_reference(d);
+    let sp = scene();
+    let sp = sp.to_str().unwrap();
+    let args = |out: &'static str| [&[sp][..], STUDY, &["--reference", "ref.exr", "-o", out]].concat();
+    let out = farm(d, conf, &[&["--log", "warn", "farm", "study"][..], &args("farmed"), &["--submit"]].concat());
+    ok(&out);
+    assert!(stdout(&out).contains("submitted cells 0,1,2,3,4,5,6,7 as array job"), "{}", stdout(&out));
+    let report = wait_for(d, conf, "farmed.farm", &["done", "failed", "cancelled"]);
+    assert!(report.contains("study: done") && report.contains("8 of 8 cells done"), "{report}");
+    assert!(report.contains("cell 3 (pt2n, 4 spp, seed index 1): done"), "{report}");
+    // The final job rendered nothing: it found every cell's file to be the study's own.
+    let logs = common::files_in(&d.join("farmed.farm/logs"));
+    let study_log = logs.iter().find(|l| l.starts_with("study-")).expect("the study job's log");
+    let log = std::fs::read_to_string(d.join("farmed.farm/logs").join(study_log)).unwrap();
+    assert_eq!(log.matches("reusing").count(), 8, "{log}");
+
+    ok(&cvtrace(d, &[&["--log", "warn", "study"][..], &args("direct")].concat()));
+    let (farmed, direct) = (numbers(&d.join("farmed/results.json")), numbers(&d.join("direct/results.json")));
+    assert!(farmed.len() > 10, "{farmed:?}");
+    assert_eq!(farmed, direct);
+
+    // Everything is done: a rerun submits nothing; one lost cell is all a rerun submits.
+    let again = [&["--log", "warn", "farm", "study"][..], &args("farmed"), &["--submit"]].concat();
+    let out = farm(d, conf, &again);
+    assert!(stdout(&out).contains("nothing to submit"), "{}", stdout(&out));
+    std::fs::remove_file(d.join("farmed/spp00008/seed-000.streams.exr")).unwrap();
+    let out = farm(d, conf, &again);
+    ok(&out);
+    assert!(stdout(&out).contains("submitted cells 4 as array job"), "{}", stdout(&out));
+    let report = wait_for(d, conf, "farmed.farm", &["done", "failed", "cancelled"]);
+    assert!(report.contains("study: done") && report.contains("8 of 8 cells done"), "{report}");
+    assert_eq!(numbers(&d.join("farmed/results.json")), direct);
+}
+
+/// Bad `farm study` input is a clear error and writes nothing (no cluster needed: without
+/// --submit nothing is submitted).
+#[test]
+fn farm_study_refuses_bad_input_and_writes_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    study_reference(d);
+    let sp = scene();
+    let sp = sp.to_str().unwrap();
+    let farm_study = ["--log", "warn", "farm", "study", sp];
+    let base = [&farm_study[..], STUDY].concat();
+    let before = common::files_in(d);
+    let fails = |extra: &[&str], says: &str| {
+        let args = if extra.first().is_some_and(|a| *a != "--reference") {
+            [&farm_study[..], extra].concat()
+        } else {
+            [&base[..], extra].concat()
+        };
+        let out = cvtrace(d, &args);
+        assert!(!out.status.success(), "{extra:?} was accepted");
+        assert!(stderr(&out).contains(says), "{extra:?}: {}", stderr(&out));
+        assert_eq!(common::files_in(d), before, "{extra:?} wrote something");
+    };
+    fails(&["--reference", "missing.exr", "-o", "s"], "missing.exr: the reference does not exist; render it first");
+    fails(&["--reference", "ref.exr", "-o", "s", "--cell", "streams:4:0"], "--cell streams:4:0: the farm gives every task its cell");
+    fails(&[&study_with("--batches", "3")[..], &["--reference", "ref.exr", "-o", "s"]].concat(), "--batches 3 does not divide --spp 4");
+    fails(
+        &[&study_with("--width", "16")[..], &["--reference", "ref.exr", "-o", "s"]].concat(),
+        "ref.exr: not a reference of this study's image",
+    );
+    fails(&["--reference", "ref.exr", "-o", "s", "--dir", "s"], "given as both --dir and -o");
+    fails(&["--reference", "ref.exr", "-o", "s", "--param", "ours.nope=1"], "nope");
+    std::fs::write(d.join("notes.txt"), "x").unwrap();
+    let before = common::files_in(d);
+    let out = cvtrace(d, &[&base[..], &["--reference", "ref.exr", "-o", "s", "--dir", "notes.txt"]].concat());
+    assert!(!out.status.success() && stderr(&out).contains("notes.txt"), "{}", stderr(&out));
+    assert_eq!(common::files_in(d), before);
+
+    // Without --submit: the job folder, and how to submit it; the study folder is the cells' to make.
+    let out = cvtrace(d, &[&base[..], &["--reference", "ref.exr", "-o", "s"]].concat());
+    ok(&out);
+    assert!(stdout(&out).contains("cells.sbatch") && stdout(&out).contains("study.sbatch"), "{}", stdout(&out));
+    assert!(!d.join("s").exists());
+    let commands = std::fs::read_to_string(d.join("s.farm/commands.txt")).unwrap();
+    assert_eq!(commands.lines().filter(|l| l.contains(" --cell ")).count(), 8, "{commands}");
+    assert!(commands.contains(" study ") && !commands.contains("--submit"), "{commands}");
+    let status = cvtrace(d, &["farm", "status", "s.farm"]);
+    ok(&status);
+    assert!(stdout(&status).contains("cell 0 (streams, 4 spp, seed index 0): missing") && stdout(&status).contains("study: not submitted"));
+    // The folder of another study is refused and left as it was.
+    let manifest = std::fs::read(d.join("s.farm/manifest.json")).unwrap();
+    let out = cvtrace(d, &[&farm_study[..], &study_with("--seeds", "3"), &["--reference", "ref.exr", "-o", "s"]].concat());
+    assert!(!out.status.success() && stderr(&out).contains("holds a farm job of other render settings"), "{}", stderr(&out));
+    assert_eq!(std::fs::read(d.join("s.farm/manifest.json")).unwrap(), manifest);
+    // A cell the study does not have.
+    let out = cvtrace(d, &[&["study", sp][..], STUDY, &["--reference", "ref.exr", "-o", "s", "--cell", "streams:16:0"]].concat());
+    assert!(!out.status.success() && stderr(&out).contains("--cell streams:16:0: not a cell of this study"), "{}", stderr(&out));
+    assert!(!d.join("s").exists());
 }

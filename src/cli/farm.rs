@@ -1,8 +1,10 @@
-//! `cvtrace farm`: a render as parts on a Slurm cluster (a job folder, its submission, its
-//! status). The bookkeeping is `cvtrace-farm`'s; this file maps flags to a plan and prints.
+//! `cvtrace farm`: a render as parts, or a study as cells, on a Slurm cluster (a job folder, its
+//! submission, its status). The bookkeeping is `cvtrace-farm`'s; this file maps flags to a plan
+//! and prints.
 use crate::cli::render::{default_batches, spp_parser, ViewArgs};
+use crate::cli::study::StudyArgs;
 use anyhow::{bail, Context, Result};
-use cvtrace_farm::{JobFolder, MergeState, PartState, Plan, Slurm};
+use cvtrace_farm::{JobFolder, MergeState, PartState, Plan, Slurm, StudyCells};
 use cvtrace_render::part::PartSpec;
 use std::path::{Path, PathBuf};
 
@@ -16,6 +18,9 @@ pub struct FarmArgs {
 pub enum FarmCommand {
     /// Write the job folder of a render in parts (and with --submit, submit it to Slurm).
     Render(FarmRenderArgs),
+    /// Write the job folder of a study, a render per array task and the statistics after them
+    /// (and with --submit, submit it). Takes the arguments of `cvtrace study`.
+    Study(FarmStudyArgs),
     /// Which parts of a job folder are done, queued, failed or missing, and the merge.
     Status(FarmStatusArgs),
 }
@@ -60,14 +65,30 @@ pub struct FarmRenderArgs {
 }
 
 #[derive(clap::Args, Debug)]
+pub struct FarmStudyArgs {
+    #[command(flatten)]
+    pub study: StudyArgs,
+    /// The job folder [default: the study folder's name with `.farm`].
+    #[arg(long)]
+    pub dir: Option<PathBuf>,
+    /// Submit with sbatch: the cells that are missing or failed, and the study after them.
+    #[arg(long)]
+    pub submit: bool,
+    /// An argument for sbatch (repeatable), e.g. --sbatch-arg=--partition=gpu.
+    #[arg(long = "sbatch-arg", value_name = "ARG", allow_hyphen_values = true)]
+    pub sbatch_args: Vec<String>,
+}
+
+#[derive(clap::Args, Debug)]
 pub struct FarmStatusArgs {
-    /// A job folder written by `cvtrace farm render`.
+    /// A job folder written by `cvtrace farm render` or `cvtrace farm study`.
     pub dir: PathBuf,
 }
 
 pub fn run(args: FarmArgs) -> Result<()> {
     match args.command {
         FarmCommand::Render(a) => render(a),
+        FarmCommand::Study(a) => study(a),
         FarmCommand::Status(a) => status(&a.dir),
     }
 }
@@ -132,6 +153,7 @@ fn render(a: FarmRenderArgs) -> Result<()> {
         pass_spp,
         parts: a.parts,
         replace_output: a.force,
+        study: None,
     };
     let new = !dir.join("manifest.json").exists();
     if new {
@@ -149,27 +171,129 @@ fn render(a: FarmRenderArgs) -> Result<()> {
         say!("job folder {}: submit it with\n{}or run this command again with --submit", folder.dir.display(), folder.how_to_submit());
         return Ok(());
     }
-    let s = folder.submit(&Slurm, &a.sbatch_args)?;
+    submit(&folder, &a.sbatch_args)
+}
+
+/// Submits what `folder` still needs and says what was submitted.
+fn submit(folder: &JobFolder, sbatch_args: &[String]) -> Result<()> {
+    let s = folder.submit(&Slurm, sbatch_args)?;
+    let names = folder.manifest.scripts();
+    let (task, last) = (names.task, names.last_name);
+    let output = folder.manifest.final_output();
     match (&s.array, &s.merge, &s.waiting) {
-        (_, _, Some(job)) => say!("nothing to submit: the parts not done are queued or running; merge job {job} waits for them"),
-        (None, None, None) => say!("nothing to submit: every part is done and {} is merged", a.output.display()),
+        (_, _, Some(job)) => say!("nothing to submit: the {task}s not done are queued or running; {last} job {job} waits for them"),
+        (None, None, None) => say!("nothing to submit: every {task} is done and {} is written", output.display()),
         (array, merge, None) => {
             if let Some(job) = array {
                 let tasks = s.tasks.iter().map(u32::to_string).collect::<Vec<_>>().join(",");
-                say!("submitted parts {tasks} as array job {job}");
+                say!("submitted {task}s {tasks} as array job {job}");
             }
             if let Some(job) = merge {
-                say!("submitted the merge as job {job} (runs after the parts succeed): {}", a.output.display());
+                say!("submitted the {last} as job {job} (runs after the {task}s succeed): {}", output.display());
             }
         }
     }
     Ok(())
 }
 
+/// Flags of `farm study` that are the farm's, not the study's: (flag, takes a value).
+const FARM_STUDY_FLAGS: [(&str, bool); 3] = [("--submit", false), ("--dir", true), ("--sbatch-arg", true)];
+
+/// The arguments of `cvtrace farm study` that are the study's, exactly as given (the scene and
+/// `-o` among them): every cell and the final study run `cvtrace study` with them, so that they
+/// are the study the user would have run, estimator options and all.
+fn study_tokens(argv: &[String]) -> Result<Vec<String>> {
+    // The subcommand words come after global options, some of which take a value.
+    let mut words = Vec::new();
+    let mut i = 1;
+    while i < argv.len() && words.len() < 2 {
+        let t = argv[i].as_str();
+        if matches!(t, "-t" | "--threads" | "--log") {
+            i += 1;
+        } else if !t.starts_with('-') {
+            words.push(t);
+        }
+        i += 1;
+    }
+    if words != ["farm", "study"] {
+        bail!("cannot find `farm study` in the command line {argv:?}");
+    }
+    let mut out = Vec::new();
+    let mut rest = argv[i..].iter();
+    while let Some(t) = rest.next() {
+        if t == "--" {
+            out.push(t.clone());
+            out.extend(rest.cloned());
+            break;
+        }
+        match FARM_STUDY_FLAGS.iter().find(|(f, _)| t == f || (t.starts_with(f) && t[f.len()..].starts_with('='))) {
+            Some((f, true)) if t == f => {
+                rest.next();
+            }
+            Some(_) => {}
+            None => out.push(t.clone()),
+        }
+    }
+    Ok(out)
+}
+
+fn study(a: FarmStudyArgs) -> Result<()> {
+    let s = &a.study;
+    if let Some(cell) = s.cell {
+        bail!("--cell {cell}: the farm gives every task its cell; give the study's arguments without --cell");
+    }
+    // The final job runs the study alone: a reference it had to render would take one node for
+    // longer than every cell.
+    if !s.reference.exists() {
+        bail!(
+            "{}: the reference does not exist; render it first (it can be a farm job too: cvtrace farm render SCENE --reference --spp N --parts P -o {})",
+            s.reference.display(),
+            s.reference.display()
+        );
+    }
+    crate::cli::study::check(s)?;
+    let argv: Vec<String> = std::env::args_os()
+        .map(|a| a.into_string().map_err(|a| anyhow::anyhow!("{}: not UTF-8; a job script needs it as text", a.to_string_lossy())))
+        .collect::<Result<_>>()?;
+    let tokens = study_tokens(&argv)?;
+    let mut spps = s.spp.clone();
+    spps.sort_unstable();
+    spps.dedup();
+    let cells = 2 * spps.len() as u32 * s.seeds;
+    let dir = a.dir.clone().unwrap_or_else(|| default_dir(&s.output));
+    if crate::cli::same_output(&dir, &s.output) {
+        bail!("{}: given as both --dir and -o; the job folder and the study folder must differ", dir.display());
+    }
+    let plan = Plan {
+        kind: "study".into(),
+        cvtrace: std::env::current_exe().context("the path of this cvtrace binary")?,
+        workdir: std::env::current_dir().context("the current folder")?,
+        scene: s.scene.to_string_lossy().into_owned(),
+        output: s.output.to_string_lossy().into_owned(),
+        render_args: tokens,
+        units: cells,
+        pass_spp: None,
+        parts: cells,
+        replace_output: true,
+        study: Some(StudyCells { spps, seeds: s.seeds }),
+    };
+    let new = !dir.join("manifest.json").exists();
+    let folder = JobFolder::create(&dir, plan)?;
+    if new {
+        tracing::info!("wrote the job folder {} ({cells} cells)", folder.dir.display());
+    }
+    if !a.submit {
+        say!("job folder {}: submit it with\n{}or run this command again with --submit", folder.dir.display(), folder.how_to_submit());
+        return Ok(());
+    }
+    submit(&folder, &a.sbatch_args)
+}
+
 fn status(dir: &Path) -> Result<()> {
     let folder = JobFolder::open(dir)?;
     let st = folder.status(&Slurm)?;
     let m = &folder.manifest;
+    let names = m.scripts();
     let (mut done, mut failed) = (0, 0);
     for p in &st.parts {
         let range = m.describe(&p.part);
@@ -186,7 +310,7 @@ fn status(dir: &Path) -> Result<()> {
             }
             PartState::Missing => "missing (not submitted)".to_string(),
         };
-        say!("part {} ({range}): {state}", p.part.index);
+        say!("{} {} ({range}): {state}", names.task, p.part.index);
     }
     let merge_job = st.merge_job.as_ref().map(|j| format!(" (job {j})")).unwrap_or_default();
     let merge = match &st.merge {
@@ -195,10 +319,39 @@ fn status(dir: &Path) -> Result<()> {
         MergeState::Failed(why) => format!("{why}{merge_job}"),
         MergeState::NotSubmitted => "not submitted".to_string(),
     };
-    say!("merge: {merge}");
-    say!("{done} of {} parts done, {failed} failed", st.parts.len());
+    say!("{}: {merge}", names.last_name);
+    say!("{done} of {} {}s done, {failed} failed", st.parts.len(), names.task);
     if failed > 0 {
-        say!("run the same `cvtrace farm render ... --submit` again to submit only the failed and missing parts");
+        say!(
+            "run the same `cvtrace farm {} ... --submit` again to submit only the failed and missing {}s",
+            if m.plan.study.is_some() { "study" } else { "render" },
+            names.task
+        );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::study_tokens;
+
+    fn tokens(line: &str) -> Result<String, String> {
+        let argv: Vec<String> = line.split(' ').map(String::from).collect();
+        study_tokens(&argv).map(|t| t.join(" ")).map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn the_study_gets_its_own_arguments_as_given() {
+        assert_eq!(
+            tokens(
+                "cvtrace --log warn -t 2 farm study s.gltf --spp 4,8 --submit --dir j --sbatch-arg --partition=x -o out --reference r.exr"
+            ),
+            Ok("s.gltf --spp 4,8 -o out --reference r.exr".into())
+        );
+        assert_eq!(
+            tokens("cvtrace farm --log=warn study s.gltf --dir=j --sbatch-arg=-N1 --param ours.k=4 -o o -- x --submit"),
+            Ok("s.gltf --param ours.k=4 -o o -- x --submit".into())
+        );
+        assert!(tokens("cvtrace farm render s.gltf").is_err());
+    }
 }

@@ -20,6 +20,7 @@ use cvtrace_render::Sidecar;
 use cvtrace_streams::exr_io::{take_rgb, AttrValue, ExrChannels};
 use cvtrace_streams::provenance::describe_all;
 use cvtrace_streams::Provenance;
+use cvtrace_study::files::Cell;
 use cvtrace_study::{SceneInfo, Study, PT2N_SEED_OFFSET};
 use std::path::{Path, PathBuf};
 
@@ -67,6 +68,11 @@ pub struct StudyArgs {
     /// method keys (pt2n is the study's PT render with 2n spp).
     #[arg(long, value_delimiter = ',', default_value = "ours/iduw,ours/cv,ours/pt2n")]
     pub headline: Vec<String>,
+    /// Render only this cell of the study into its folder, KIND:SPP:SEED_INDEX with KIND streams
+    /// or pt2n (e.g. streams:32:0): one task of `cvtrace farm study`. A later study with the same
+    /// arguments reuses the file.
+    #[arg(long, value_name = "KIND:SPP:SEED_INDEX")]
+    pub cell: Option<Cell>,
     #[command(flatten)]
     pub view: ViewArgs,
     #[command(flatten)]
@@ -74,6 +80,17 @@ pub struct StudyArgs {
 }
 
 pub fn run(args: StudyArgs) -> Result<()> {
+    run_or_check(&args, false)
+}
+
+/// Every check `cvtrace study` makes of `args` before it writes anything (the scene loads, the
+/// estimators' needs, a given reference matches), without writing anything: a farm's tasks then
+/// fail only for reasons of their node.
+pub fn check(args: &StudyArgs) -> Result<()> {
+    run_or_check(args, true)
+}
+
+fn run_or_check(args: &StudyArgs, check_only: bool) -> Result<()> {
     let mut spps = args.spp.clone();
     spps.sort_unstable();
     spps.dedup();
@@ -82,6 +99,11 @@ pub fn run(args: StudyArgs) -> Result<()> {
     }
     if args.seeds == 0 || args.seeds > MAX_SEEDS {
         bail!("--seeds {}: must be between 1 and {MAX_SEEDS}", args.seeds);
+    }
+    if let Some(cell) = args.cell {
+        if !spps.contains(&cell.spp) || cell.index >= args.seeds {
+            bail!("--cell {cell}: not a cell of this study (--spp {:?}, seed indices 0..{})", spps, args.seeds);
+        }
     }
     if args.batches == 0 {
         bail!("--batches must be at least 1");
@@ -105,7 +127,7 @@ pub fn run(args: StudyArgs) -> Result<()> {
         bail!("{}: scene file not found", args.scene.display());
     }
     // The results need a scene name: known now, not after the last render.
-    if study_name(&args).trim().is_empty() {
+    if study_name(args).trim().is_empty() {
         match &args.name {
             Some(name) => bail!("--name {name:?}: the scene's name in tables and the viewer must not be empty"),
             None => bail!("{}: no scene name can be made from this file name; give one with --name", args.scene.display()),
@@ -145,7 +167,7 @@ pub fn run(args: StudyArgs) -> Result<()> {
         if !mismatch.is_empty() {
             bail!("{}: not a reference of this study's image ({})", args.reference.display(), describe_all(&mismatch, "in the file"));
         }
-        Some(read_reference(&args)?)
+        Some(read_reference(args)?)
     } else {
         None
     };
@@ -165,10 +187,21 @@ pub fn run(args: StudyArgs) -> Result<()> {
     if args.output.exists() && !args.output.is_dir() {
         bail!("{}: is a file; the study needs a folder (-o)", args.output.display());
     }
+    if check_only {
+        return Ok(());
+    }
     // The folders this run makes: if it fails before anything is written in them, they go again.
     let made: Vec<PathBuf> =
         args.output.ancestors().take_while(|p| !p.as_os_str().is_empty() && !p.exists()).map(Path::to_path_buf).collect();
     std::fs::create_dir_all(&args.output).with_context(|| format!("{}: cannot create the study folder", args.output.display()))?;
+    if let Some(cell) = args.cell {
+        // No claim of the folder: the farm renders its cells side by side, each into its own
+        // file (written atomically), and the study that follows reuses them.
+        let mut source = probe;
+        let path = source.render_cell(cell, args.batches).map_err(|e| anyhow::anyhow!("{e}"))?;
+        crate::cli::say!("cell {cell}: {}", path.display());
+        return Ok(());
+    }
     // Two studies in one folder would render the same files twice and race over them: the
     // claim comes before anything else is made in it, and a study that does not get it
     // removes only what it made itself.
@@ -176,7 +209,7 @@ pub fn run(args: StudyArgs) -> Result<()> {
     let (result, made_spp_dirs) = match claim {
         Ok(_claim) => {
             let mut source = probe;
-            let result = study_in_folder(&args, &session, &planned, &study, &mut source, existing, reference_spp);
+            let result = study_in_folder(args, &session, &planned, &study, &mut source, existing, reference_spp);
             (result, source.made_folders().to_vec())
         }
         Err(e) => (Err(e.into()), Vec::new()),

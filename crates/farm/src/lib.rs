@@ -8,8 +8,16 @@
 //! `merge.sbatch`, and what running it leaves: `parts/part-NNN.exr`, `logs/`, `status/` (each
 //! task's exit code, written by the script itself, since clusters without accounting forget
 //! finished jobs) and `submissions.json` (the job ids).
+//!
+//! A study (`kind` `study`) is the same folder with cells for parts: each array task renders
+//! one cell (`cvtrace study ... --cell KIND:SPP:SEED_INDEX`: a stream pair or its PT(2n) image)
+//! straight into the study folder, under the name the study gives it (`cvtrace_study::files`),
+//! and the final job, in place of the merge, is the plain `cvtrace study` with the same
+//! arguments, which finds every render finished and only reconstructs and scores. The scripts
+//! are `cells.sbatch` and `study.sbatch` then.
 use cvtrace_render::part::PartHeader;
 use cvtrace_streams::atomic::{create_dir_all, write_atomically};
+use cvtrace_study::files::{cell_file, cells, timing_file, Cell};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -34,7 +42,7 @@ fn folder_error(path: &Path, message: impl Into<String>) -> FarmError {
 /// What a farm job renders: everything that goes into the parts' commands.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Plan {
-    /// `streams` or `reference`.
+    /// `streams`, `reference` or `study`.
     pub kind: String,
     /// The cvtrace binary every task runs (absolute).
     pub cvtrace: PathBuf,
@@ -42,8 +50,10 @@ pub struct Plan {
     /// them, so the merged file records the same scene path as a one-shot render there.
     pub workdir: PathBuf,
     pub scene: String,
+    /// The merged file, or a study's folder.
     pub output: String,
-    /// The flags of every part's render (samples, batches or pass size, seed, view), exact.
+    /// The flags of every part's render (samples, batches or pass size, seed, view), exact; of a
+    /// study, all its arguments as the user gave them (the scene and `-o` among them).
     pub render_args: Vec<String>,
     /// Batches (stream renders) or passes (references), and the parts they are split into.
     pub units: u32,
@@ -52,16 +62,30 @@ pub struct Plan {
     pub parts: u32,
     /// Whether the merge may replace an existing output.
     pub replace_output: bool,
+    /// A study's spp values and seeds, whose cells are the parts.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub study: Option<StudyCells>,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct StudyCells {
+    /// Samples per stream, ascending.
+    pub spps: Vec<u32>,
+    pub seeds: u32,
 }
 
 /// One part: its range of units, its file and its exact command.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct PartEntry {
     pub index: u32,
+    /// The units `first..end` (of a study cell: its seed index `first`).
     pub first: u32,
     pub end: u32,
     pub file: PathBuf,
     pub command: Vec<String>,
+    /// A study cell, `KIND:SPP:SEED_INDEX`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cell: Option<String>,
 }
 
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -95,6 +119,9 @@ pub struct JobFolder {
 impl Manifest {
     /// The manifest of `plan` with its parts in `dir` (absolute).
     pub fn new(plan: Plan, dir: &Path) -> Manifest {
+        if let Some(study) = &plan.study {
+            return Manifest::study(plan.clone(), study.clone());
+        }
         let unit_flag = "--part";
         let parts = (0..plan.parts)
             .map(|i| {
@@ -105,7 +132,7 @@ impl Manifest {
                 command.extend([unit_flag.into(), format!("{i}/{}", plan.parts), "-o".into(), file.to_string_lossy().into_owned()]);
                 // A part's file belongs to the farm: a rerun replaces what an earlier run left.
                 command.push("--force".into());
-                PartEntry { index: i, first: at(i), end: at(i + 1), file, command }
+                PartEntry { index: i, first: at(i), end: at(i + 1), file, command, cell: None }
             })
             .collect::<Vec<_>>();
         let mut merge = vec![plan.cvtrace.to_string_lossy().into_owned(), "merge".into()];
@@ -117,11 +144,76 @@ impl Manifest {
         Manifest { format: FORMAT.into(), plan, parts, merge }
     }
 
-    /// "batches 2..4" or "passes 2..4".
+    /// The cells of a study, in the folder its commands write (`output` from `workdir`).
+    fn study(plan: Plan, study: StudyCells) -> Manifest {
+        let folder = plan.workdir.join(&plan.output);
+        let cvtrace = plan.cvtrace.to_string_lossy().into_owned();
+        let study_command = |cell: Option<Cell>| {
+            let mut c = vec![cvtrace.clone(), "study".into()];
+            c.extend(plan.render_args.iter().cloned());
+            if let Some(cell) = cell {
+                c.extend(["--cell".into(), cell.to_string()]);
+            }
+            c
+        };
+        let parts = cells(&study.spps, study.seeds)
+            .into_iter()
+            .enumerate()
+            .map(|(i, cell)| PartEntry {
+                index: i as u32,
+                first: cell.index,
+                end: cell.index + 1,
+                file: cell_file(&folder, cell),
+                command: study_command(Some(cell)),
+                cell: Some(cell.to_string()),
+            })
+            .collect();
+        let merge = study_command(None);
+        Manifest { format: FORMAT.into(), plan, parts, merge }
+    }
+
+    fn is_study(&self) -> bool {
+        self.plan.study.is_some()
+    }
+
+    /// The array's and the final job's scripts, and what the tasks and the final job are called.
+    pub fn scripts(&self) -> Scripts {
+        if self.is_study() {
+            Scripts { array: "cells.sbatch", last: "study.sbatch", task: "cell", last_name: "study" }
+        } else {
+            Scripts { array: "parts.sbatch", last: "merge.sbatch", task: "part", last_name: "merge" }
+        }
+    }
+
+    /// What the final job writes: the merged file, or the study's `results.json`.
+    pub fn final_output(&self) -> PathBuf {
+        let out = self.plan.workdir.join(&self.plan.output);
+        if self.is_study() {
+            out.join("results.json")
+        } else {
+            out
+        }
+    }
+
+    /// "batches 2..4", "passes 2..4", or a cell's "streams, 32 spp, seed index 0".
     pub fn describe(&self, p: &PartEntry) -> String {
+        if let Some(cell) = p.cell.as_deref().and_then(|c| c.parse::<Cell>().ok()) {
+            return format!("{}, {} spp, seed index {}", cell.kind.name(), cell.spp, cell.index);
+        }
         let unit = if self.plan.kind == "streams" { "batches" } else { "passes" };
         format!("{unit} {}..{}", p.first, p.end)
     }
+}
+
+/// The file names and words of a job folder's two jobs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Scripts {
+    pub array: &'static str,
+    pub last: &'static str,
+    /// `part` or `cell`.
+    pub task: &'static str,
+    /// `merge` or `study`.
+    pub last_name: &'static str,
 }
 
 /// Quotes `s` for bash when it holds anything but plain path characters.
@@ -154,7 +246,7 @@ impl JobFolder {
                 let (a, b) = (&existing.manifest.plan, &manifest.plan);
                 let what = if a.scene != b.scene || a.kind != b.kind {
                     "another scene or kind of render"
-                } else if a.render_args != b.render_args {
+                } else if a.render_args != b.render_args || a.study != b.study {
                     "other render settings"
                 } else if a.parts != b.parts {
                     "another number of parts"
@@ -208,11 +300,13 @@ impl JobFolder {
         for p in &m.parts {
             cases += &format!("    {}) {} ;;\n", p.index, command_line(&p.command));
         }
+        let names = m.scripts();
+        let what = if m.is_study() { "One cell of the study (a render)" } else { "One part of the render" };
         let parts = format!(
             "#!/bin/bash\n\
-             #SBATCH --job-name=cvtrace-part\n\
+             #SBATCH --job-name=cvtrace-{task}\n\
              #SBATCH --output={d}/logs/part-%a.out\n\
-             # One part of the render per array task: sbatch --array=0-{last} {d}/parts.sbatch\n\
+             # {what} per array task: sbatch --array=0-{last} {d}/{array}\n\
              # (commands.txt lists the same commands). The task's exit code goes to status/, which\n\
              # `cvtrace farm status` reads: a cluster without accounting forgets finished jobs.\n\
              set -euo pipefail\n\
@@ -226,12 +320,19 @@ impl JobFolder {
              esac\n",
             last = m.parts.len() - 1,
             dq = quote(&d),
+            task = names.task,
+            array = names.array,
         );
+        let what = if m.is_study() {
+            "The study: reconstructions and statistics on the cells' renders"
+        } else {
+            "The merge of every part into the output"
+        };
         let merge = format!(
             "#!/bin/bash\n\
-             #SBATCH --job-name=cvtrace-merge\n\
-             #SBATCH --output={d}/logs/merge-%j.out\n\
-             # The merge of every part into the output; submitted with --dependency=afterok on the parts.\n\
+             #SBATCH --job-name=cvtrace-{last_name}\n\
+             #SBATCH --output={d}/logs/{last_name}-%j.out\n\
+             # {what}; submitted with --dependency=afterok on the array.\n\
              set -euo pipefail\n\
              status={status}\n\
              rm -f \"$status\"\n\
@@ -240,14 +341,15 @@ impl JobFolder {
              {merge}\n",
             status = quote(&self.status_file("merge").to_string_lossy()),
             merge = command_line(&m.merge),
+            last_name = names.last_name,
         );
         let mut commands = format!("# cd {workdir}\n");
         for p in &m.parts {
             commands += &(command_line(&p.command) + "\n");
         }
         commands += &(command_line(&m.merge) + "\n");
-        write_text(&self.dir.join("parts.sbatch"), &parts)?;
-        write_text(&self.dir.join("merge.sbatch"), &merge)?;
+        write_text(&self.dir.join(names.array), &parts)?;
+        write_text(&self.dir.join(names.last), &merge)?;
         write_text(&self.dir.join("commands.txt"), &commands)?;
         Ok(())
     }
@@ -270,8 +372,13 @@ impl JobFolder {
         std::fs::read_to_string(self.status_file(what)).ok()?.trim().parse().ok()
     }
 
-    /// Whether part `p`'s file is there and is that part (its header reads and holds its range).
+    /// Whether part `p`'s file is there and is that part (its header reads and holds its range);
+    /// a study cell, whether its render and the timing written after it are there (the study
+    /// checks the render's provenance when it reuses it).
     fn part_done(&self, p: &PartEntry) -> bool {
+        if p.cell.is_some() {
+            return p.file.is_file() && timing_file(&p.file).is_file();
+        }
         let Ok(h) = PartHeader::read(&p.file) else { return false };
         match self.manifest.plan.pass_spp {
             None => h.range == (p.first..p.end),
@@ -323,7 +430,7 @@ impl JobFolder {
             .collect();
         let merge_job = subs.merges.last().cloned();
         let merge_slurm = merge_job.as_ref().and_then(|j| slurm.states(j).ok()).and_then(|s| s.first().map(|(_, s)| s.clone()));
-        let output = self.manifest.plan.workdir.join(&self.manifest.plan.output);
+        let output = self.manifest.final_output();
         let merge = match (self.exit_code("merge"), merge_slurm) {
             (_, Some(s)) if is_active(&s) => MergeState::Queued(s),
             (Some(0), _) if output.is_file() => MergeState::Done,
@@ -367,7 +474,7 @@ impl JobFolder {
             }
             let list = todo.iter().map(u32::to_string).collect::<Vec<_>>().join(",");
             let mut args = sbatch_args.to_vec();
-            args.extend([format!("--array={list}"), self.dir.join("parts.sbatch").to_string_lossy().into_owned()]);
+            args.extend([format!("--array={list}"), self.dir.join(self.manifest.scripts().array).to_string_lossy().into_owned()]);
             let job = slurm.submit(&args)?;
             deps.insert(0, job.clone());
             subs.arrays.push(ArraySubmission { job: job.clone(), tasks: todo.clone() });
@@ -381,7 +488,7 @@ impl JobFolder {
             // clusters that do not set DependencyParameters=kill_invalid_depend.
             args.extend([format!("--dependency=afterok:{}", deps.join(":")), "--kill-on-invalid-dep=yes".into()]);
         }
-        args.push(self.dir.join("merge.sbatch").to_string_lossy().into_owned());
+        args.push(self.dir.join(self.manifest.scripts().last).to_string_lossy().into_owned());
         let merge = slurm.submit(&args)?;
         subs.merges.push(merge.clone());
         self.save_submissions(&subs)?;
@@ -391,10 +498,13 @@ impl JobFolder {
     /// How to submit the folder by hand.
     pub fn how_to_submit(&self) -> String {
         let d = quote(&self.dir.to_string_lossy());
+        let names = self.manifest.scripts();
         format!(
-            "array=$(sbatch --parsable --array=0-{} {d}/parts.sbatch)\n\
-             sbatch --dependency=afterok:$array --kill-on-invalid-dep=yes {d}/merge.sbatch\n",
-            self.manifest.parts.len() - 1
+            "array=$(sbatch --parsable --array=0-{} {d}/{})\n\
+             sbatch --dependency=afterok:$array --kill-on-invalid-dep=yes {d}/{}\n",
+            self.manifest.parts.len() - 1,
+            names.array,
+            names.last
         )
     }
 }
@@ -553,6 +663,7 @@ mod tests {
             pass_spp: None,
             parts: 3,
             replace_output: false,
+            study: None,
         }
     }
 
@@ -606,6 +717,44 @@ mod tests {
         assert!(sub[2].contains(&"--array=0".to_string()), "{:?}", sub[2]);
         assert!(sub[3].contains(&"--dependency=afterok:103:101_1:101_2".to_string()), "{:?}", sub[3]);
         assert!(slurm.cancelled.borrow().is_empty());
+    }
+
+    #[test]
+    fn a_study_folder_has_a_cell_per_task_and_the_study_after_them() {
+        let tmp = tempfile::tempdir().unwrap();
+        let study = Plan {
+            kind: "study".into(),
+            output: "out/study".into(),
+            render_args: ["scene dir/cbox.gltf", "--spp", "8,16", "--seeds", "2", "-o", "out/study"].map(String::from).to_vec(),
+            units: 8,
+            parts: 8,
+            study: Some(StudyCells { spps: vec![8, 16], seeds: 2 }),
+            ..plan(tmp.path())
+        };
+        let f = JobFolder::create(&tmp.path().join("job"), study).unwrap();
+        let m = &f.manifest;
+        assert_eq!(m.parts.len(), 8);
+        let p = &m.parts[3];
+        assert_eq!(p.file, tmp.path().join("out/study/spp00008/seed-001.pt2n.exr"));
+        assert_eq!(m.describe(p), "pt2n, 8 spp, seed index 1");
+        assert_eq!(p.command[1..].join(" "), "study scene dir/cbox.gltf --spp 8,16 --seeds 2 -o out/study --cell pt2n:8:1");
+        assert_eq!(m.merge[1..].join(" "), "study scene dir/cbox.gltf --spp 8,16 --seeds 2 -o out/study");
+        assert_eq!(m.final_output(), tmp.path().join("out/study/results.json"));
+        let script = std::fs::read_to_string(f.dir.join("cells.sbatch")).unwrap();
+        assert!(script.contains("    3) /opt/cvtrace study 'scene dir/cbox.gltf' --spp 8,16 --seeds 2 -o out/study --cell pt2n:8:1 ;;"));
+        assert!(std::fs::read_to_string(f.dir.join("study.sbatch")).unwrap().contains("\n/opt/cvtrace study 'scene dir/cbox.gltf'"));
+
+        // A cell is done once its render and its timing are there.
+        let slurm = Fake::default();
+        std::fs::create_dir_all(p.file.parent().unwrap()).unwrap();
+        std::fs::write(&p.file, "exr").unwrap();
+        assert_eq!(f.status(&slurm).unwrap().parts[3].state, PartState::Missing);
+        std::fs::write(p.file.with_extension("seconds"), "1.0\n").unwrap();
+        assert_eq!(f.status(&slurm).unwrap().parts[3].state, PartState::Done);
+        let s = f.submit(&slurm, &[]).unwrap();
+        assert_eq!(s.tasks, [0, 1, 2, 4, 5, 6, 7]);
+        let sub = slurm.submitted.borrow().clone();
+        assert!(sub[0].last().unwrap().ends_with("job/cells.sbatch") && sub[1].last().unwrap().ends_with("job/study.sbatch"), "{sub:?}");
     }
 
     #[test]

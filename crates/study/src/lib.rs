@@ -12,6 +12,7 @@
 //! ([`Study::check_needs`] runs before the first image is made).
 mod columns;
 mod diagnostics;
+pub mod files;
 mod synthetic;
 
 pub use columns::{columns, headline, Column, ColumnKind, PT_2N_COLOUR};
