@@ -85,3 +85,105 @@ fn ctrl_c_on_a_reference_render_says_how_to_resume() {
     let e = stderr(&out);
     assert!(e.contains("r.ref.checkpoint.exr") && e.contains("run the same command again to resume"), "{e}");
 }
+
+#[test]
+fn defines_override_scene_settings_and_flags_win_over_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    let stream = |args: &[&str], out: &str| {
+        ok(&cvtrace(d, &[&["--log", "warn", "render", sp, "-o", out][..], args].concat()));
+        cvtrace_streams::StreamSet::read(&d.join(out)).unwrap()
+    };
+    // No --batches: the count follows -D spp as it follows --spp.
+    let set =
+        stream(&["-D", "width=24", "-D", "height=16", "-D", "spp=4", "-D", "max_depth=3", "-D", "render.rr_depth=2"], "a.streams.exr");
+    assert_eq!((set.width, set.height, set.meta.spp, set.meta.max_depth, set.pt.batches.len()), (24, 16, 4, 3, 4));
+    // A flag wins over -D of the same setting; one side alone keeps the camera's square aspect.
+    let set = stream(&["-D", "width=24", "-D", "spp=4", "--width", "10", "--spp", "2"], "b.streams.exr");
+    assert_eq!((set.width, set.height, set.meta.spp), (10, 10, 2));
+    let set = stream(&["-D", "width=12", "-D", "spp=2"], "c.streams.exr");
+    assert_eq!((set.width, set.height), (12, 12));
+    // The Cornell box is open towards the camera: a sky behind it adds light, and its strength scales it.
+    let green = |set: &cvtrace_streams::StreamSet| set.pt.mean.pixels.iter().map(|p| p[1] as f64).sum::<f64>() / set.pt.mean.len() as f64;
+    let small = ["-D", "width=16", "-D", "spp=8"];
+    let dark = green(&stream(&small, "dark.streams.exr"));
+    let lit = green(&stream(&[&small[..], &["-D", "environment.color=1,1,1"]].concat(), "lit.streams.exr"));
+    let brighter =
+        green(&stream(&[&small[..], &["-D", "environment.color=1,1,1", "-D", "environment.strength=3"]].concat(), "lit3.streams.exr"));
+    assert!(lit > dark * 1.2 && brighter > lit * 1.5, "the environment adds light: {dark} < {lit} < {brighter}");
+    // The study takes them too: -D spp for --spp, -D reference_spp for the reference it renders.
+    let out = cvtrace(
+        d,
+        &[
+            "--log",
+            "warn",
+            "study",
+            sp,
+            "-D",
+            "spp=4",
+            "-D",
+            "reference_spp=6",
+            "-D",
+            "width=16",
+            "-D",
+            "height=8",
+            "--seeds",
+            "1",
+            "--batches",
+            "4",
+            "--reference",
+            "ref.exr",
+            "-o",
+            "study",
+        ],
+    );
+    ok(&out);
+    let ch = ExrChannels::read(&d.join("ref.exr")).unwrap();
+    assert_eq!((ch.width, ch.height, ch.attr("cvtrace.spp")), (16, 8, Some(&AttrValue::Int(6))));
+    let set = cvtrace_streams::StreamSet::read(&d.join("study/spp00004/seed-000.streams.exr")).unwrap();
+    assert_eq!((set.width, set.height, set.meta.spp), (16, 8, 4));
+}
+
+#[test]
+fn a_bad_define_fails_naming_the_key_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    for (define, needles) in [
+        ("widht=24", &["-D widht=24", "no such setting", "max_depth"][..]),
+        ("max_depth=deep", &["-D max_depth=deep", "not a whole number"][..]),
+        ("width=0", &["-D width=0", "between 1"][..]),
+        ("environment.strength=-2", &["-D environment.strength=-2", "non-negative"][..]),
+        ("environment.strength=2", &["-D environment.strength=2", "no environment light"][..]),
+        ("environment.map=nowhere.exr", &["-D environment.map=nowhere.exr", "nowhere.exr"][..]),
+        ("novalue", &["novalue", "KEY=VALUE"][..]),
+    ] {
+        for command in ["render", "study"] {
+            let extra: &[&str] = if command == "study" { &["--reference", "r.exr", "-o", "out/x"] } else { &["-o", "out/x.streams.exr"] };
+            let out = cvtrace(d, &[&[command, sp, "-D", define, "--spp", "4"][..], extra].concat());
+            assert!(!out.status.success(), "{command} -D {define} was accepted");
+            let err = stderr(&out);
+            assert!(!err.contains("panicked"), "{err}");
+            for n in needles {
+                assert!(err.contains(n), "{command} -D {define}: the error lacks {n:?}: {err}");
+            }
+            assert!(!d.join("out").exists() && !d.join("r.exr").exists(), "{command} -D {define} left files behind");
+        }
+    }
+}
+
+#[test]
+fn help_lists_the_defines() {
+    let dir = tempfile::tempdir().unwrap();
+    for command in ["render", "study"] {
+        let out = cvtrace(dir.path(), &[command, "--help"]);
+        ok(&out);
+        let help = common::stdout(&out);
+        for needle in ["-D <KEY=VALUE>", "width, height, spp, max_depth, rr_depth, reference_spp", "environment.strength", "flag wins"] {
+            assert!(help.contains(needle), "{command} --help lacks {needle:?}:\n{help}");
+        }
+    }
+}

@@ -16,7 +16,7 @@ use cvtrace::session::{
     DEFAULT_BATCHES, DEFAULT_WIDTH,
 };
 use cvtrace_render::part::PartSpec;
-use cvtrace_render::RenderDefaults;
+use cvtrace_render::{Define, RenderDefaults};
 use glam::Vec3A;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::PathBuf;
@@ -96,6 +96,13 @@ pub struct ViewArgs {
     /// (docs/performance.md has both figures).
     #[arg(long, value_enum, default_value_t = Traversal::Robust)]
     pub traversal: Traversal,
+    /// Override a setting of the scene's sidecar, as `mitsuba -D spp=64`; repeatable. Keys:
+    /// width, height, spp, max_depth, rr_depth, reference_spp, environment.color (r,g,b),
+    /// environment.map (an EXR, relative to the current folder), environment.strength,
+    /// environment.rotation (degrees). A flag wins over -D of the same setting (--width over
+    /// -D width).
+    #[arg(short = 'D', value_name = "KEY=VALUE", value_parser = parse_define)]
+    pub define: Vec<Define>,
 }
 
 impl ViewArgs {
@@ -104,9 +111,20 @@ impl ViewArgs {
         View { width: self.width, height: self.height, max_depth: self.max_depth, rr_depth: self.rr_depth }
     }
 
-    /// The camera override and traversal, for a [`RenderSession`].
+    /// The value of the last `-D KEY=…` whose key is `key`, if it parses (a bad one is
+    /// reported, naming it, when the scene loads).
+    pub fn defined<T: std::str::FromStr>(&self, key: &str) -> Option<T> {
+        self.define.iter().rev().find(|d| d.canonical_key() == Some(key)).and_then(|d| d.value.parse().ok())
+    }
+
+    /// The camera override, traversal and `-D` overrides, for a [`RenderSession`].
     pub fn session_options(&self) -> Result<SessionOptions> {
-        Ok(SessionOptions { camera: self.camera.as_deref().map(parse_camera).transpose()?, traversal: self.traversal })
+        cvtrace_render::sidecar::check_define_keys(&self.define)?;
+        Ok(SessionOptions {
+            camera: self.camera.as_deref().map(parse_camera).transpose()?,
+            traversal: self.traversal,
+            defines: self.define.clone(),
+        })
     }
 }
 
@@ -136,7 +154,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         (true, Some(_)) => bail!("--batches does not apply to --reference renders (they have a single PT stream)"),
         (true, None) => 1,
         (false, Some(b)) => b,
-        (false, None) => default_batches(args.spp),
+        (false, None) => default_batches(args.spp.or(args.view.defined("spp"))),
     };
     if args.reference && args.pass_spp == 0 {
         bail!("--pass-spp must be at least 1");

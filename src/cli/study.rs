@@ -16,7 +16,6 @@ use cvtrace::study_source::RenderSource;
 use cvtrace_eval::results::ReferenceInfo;
 use cvtrace_eval::{table, Reference};
 use cvtrace_render::render::MAX_SPP;
-use cvtrace_render::Sidecar;
 use cvtrace_streams::exr_io::{take_rgb, AttrValue, ExrChannels};
 use cvtrace_streams::provenance::describe_all;
 use cvtrace_streams::Provenance;
@@ -27,6 +26,8 @@ use std::path::{Path, PathBuf};
 const MAX_SEEDS: u32 = 10_000;
 /// Seed of a reference rendered by the study (distinct from every stream seed).
 const REFERENCE_SEED: u64 = 0x7265_6665_7265_6e63;
+/// Samples per pixel of each stream when neither --spp nor -D spp gives them.
+const DEFAULT_SPP: u32 = 96;
 /// Reference spp when neither --reference-spp nor the scene's sidecar gives one.
 const DEFAULT_REFERENCE_SPP: u32 = 4096;
 
@@ -35,8 +36,8 @@ pub struct StudyArgs {
     /// glTF 2.0 scene.
     pub scene: PathBuf,
     /// Samples per pixel of each stream; a list (e.g. 8,16,32) also gives convergence plots.
-    /// Tables and images are for the largest value.
-    #[arg(long, value_delimiter = ',', default_value = "96", value_parser = crate::cli::render::spp_parser(), allow_hyphen_values = true)]
+    /// Tables and images are for the largest value [default: -D spp, else 96].
+    #[arg(long, value_delimiter = ',', value_parser = crate::cli::render::spp_parser(), allow_hyphen_values = true)]
     pub spp: Vec<u32>,
     /// Independent seeds per spp value.
     #[arg(long, default_value_t = 8)]
@@ -75,6 +76,17 @@ pub struct StudyArgs {
 
 pub fn run(args: StudyArgs) -> Result<()> {
     let mut spps = args.spp.clone();
+    if spps.is_empty() {
+        spps.push(match args.view.define.iter().rev().find(|d| d.canonical_key() == Some("spp")) {
+            Some(d) => d
+                .value
+                .parse()
+                .ok()
+                .filter(|n| (1..=MAX_SPP).contains(n))
+                .with_context(|| format!("-D {d}: the study's samples per pixel must be a whole number between 1 and {MAX_SPP}"))?,
+            None => DEFAULT_SPP,
+        });
+    }
     spps.sort_unstable();
     spps.dedup();
     if spps.is_empty() || spps[0] == 0 {
@@ -157,7 +169,7 @@ pub fn run(args: StudyArgs) -> Result<()> {
             }
             n
         }
-        (None, None) => Sidecar::discover(&args.scene)?.and_then(|s| s.render.reference_spp).unwrap_or(DEFAULT_REFERENCE_SPP),
+        (None, None) => session.scene().render_defaults().reference_spp.unwrap_or(DEFAULT_REFERENCE_SPP),
     };
     if existing.is_none() {
         cvtrace_streams::atomic::check_extension(&args.reference, "exr")?;
