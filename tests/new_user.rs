@@ -187,3 +187,27 @@ fn help_lists_the_defines() {
         }
     }
 }
+
+#[test]
+fn study_batches_default_to_what_divides_every_spp_and_suits_iduw() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    let small = ["--width", "8", "--height", "8", "--max-depth", "3", "--seeds", "1", "--reference-spp", "4", "--reference", "ref.exr"];
+    for (spp, batches) in [("8", 8), ("12,24", 4)] {
+        let folder = format!("study-{batches}");
+        let run = cvtrace(d, &[&["--log", "info", "study", sp, "--spp", spp, "-o", &folder][..], &small].concat());
+        ok(&run);
+        assert!(stderr(&run).contains(&format!("--batches not given: {batches} batches")), "the choice is logged:\n{}", stderr(&run));
+        let first = spp.split(',').next().unwrap();
+        let file = ExrChannels::read(&d.join(format!("{folder}/spp{:05}/seed-000.streams.exr", first.parse::<u32>().unwrap()))).unwrap();
+        assert_eq!(file.attr("cvtrace.batches"), Some(&AttrValue::Int(batches)), "--spp {spp}");
+    }
+    // 6 spp divides into 2 batches at most, and iduw needs a multiple of 4: an error that says why.
+    let run = cvtrace(d, &[&["study", sp, "--spp", "6", "-o", "study-6"][..], &small].concat());
+    assert!(!run.status.success(), "--spp 6 without --batches was accepted");
+    let err = stderr(&run);
+    assert!(err.contains("--batches was not given") && err.contains("multiples of 4") && err.contains("iduw"), "{err}");
+    assert!(!d.join("study-6").exists());
+}

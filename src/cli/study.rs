@@ -45,14 +45,15 @@ pub struct StudyArgs {
     /// First seed; seed i uses `seed + i` for its streams.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Batches per stream (must divide every spp value).
-    #[arg(long, default_value_t = 16)]
-    pub batches: u32,
+    /// Batches per stream (must divide every spp value) [default: the most of 16, 8, 4, 2, 1
+    /// that divides every spp value; iduw needs a multiple of 4].
+    #[arg(long)]
+    pub batches: Option<u32>,
     /// Reference EXR; rendered (PT, --reference-spp) when the file does not exist.
     #[arg(long)]
     pub reference: PathBuf,
-    /// Samples per pixel of a reference the study renders itself [default: the scene sidecar's
-    /// reference_spp, else 4096].
+    /// Samples per pixel of a reference the study renders itself [default: -D reference_spp,
+    /// else the scene sidecar's reference_spp, else 4096].
     #[arg(long)]
     pub reference_spp: Option<u32>,
     /// Study folder (created; reused to resume).
@@ -95,11 +96,13 @@ pub fn run(args: StudyArgs) -> Result<()> {
     if args.seeds == 0 || args.seeds > MAX_SEEDS {
         bail!("--seeds {}: must be between 1 and {MAX_SEEDS}", args.seeds);
     }
-    if args.batches == 0 {
-        bail!("--batches must be at least 1");
-    }
-    if let Some(bad) = spps.iter().find(|&&n| n % args.batches != 0) {
-        bail!("--batches {} does not divide --spp {bad}; every spp value must be a multiple of the batch count", args.batches);
+    if let Some(b) = args.batches {
+        if b == 0 {
+            bail!("--batches must be at least 1");
+        }
+        if let Some(bad) = spps.iter().find(|&&n| n % b != 0) {
+            bail!("--batches {b} does not divide --spp {bad}; every spp value must be a multiple of the batch count");
+        }
     }
     // Each spp value n also takes a PT render of 2n spp.
     if let Some(&n) = spps.iter().find(|&&n| n > MAX_SPP / 2) {
@@ -133,7 +136,7 @@ pub fn run(args: StudyArgs) -> Result<()> {
     let session = open_session(&args.scene, &args.view.session_options()?)?;
     let probe = RenderSource::new(&session, args.output.clone(), args.view.view(), args.seed, Box::new(progress));
     // Counts aside: they differ between the study's renders.
-    let planned = session.plan(&probe.stream_job(spps[0], args.batches, args.seed, &args.output))?.provenance.without_counts();
+    let planned = session.plan(&probe.stream_job(spps[0], args.batches.unwrap_or(1), args.seed, &args.output))?.provenance.without_counts();
     let overrides = args.options.overrides()?;
     registry().check(&overrides)?;
     let columns = cvtrace_study::columns(registry(), &overrides, args.ablations)?;
@@ -142,10 +145,19 @@ pub fn run(args: StudyArgs) -> Result<()> {
         spps: spps.clone(),
         seeds: args.seeds,
         first_seed: args.seed,
-        batches: args.batches,
+        batches: args.batches.unwrap_or_else(|| default_batches(&spps)),
         headline: cvtrace_study::headline(&args.headline, &columns)?,
     };
-    study.check_needs()?;
+    if let Err(e) = study.check_needs() {
+        if args.batches.is_none() {
+            bail!(
+                "{e}; --batches was not given, and {} is the most of 16, 8, 4, 2, 1 that divides every --spp value: give --spp values \
+                 that are multiples of 4 (iduw forms 4 sub-buffers)",
+                study.batches
+            );
+        }
+        return Err(e.into());
+    }
     // A given reference of another scene, view or path length is the ground truth of another
     // image. Seed, spp and rr depth may differ (the expectation does not), and so may the
     // traversal. A given reference is read and checked, and a missing one's settings, before
@@ -200,6 +212,16 @@ pub fn run(args: StudyArgs) -> Result<()> {
         }
     }
     result
+}
+
+/// The batch count when `--batches` is not given: the most of 16, 8, 4, 2, 1 that divides every
+/// spp value. Those that are multiples of 4 come first, so iduw (4 sub-buffers) runs whenever
+/// any count can serve it.
+fn default_batches(spps: &[u32]) -> u32 {
+    let b = [16, 8, 4, 2, 1].into_iter().find(|b| spps.iter().all(|n| n % b == 0)).unwrap_or(1);
+    let list = spps.iter().map(u32::to_string).collect::<Vec<_>>().join(",");
+    tracing::info!("--batches not given: {b} batches, the most of 16, 8, 4, 2, 1 that divide --spp {list}");
+    b
 }
 
 /// A progress bar on the terminal for each render.
