@@ -123,6 +123,8 @@ pub struct ReferenceJob {
     /// Render only this part's passes into a part file (no checkpoint: a part is one job of
     /// a farm, which reruns it whole).
     pub part: Option<PartSpec>,
+    /// What the render is called in the log ("a reference", "a PT(2n) image").
+    pub label: &'static str,
 }
 
 impl ReferenceJob {
@@ -139,6 +141,7 @@ impl ReferenceJob {
             extend: false,
             stop_after_passes: None,
             part: None,
+            label: "a reference",
         }
     }
 }
@@ -434,7 +437,8 @@ impl RenderSession {
         let engine = self.engine()?;
         let pixels = s.width as u64 * s.height as u64;
         tracing::info!(
-            "rendering a reference {}x{}, {} spp in passes of {}, max depth {}, seed {} on {} threads",
+            "rendering {} {}x{}, {} spp in passes of {}, max depth {}, seed {} on {} threads",
+            job.label,
             s.width,
             s.height,
             s.spp,

@@ -77,8 +77,8 @@ impl<'a> RenderSource<'a> {
         let timing = path.with_extension("seconds");
         if path.exists() {
             if let Some(t) = std::fs::read_to_string(&timing).ok().and_then(|s| s.trim().parse::<f64>().ok()) {
-                let planned = self.session.plan(&job)?.provenance;
-                let differences = planned.differences(&Provenance::read_header(&path)?);
+                let plan = self.session.plan(&job)?;
+                let differences = plan.provenance.differences(&Provenance::read_header(&path)?);
                 if !differences.is_empty() {
                     return Err(format!(
                         "{}: this finished render differs from what the study asks for ({}); use another -o or delete the folder's renders",
@@ -88,6 +88,11 @@ impl<'a> RenderSource<'a> {
                     .into());
                 }
                 tracing::info!("reusing {}", path.display());
+                // Counted as done, so that a progress over many renders reaches its end.
+                let progress = (self.progress)();
+                let samples = samples_of(&job, &plan.settings);
+                progress.start(samples, samples);
+                progress.finish();
                 return Ok(t);
             }
         }
@@ -112,7 +117,14 @@ impl Source for RenderSource<'_> {
         let stream_seed =
             seed.checked_sub(cvtrace_study::PT2N_SEED_OFFSET).ok_or_else(|| format!("seed {seed}: not the seed of a PT(2n) image"))?;
         let path = self.file(spp / 2, stream_seed, "pt2n.exr")?;
-        let seconds = self.ensure_rendered(Job::Reference(ReferenceJob::replacing(path.clone(), self.view, spp, seed)))?;
+        let job = ReferenceJob { label: "a PT(2n) image", ..ReferenceJob::replacing(path.clone(), self.view, spp, seed) };
+        let seconds = self.ensure_rendered(Job::Reference(job))?;
         Ok(Rendered { value: read_rgb(&path)?, seconds, name: path.display().to_string() })
     }
+}
+
+/// The samples a render reports to its progress: both streams of a stream file.
+fn samples_of(job: &Job, s: &cvtrace_render::RenderSettings) -> u64 {
+    let streams = if matches!(job, Job::Streams(_)) { 2 } else { 1 };
+    s.width as u64 * s.height as u64 * s.spp as u64 * streams
 }

@@ -211,3 +211,45 @@ fn study_batches_default_to_what_divides_every_spp_and_suits_iduw() {
     assert!(err.contains("--batches was not given") && err.contains("multiples of 4") && err.contains("iduw"), "{err}");
     assert!(!d.join("study-6").exists());
 }
+
+#[test]
+fn study_names_its_pt2n_renders_warns_once_and_reports_its_wall_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    // A 4-spp reference is far too noisy for 8+8 spp streams: the warning is due.
+    let run = cvtrace(
+        d,
+        &[
+            "--log",
+            "info",
+            "study",
+            sp,
+            "--spp",
+            "4,8",
+            "--seeds",
+            "2",
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--max-depth",
+            "3",
+            "--reference-spp",
+            "4",
+            "--reference",
+            "ref.exr",
+            "-o",
+            "study",
+        ],
+    );
+    ok(&run);
+    let (out, err) = (common::stdout(&run), stderr(&run));
+    let both = format!("{out}{err}");
+    assert_eq!(err.matches("rendering a reference").count(), 1, "only the reference is called one:\n{err}");
+    assert_eq!(err.matches("rendering a PT(2n) image").count(), 4, "2 seeds × 2 spp values:\n{err}");
+    assert_eq!(both.matches("reference too noisy to rank the methods").count(), 1, "the warning once:\n{both}");
+    let line = out.lines().find(|l| l.starts_with("study written to")).unwrap_or_else(|| panic!("no last line:\n{out}"));
+    assert!(line.contains(" in ") && line.contains(" s "), "the wall time: {line}");
+}

@@ -191,6 +191,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
             extend: args.extend,
             stop_after_passes: args.stop_after_passes,
             part: args.part,
+            label: "a reference",
         })
     } else {
         Job::Streams(StreamJob {

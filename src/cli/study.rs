@@ -9,7 +9,7 @@
 //! from `cvtrace::study_source`; this file checks the flags and prints.
 use crate::cli::estimator_args::EstimatorArgs;
 use crate::cli::registry;
-use crate::cli::render::{open_session, TerminalProgress, ViewArgs};
+use crate::cli::render::{open_session, progress_style_of, TerminalProgress, ViewArgs};
 use anyhow::{bail, Context, Result};
 use cvtrace::session::{Job, Progress, ReferenceJob, RenderSession};
 use cvtrace::study_source::RenderSource;
@@ -20,7 +20,9 @@ use cvtrace_streams::exr_io::{take_rgb, AttrValue, ExrChannels};
 use cvtrace_streams::provenance::describe_all;
 use cvtrace_streams::Provenance;
 use cvtrace_study::{SceneInfo, Study, PT2N_SEED_OFFSET};
+use indicatif::{ProgressBar, ProgressDrawTarget};
 use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 /// More seeds than this is a typo, not a study: each seed writes two renders.
 const MAX_SEEDS: u32 = 10_000;
@@ -134,9 +136,15 @@ pub fn run(args: StudyArgs) -> Result<()> {
     // only reused if it matches), and a scene that does not load fails here, before the study
     // folder is made.
     let session = open_session(&args.scene, &args.view.session_options()?)?;
-    let probe = RenderSource::new(&session, args.output.clone(), args.view.view(), args.seed, Box::new(progress));
+    let overall = StudyProgress::default();
+    let shares = overall.clone();
+    let probe = RenderSource::new(&session, args.output.clone(), args.view.view(), args.seed, Box::new(move || shares.share()));
+    let plan = session.plan(&probe.stream_job(spps[0], args.batches.unwrap_or(1), args.seed, &args.output))?;
+    // Each seed of n spp renders 2 streams of n and a PT image of 2n samples per pixel.
+    let pixels = plan.settings.width as u64 * plan.settings.height as u64;
+    overall.bar.set_length(pixels * args.seeds as u64 * spps.iter().map(|&n| 4 * n as u64).sum::<u64>());
     // Counts aside: they differ between the study's renders.
-    let planned = session.plan(&probe.stream_job(spps[0], args.batches.unwrap_or(1), args.seed, &args.output))?.provenance.without_counts();
+    let planned = plan.provenance.without_counts();
     let overrides = args.options.overrides()?;
     registry().check(&overrides)?;
     let columns = cvtrace_study::columns(registry(), &overrides, args.ablations)?;
@@ -200,7 +208,7 @@ pub fn run(args: StudyArgs) -> Result<()> {
     let (result, made_spp_dirs) = match claim {
         Ok(_claim) => {
             let mut source = probe;
-            let result = study_in_folder(&args, &session, &planned, &study, &mut source, existing, reference_spp);
+            let result = study_in_folder(&args, &session, &planned, &study, &mut source, &overall, existing, reference_spp);
             (result, source.made_folders().to_vec())
         }
         Err(e) => (Err(e.into()), Vec::new()),
@@ -224,9 +232,54 @@ fn default_batches(spps: &[u32]) -> u32 {
     b
 }
 
-/// A progress bar on the terminal for each render.
-fn progress() -> Box<dyn Progress> {
-    Box::new(TerminalProgress::default())
+/// One progress line for all the renders of a study (streams and PT(2n) images, in pixel
+/// samples), drawn on stderr when it is a terminal; a render found finished counts as done.
+#[derive(Clone)]
+struct StudyProgress {
+    bar: ProgressBar,
+}
+
+/// The overall line: narrower than a render's, since it starts with "study".
+const STUDY_PROGRESS_TEMPLATE: &str =
+    "study {elapsed_precise} [{bar:16.cyan/blue}] {percent:>3}% {msamples} M, {rate} M samples/s, ETA {eta}";
+
+impl Default for StudyProgress {
+    fn default() -> Self {
+        let bar = ProgressBar::hidden();
+        bar.set_style(progress_style_of(STUDY_PROGRESS_TEMPLATE));
+        StudyProgress { bar }
+    }
+}
+
+impl StudyProgress {
+    /// What one render reports to.
+    fn share(&self) -> Box<dyn Progress> {
+        Box::new(self.clone())
+    }
+
+    fn show(&self) {
+        self.bar.set_draw_target(ProgressDrawTarget::stderr());
+        self.bar.reset_eta();
+    }
+}
+
+impl Progress for StudyProgress {
+    fn start(&self, _total: u64, done: u64) {
+        // Samples found done (a resumed or reused render) took no time now: they must not
+        // enter the rate.
+        if done > 0 {
+            self.bar.inc(done);
+            self.bar.reset_eta();
+        }
+    }
+
+    fn advance(&self, samples: u64) {
+        self.bar.inc(samples);
+    }
+
+    fn suspend(&self, f: &mut dyn FnMut()) {
+        self.bar.suspend(f)
+    }
 }
 
 /// The reference at `--reference`: its image, its sample count, and a check that its seed is
@@ -258,6 +311,7 @@ fn study_in_folder(
     planned: &Provenance,
     study: &Study,
     source: &mut RenderSource,
+    overall: &StudyProgress,
     existing: Option<(Reference, Option<u32>)>,
     reference_spp: u32,
 ) -> Result<()> {
@@ -277,14 +331,31 @@ fn study_in_folder(
         // The seed differs between the renders; it is in each file.
         render: planned.fields().into_iter().filter(|(k, _)| *k != "seed").map(|(k, v)| (k.to_string(), v)).collect(),
     };
-    let results = study.run(source, &reference, scene, &args.output)?;
+    overall.show();
+    let start = Instant::now();
+    let results = study.run(source, &reference, scene, &args.output);
+    overall.bar.finish_and_clear();
+    let results = results?;
     crate::cli::say!("{}", table::terminal_report(&results).trim_end_matches('\n'));
     crate::cli::say!(
-        "study written to {} (make a viewer with: cvtrace report {} -o report/)",
+        "study written to {} in {} (make a viewer with: cvtrace report {} -o report/)",
         args.output.display(),
+        wall_time(start.elapsed().as_secs_f64()),
         args.output.display()
     );
     Ok(())
+}
+
+/// Wall-clock time as "42.0 s", "3 min 05 s" or "2 h 07 min".
+fn wall_time(secs: f64) -> String {
+    let whole = secs.round() as u64;
+    if secs < 60.0 {
+        format!("{secs:.1} s")
+    } else if whole < 3600 {
+        format!("{} min {:02} s", whole / 60, whole % 60)
+    } else {
+        format!("{} h {:02} min", whole / 3600, whole % 3600 / 60)
+    }
 }
 
 /// The scene's name in the results: `--name`, else from the scene's file.
@@ -300,4 +371,38 @@ fn scene_name(scene: &Path) -> String {
         }
     }
     stem
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn one_progress_counts_every_render_and_fits_80_columns() {
+        let overall = StudyProgress::default();
+        overall.bar.set_length(100);
+        // A render from scratch, one resumed at 10 of 30, one found finished.
+        let a = overall.share();
+        a.start(40, 0);
+        a.advance(25);
+        a.advance(15);
+        a.finish();
+        let b = overall.share();
+        b.start(30, 10);
+        b.advance(20);
+        let c = overall.share();
+        c.start(30, 30);
+        c.finish();
+        assert_eq!(overall.bar.position(), overall.bar.length().unwrap());
+        let widest = crate::cli::render::widest_progress_line(STUDY_PROGRESS_TEMPLATE);
+        assert!(!widest.contains('{') && widest.starts_with("study "), "{widest}");
+        assert!(widest.chars().count() <= crate::cli::render::PROGRESS_COLUMNS, "{} columns: {widest}", widest.chars().count());
+    }
+
+    #[test]
+    fn wall_times_read_at_a_glance() {
+        assert_eq!(wall_time(4.04), "4.0 s");
+        assert_eq!(wall_time(185.2), "3 min 05 s");
+        assert_eq!(wall_time(7620.0), "2 h 07 min");
+    }
 }
