@@ -35,7 +35,8 @@ pub struct RenderArgs {
     /// `reference_spp` with --reference, else 64].
     #[arg(long, value_parser = spp_parser(), allow_hyphen_values = true)]
     pub spp: Option<u32>,
-    /// Batches per stream (must divide --spp; default 16, the measured default of the estimators, see docs/estimators.md). Not used with --reference.
+    /// Batches per stream (must divide --spp) [default: the most of 16, 8, 4, 2, 1 that divides
+    /// --spp; 16 is the estimators' measured default, docs/estimators.md]. Not used with --reference.
     #[arg(long)]
     pub batches: Option<u32>,
     /// Random seed: the same seed and settings give bit-identical output.

@@ -11,7 +11,7 @@ use crate::cli::estimator_args::EstimatorArgs;
 use crate::cli::registry;
 use crate::cli::render::{open_session, progress_style_of, TerminalProgress, ViewArgs};
 use anyhow::{bail, Context, Result};
-use cvtrace::session::{Job, Progress, ReferenceJob, RenderSession};
+use cvtrace::session::{Job, Progress, ReferenceJob};
 use cvtrace::study_source::RenderSource;
 use cvtrace_eval::results::ReferenceInfo;
 use cvtrace_eval::{table, Reference};
@@ -208,7 +208,7 @@ pub fn run(args: StudyArgs) -> Result<()> {
     let (result, made_spp_dirs) = match claim {
         Ok(_claim) => {
             let mut source = probe;
-            let result = study_in_folder(&args, &session, &planned, &study, &mut source, &overall, existing, reference_spp);
+            let result = study_in_folder(&args, &planned, &study, &mut source, &overall, existing, reference_spp);
             (result, source.made_folders().to_vec())
         }
         Err(e) => (Err(e.into()), Vec::new()),
@@ -307,7 +307,6 @@ fn read_reference(args: &StudyArgs) -> Result<(Reference, Option<u32>)> {
 /// rendered with `reference_spp`), then every spp value and seed, then the tables and images.
 fn study_in_folder(
     args: &StudyArgs,
-    session: &RenderSession,
     planned: &Provenance,
     study: &Study,
     source: &mut RenderSource,
@@ -316,6 +315,7 @@ fn study_in_folder(
     reference_spp: u32,
 ) -> Result<()> {
     // The reference: reuse the file, or render it (resumable through render's checkpoint).
+    let session = source.session;
     let (reference, reference_spp) = match existing {
         Some(r) => r,
         None => {
