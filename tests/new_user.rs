@@ -253,3 +253,22 @@ fn study_names_its_pt2n_renders_warns_once_and_reports_its_wall_time() {
     let line = out.lines().find(|l| l.starts_with("study written to")).unwrap_or_else(|| panic!("no last line:\n{out}"));
     assert!(line.contains(" in ") && line.contains(" s "), "the wall time: {line}");
 }
+
+#[test]
+fn farm_render_hands_the_defines_to_every_part() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    let out = cvtrace(
+        d,
+        &["farm", "render", sp, "--spp", "4", "--parts", "2", "-D", "width=8", "-D", "environment.color=1,1,1", "-o", "x.streams.exr"],
+    );
+    ok(&out);
+    let manifest = std::fs::read_to_string(d.join("x.streams.farm/manifest.json")).unwrap();
+    assert!(manifest.contains("\"-D\"") && manifest.contains("width=8") && manifest.contains("environment.color=1,1,1"), "{manifest}");
+    // A key no part could use fails before the job folder is written.
+    let bad = cvtrace(d, &["farm", "render", sp, "--spp", "4", "--parts", "2", "-D", "widht=8", "-o", "y.streams.exr"]);
+    assert!(!bad.status.success() && stderr(&bad).contains("-D widht=8"), "{}", stderr(&bad));
+    assert!(!d.join("y.streams.farm").exists());
+}
