@@ -12,7 +12,8 @@ use crate::throughput::PhaseClock;
 use cvtrace_render::checkpoint::{self, checkpoint_path};
 use cvtrace_render::part::{write_reference, write_reference_part, write_stream_file, PartError, PartSpec};
 use cvtrace_render::{
-    render_reference_pass, render_stream_part, Camera, ReferenceAccum, RenderDefaults, RenderError, RenderSettings, Scene, SceneError,
+    render_reference_pass, render_stream_part, Camera, Define, ReferenceAccum, RenderDefaults, RenderError, RenderSettings, Scene,
+    SceneError,
 };
 use cvtrace_streams::atomic::{check_extension, check_writable};
 use cvtrace_streams::output_lock::{lock_path_for, OutputLock};
@@ -68,10 +69,12 @@ pub struct CameraView {
 }
 
 /// What is fixed for every render of a session: it changes the scene or its BVH.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct SessionOptions {
     pub camera: Option<CameraView>,
     pub traversal: Traversal,
+    /// `-D key=value` overrides of the scene sidecar's settings, applied in order.
+    pub defines: Vec<Define>,
 }
 
 /// Image size and path-length limits of a job; `None` takes the scene's default, then the
@@ -120,6 +123,8 @@ pub struct ReferenceJob {
     /// Render only this part's passes into a part file (no checkpoint: a part is one job of
     /// a farm, which reruns it whole).
     pub part: Option<PartSpec>,
+    /// What the render is called in the log ("a reference", "a PT(2n) image").
+    pub label: &'static str,
 }
 
 impl ReferenceJob {
@@ -136,6 +141,7 @@ impl ReferenceJob {
             extend: false,
             stop_after_passes: None,
             part: None,
+            label: "a reference",
         }
     }
 }
@@ -270,7 +276,7 @@ impl RenderSession {
         // Denormal flushing in this thread too, for any work rayon runs on the caller.
         set_flush_denormals();
         let t = Instant::now();
-        let mut scene = Scene::load(path)?;
+        let mut scene = Scene::load_with(path, &options.defines)?;
         tracing::info!(
             "loaded {} in {:.1} ms: {} triangles, {} materials",
             path.display(),
@@ -431,7 +437,8 @@ impl RenderSession {
         let engine = self.engine()?;
         let pixels = s.width as u64 * s.height as u64;
         tracing::info!(
-            "rendering a reference {}x{}, {} spp in passes of {}, max depth {}, seed {} on {} threads",
+            "rendering {} {}x{}, {} spp in passes of {}, max depth {}, seed {} on {} threads",
+            job.label,
             s.width,
             s.height,
             s.spp,

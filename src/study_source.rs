@@ -88,7 +88,8 @@ impl<'a> RenderSource<'a> {
 
     /// The PT(2n) job of the streams with `n` spp and seed `stream_seed`.
     fn pt_job(&self, path: &Path, n: u32, stream_seed: u64) -> Job {
-        Job::Reference(ReferenceJob::replacing(path.to_path_buf(), self.view, 2 * n, stream_seed + cvtrace_study::PT2N_SEED_OFFSET))
+        let job = ReferenceJob::replacing(path.to_path_buf(), self.view, 2 * n, stream_seed + cvtrace_study::PT2N_SEED_OFFSET);
+        Job::Reference(ReferenceJob { label: "a PT(2n) image", ..job })
     }
 
     /// Renders `job` unless its output is already there, finished (with its timing file) and
@@ -99,8 +100,8 @@ impl<'a> RenderSource<'a> {
         let timing = files::timing_file(&path);
         if path.exists() {
             if let Some(t) = std::fs::read_to_string(&timing).ok().and_then(|s| s.trim().parse::<f64>().ok()) {
-                let planned = self.session.plan(&job)?.provenance;
-                let differences = planned.differences(&Provenance::read_header(&path)?);
+                let plan = self.session.plan(&job)?;
+                let differences = plan.provenance.differences(&Provenance::read_header(&path)?);
                 if !differences.is_empty() {
                     return Err(format!(
                         "{}: this finished render differs from what the study asks for ({}); use another -o or delete the folder's renders",
@@ -110,6 +111,11 @@ impl<'a> RenderSource<'a> {
                     .into());
                 }
                 tracing::info!("reusing {}", path.display());
+                // Counted as done, so that a progress over many renders reaches its end.
+                let progress = (self.progress)();
+                let samples = samples_of(&job, &plan.settings);
+                progress.start(samples, samples);
+                progress.finish();
                 return Ok(t);
             }
         }
@@ -140,4 +146,10 @@ impl Source for RenderSource<'_> {
         let seconds = self.ensure_rendered(self.pt_job(&path, spp / 2, stream_seed))?;
         Ok(Rendered { value: read_rgb(&path)?, seconds, name: path.display().to_string() })
     }
+}
+
+/// The samples a render reports to its progress: both streams of a stream file.
+fn samples_of(job: &Job, s: &cvtrace_render::RenderSettings) -> u64 {
+    let streams = if matches!(job, Job::Streams(_)) { 2 } else { 1 };
+    s.width as u64 * s.height as u64 * s.spp as u64 * streams
 }

@@ -85,3 +85,190 @@ fn ctrl_c_on_a_reference_render_says_how_to_resume() {
     let e = stderr(&out);
     assert!(e.contains("r.ref.checkpoint.exr") && e.contains("run the same command again to resume"), "{e}");
 }
+
+#[test]
+fn defines_override_scene_settings_and_flags_win_over_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    let stream = |args: &[&str], out: &str| {
+        ok(&cvtrace(d, &[&["--log", "warn", "render", sp, "-o", out][..], args].concat()));
+        cvtrace_streams::StreamSet::read(&d.join(out)).unwrap()
+    };
+    // No --batches: the count follows -D spp as it follows --spp.
+    let set =
+        stream(&["-D", "width=24", "-D", "height=16", "-D", "spp=4", "-D", "max_depth=3", "-D", "render.rr_depth=2"], "a.streams.exr");
+    assert_eq!((set.width, set.height, set.meta.spp, set.meta.max_depth, set.pt.batches.len()), (24, 16, 4, 3, 4));
+    // A flag wins over -D of the same setting; one side alone keeps the camera's square aspect.
+    let set = stream(&["-D", "width=24", "-D", "spp=4", "--width", "10", "--spp", "2"], "b.streams.exr");
+    assert_eq!((set.width, set.height, set.meta.spp), (10, 10, 2));
+    let set = stream(&["-D", "width=12", "-D", "spp=2"], "c.streams.exr");
+    assert_eq!((set.width, set.height), (12, 12));
+    // The Cornell box is open towards the camera: a sky behind it adds light, and its strength scales it.
+    let green = |set: &cvtrace_streams::StreamSet| set.pt.mean.pixels.iter().map(|p| p[1] as f64).sum::<f64>() / set.pt.mean.len() as f64;
+    let small = ["-D", "width=16", "-D", "spp=8"];
+    let dark = green(&stream(&small, "dark.streams.exr"));
+    let lit = green(&stream(&[&small[..], &["-D", "environment.color=1,1,1"]].concat(), "lit.streams.exr"));
+    let brighter =
+        green(&stream(&[&small[..], &["-D", "environment.color=1,1,1", "-D", "environment.strength=3"]].concat(), "lit3.streams.exr"));
+    assert!(lit > dark * 1.2 && brighter > lit * 1.5, "the environment adds light: {dark} < {lit} < {brighter}");
+    // The study takes them too: -D spp for --spp, -D reference_spp for the reference it renders.
+    let out = cvtrace(
+        d,
+        &[
+            "--log",
+            "warn",
+            "study",
+            sp,
+            "-D",
+            "spp=4",
+            "-D",
+            "reference_spp=6",
+            "-D",
+            "width=16",
+            "-D",
+            "height=8",
+            "--seeds",
+            "1",
+            "--batches",
+            "4",
+            "--reference",
+            "ref.exr",
+            "-o",
+            "study",
+        ],
+    );
+    ok(&out);
+    let ch = ExrChannels::read(&d.join("ref.exr")).unwrap();
+    assert_eq!((ch.width, ch.height, ch.attr("cvtrace.spp")), (16, 8, Some(&AttrValue::Int(6))));
+    let set = cvtrace_streams::StreamSet::read(&d.join("study/spp00004/seed-000.streams.exr")).unwrap();
+    assert_eq!((set.width, set.height, set.meta.spp), (16, 8, 4));
+}
+
+#[test]
+fn a_bad_define_fails_naming_the_key_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    for (define, needles) in [
+        ("widht=24", &["-D widht=24", "no such setting", "max_depth"][..]),
+        ("max_depth=deep", &["-D max_depth=deep", "not a whole number"][..]),
+        ("width=0", &["-D width=0", "between 1"][..]),
+        ("environment.strength=-2", &["-D environment.strength=-2", "non-negative"][..]),
+        ("environment.strength=2", &["-D environment.strength=2", "no environment light"][..]),
+        ("environment.map=nowhere.exr", &["-D environment.map=nowhere.exr", "nowhere.exr"][..]),
+        ("novalue", &["novalue", "KEY=VALUE"][..]),
+    ] {
+        for command in ["render", "study"] {
+            let extra: &[&str] = if command == "study" { &["--reference", "r.exr", "-o", "out/x"] } else { &["-o", "out/x.streams.exr"] };
+            let out = cvtrace(d, &[&[command, sp, "-D", define, "--spp", "4"][..], extra].concat());
+            assert!(!out.status.success(), "{command} -D {define} was accepted");
+            let err = stderr(&out);
+            assert!(!err.contains("panicked"), "{err}");
+            for n in needles {
+                assert!(err.contains(n), "{command} -D {define}: the error lacks {n:?}: {err}");
+            }
+            assert!(!d.join("out").exists() && !d.join("r.exr").exists(), "{command} -D {define} left files behind");
+        }
+    }
+}
+
+#[test]
+fn help_lists_the_defines() {
+    let dir = tempfile::tempdir().unwrap();
+    for command in ["render", "study"] {
+        let out = cvtrace(dir.path(), &[command, "--help"]);
+        ok(&out);
+        let help = common::stdout(&out);
+        for needle in ["-D <KEY=VALUE>", "width, height, spp, max_depth, rr_depth, reference_spp", "environment.strength", "flag wins"] {
+            assert!(help.contains(needle), "{command} --help lacks {needle:?}:\n{help}");
+        }
+    }
+}
+
+#[test]
+fn study_batches_default_to_what_divides_every_spp_and_suits_iduw() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    let small = ["--width", "8", "--height", "8", "--max-depth", "3", "--seeds", "1", "--reference-spp", "4", "--reference", "ref.exr"];
+    for (spp, batches) in [("8", 8), ("12,24", 4)] {
+        let folder = format!("study-{batches}");
+        let run = cvtrace(d, &[&["--log", "info", "study", sp, "--spp", spp, "-o", &folder][..], &small].concat());
+        ok(&run);
+        assert!(stderr(&run).contains(&format!("--batches not given: {batches} batches")), "the choice is logged:\n{}", stderr(&run));
+        let first = spp.split(',').next().unwrap();
+        let file = ExrChannels::read(&d.join(format!("{folder}/spp{:05}/seed-000.streams.exr", first.parse::<u32>().unwrap()))).unwrap();
+        assert_eq!(file.attr("cvtrace.batches"), Some(&AttrValue::Int(batches)), "--spp {spp}");
+    }
+    // 6 spp divides into 2 batches at most, and iduw needs a multiple of 4: an error that says why.
+    let run = cvtrace(d, &[&["study", sp, "--spp", "6", "-o", "study-6"][..], &small].concat());
+    assert!(!run.status.success(), "--spp 6 without --batches was accepted");
+    let err = stderr(&run);
+    assert!(err.contains("--batches was not given") && err.contains("multiples of 4") && err.contains("iduw"), "{err}");
+    assert!(!d.join("study-6").exists());
+}
+
+#[test]
+fn study_names_its_pt2n_renders_warns_once_and_reports_its_wall_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    // A 4-spp reference is far too noisy for 8+8 spp streams: the warning is due.
+    let run = cvtrace(
+        d,
+        &[
+            "--log",
+            "info",
+            "study",
+            sp,
+            "--spp",
+            "4,8",
+            "--seeds",
+            "2",
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--max-depth",
+            "3",
+            "--reference-spp",
+            "4",
+            "--reference",
+            "ref.exr",
+            "-o",
+            "study",
+        ],
+    );
+    ok(&run);
+    let (out, err) = (common::stdout(&run), stderr(&run));
+    let both = format!("{out}{err}");
+    assert_eq!(err.matches("rendering a reference").count(), 1, "only the reference is called one:\n{err}");
+    assert_eq!(err.matches("rendering a PT(2n) image").count(), 4, "2 seeds × 2 spp values:\n{err}");
+    assert_eq!(both.matches("reference too noisy to rank the methods").count(), 1, "the warning once:\n{both}");
+    let line = out.lines().find(|l| l.starts_with("study written to")).unwrap_or_else(|| panic!("no last line:\n{out}"));
+    assert!(line.contains(" in ") && line.contains(" s "), "the wall time: {line}");
+}
+
+#[test]
+fn farm_render_hands_the_defines_to_every_part() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    let out = cvtrace(
+        d,
+        &["farm", "render", sp, "--spp", "4", "--parts", "2", "-D", "width=8", "-D", "environment.color=1,1,1", "-o", "x.streams.exr"],
+    );
+    ok(&out);
+    let manifest = std::fs::read_to_string(d.join("x.streams.farm/manifest.json")).unwrap();
+    assert!(manifest.contains("\"-D\"") && manifest.contains("width=8") && manifest.contains("environment.color=1,1,1"), "{manifest}");
+    // A key no part could use fails before the job folder is written.
+    let bad = cvtrace(d, &["farm", "render", sp, "--spp", "4", "--parts", "2", "-D", "widht=8", "-o", "y.streams.exr"]);
+    assert!(!bad.status.success() && stderr(&bad).contains("-D widht=8"), "{}", stderr(&bad));
+    assert!(!d.join("y.streams.farm").exists());
+}

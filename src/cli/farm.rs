@@ -137,6 +137,9 @@ fn render(a: FarmRenderArgs) -> Result<()> {
             render_args.extend([flag.to_string(), value]);
         }
     }
+    for d in &v.define {
+        render_args.extend(["-D".into(), d.to_string()]);
+    }
     // Checked now rather than on every node.
     v.session_options()?;
     render_args.extend(["--traversal".into(), v.traversal.name().into()]);

@@ -256,12 +256,45 @@ fn write_output(path: &Path, args: &ReconstructArgs, source: &Path, estimator: &
     Ok(())
 }
 
+/// The terminal's table: numbers to 4 significant digits, which is what a reader compares (the
+/// output files keep every digit).
 fn print_summary(rows: &[(&str, Option<f64>, cvtrace_reconstruct::Diagnostics)]) {
+    crate::cli::say!("{}", summary_table(rows).trim_end());
+}
+
+fn summary_table(rows: &[(&str, Option<f64>, cvtrace_reconstruct::Diagnostics)]) -> String {
+    use cvtrace_eval::table::{fmt_num, fmt_seconds};
     let width = rows.iter().map(|(name, _, _)| name.len()).max().unwrap_or(0).max(8);
-    crate::cli::say!("{:<width$} {:>12} {:>9}  diagnostics", "method", "relMSE", "seconds");
+    let mut out = format!("{:<width$} {:>10} {:>9}  diagnostics\n", "method", "relMSE", "seconds");
     for (name, rel, diag) in rows {
-        let rel = rel.map(|r| format!("{r:.6}")).unwrap_or_else(|| "-".into());
-        let extra: Vec<String> = diag.entries.iter().map(|(k, v)| format!("{k}={v}")).collect();
-        crate::cli::say!("{name:<width$} {rel:>12} {:>9.3}  {}", diag.seconds, extra.join(" "));
+        let rel = rel.map(fmt_num).unwrap_or_else(|| "-".into());
+        let extra: Vec<String> = diag.entries.iter().map(|(k, v)| format!("{k}={}", diag_value(v))).collect();
+        out += &format!("{name:<width$} {rel:>10} {:>9}  {}\n", fmt_seconds(diag.seconds), extra.join(" "));
+    }
+    out
+}
+
+/// A diagnostic for the terminal: a float to 4 significant digits, anything else as it is.
+fn diag_value(v: &cvtrace_reconstruct::DiagValue) -> String {
+    match v {
+        cvtrace_reconstruct::DiagValue::Float(x) => cvtrace_eval::table::fmt_num(*x),
+        other => other.to_string(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_summary_prints_four_significant_digits() {
+        let mut diag = cvtrace_reconstruct::Diagnostics { seconds: 0.123456, ..Default::default() };
+        diag.float("gamma", 0.123456789).float("weight", 1234.56789).float("tiny", 1.23456e-7).int("k", 16).text("select", "knn");
+        let table = summary_table(&[("ours", Some(0.0123456789), diag)]);
+        let row = table.lines().nth(1).unwrap();
+        for want in ["0.01235", "0.123 ", "gamma=0.1235", "weight=1235", "tiny=1.235e-7", "k=16", "select=knn"] {
+            assert!(row.contains(want), "{want:?} missing from {row:?}");
+        }
+        assert!(!row.contains("0.123456"), "{row:?}");
     }
 }

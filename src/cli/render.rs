@@ -16,7 +16,7 @@ use cvtrace::session::{
     DEFAULT_BATCHES, DEFAULT_WIDTH,
 };
 use cvtrace_render::part::PartSpec;
-use cvtrace_render::RenderDefaults;
+use cvtrace_render::{Define, RenderDefaults};
 use glam::Vec3A;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::PathBuf;
@@ -35,7 +35,8 @@ pub struct RenderArgs {
     /// `reference_spp` with --reference, else 64].
     #[arg(long, value_parser = spp_parser(), allow_hyphen_values = true)]
     pub spp: Option<u32>,
-    /// Batches per stream (must divide --spp; default 16, the measured default of the estimators, see docs/estimators.md). Not used with --reference.
+    /// Batches per stream (must divide --spp) [default: the most of 16, 8, 4, 2, 1 that divides
+    /// --spp; 16 is the estimators' measured default, docs/estimators.md]. Not used with --reference.
     #[arg(long)]
     pub batches: Option<u32>,
     /// Random seed: the same seed and settings give bit-identical output.
@@ -96,6 +97,13 @@ pub struct ViewArgs {
     /// (docs/performance.md has both figures).
     #[arg(long, value_enum, default_value_t = Traversal::Robust)]
     pub traversal: Traversal,
+    /// Override a setting of the scene's sidecar, as `mitsuba -D spp=64`; repeatable. Keys:
+    /// width, height, spp, max_depth, rr_depth, reference_spp, environment.color (r,g,b),
+    /// environment.map (an EXR, relative to the current folder), environment.strength,
+    /// environment.rotation (degrees). A flag wins over -D of the same setting (--width over
+    /// -D width).
+    #[arg(short = 'D', value_name = "KEY=VALUE", value_parser = parse_define)]
+    pub define: Vec<Define>,
 }
 
 impl ViewArgs {
@@ -104,9 +112,20 @@ impl ViewArgs {
         View { width: self.width, height: self.height, max_depth: self.max_depth, rr_depth: self.rr_depth }
     }
 
-    /// The camera override and traversal, for a [`RenderSession`].
+    /// The value of the last `-D KEY=…` whose key is `key`, if it parses (a bad one is
+    /// reported, naming it, when the scene loads).
+    pub fn defined<T: std::str::FromStr>(&self, key: &str) -> Option<T> {
+        self.define.iter().rev().find(|d| d.canonical_key() == Some(key)).and_then(|d| d.value.parse().ok())
+    }
+
+    /// The camera override, traversal and `-D` overrides, for a [`RenderSession`].
     pub fn session_options(&self) -> Result<SessionOptions> {
-        Ok(SessionOptions { camera: self.camera.as_deref().map(parse_camera).transpose()?, traversal: self.traversal })
+        cvtrace_render::sidecar::check_define_keys(&self.define)?;
+        Ok(SessionOptions {
+            camera: self.camera.as_deref().map(parse_camera).transpose()?,
+            traversal: self.traversal,
+            defines: self.define.clone(),
+        })
     }
 }
 
@@ -136,7 +155,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
         (true, Some(_)) => bail!("--batches does not apply to --reference renders (they have a single PT stream)"),
         (true, None) => 1,
         (false, Some(b)) => b,
-        (false, None) => default_batches(args.spp),
+        (false, None) => default_batches(args.spp.or(args.view.defined("spp"))),
     };
     if args.reference && args.pass_spp == 0 {
         bail!("--pass-spp must be at least 1");
@@ -173,6 +192,7 @@ pub fn run(args: RenderArgs) -> Result<()> {
             extend: args.extend,
             stop_after_passes: args.stop_after_passes,
             part: args.part,
+            label: "a reference",
         })
     } else {
         Job::Streams(StreamJob {
@@ -241,11 +261,7 @@ pub struct TerminalProgress {
 impl Progress for TerminalProgress {
     fn start(&self, total: u64, done: u64) {
         let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::stderr());
-        let style = ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:40.cyan/blue}] {percent:>3}% {human_pos}/{human_len} samples, {per_sec}, ETA {eta}",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar());
-        bar.set_style(style);
+        bar.set_style(progress_style_of(PROGRESS_TEMPLATE));
         bar.set_position(done);
         bar.reset_eta();
         let _ = self.bar.set(bar);
@@ -269,6 +285,66 @@ impl Progress for TerminalProgress {
             bar.finish_and_clear();
         }
     }
+}
+
+/// The render progress line: at most [`PROGRESS_COLUMNS`] wide whatever the numbers, with the
+/// rate in millions of samples per second (what renderers quote).
+pub const PROGRESS_TEMPLATE: &str = "{elapsed_precise} [{bar:24.cyan/blue}] {percent:>3}% {msamples} M, {rate} M samples/s, ETA {eta}";
+#[cfg(test)]
+pub const PROGRESS_COLUMNS: usize = 80;
+
+/// `template` with the widest values its keys take: hours of elapsed time, a full bar, 100%,
+/// 10^11 samples done at 10^11 samples/s, and a 4-character ETA (indicatif's "59m", "23h").
+#[cfg(test)]
+pub fn widest_progress_line(template: &str) -> String {
+    let bar = regex_lite_bar(template);
+    template
+        .replace("{elapsed_precise}", "99:59:59")
+        .replace(&bar.0, &"#".repeat(bar.1))
+        .replace("{percent:>3}", "100")
+        .replace("{msamples}", &millions(1e11))
+        .replace("{rate}", &millions(1e11))
+        .replace("{eta}", "999d")
+}
+
+/// The `{bar:N...}` key of `template` and its width N.
+#[cfg(test)]
+fn regex_lite_bar(template: &str) -> (String, usize) {
+    let start = template.find("{bar:").expect("a bar");
+    let end = start + template[start..].find('}').expect("a closed key") + 1;
+    let key = &template[start..end];
+    let width = key[5..].split('.').next().and_then(|w| w.parse().ok()).expect("a bar width");
+    (key.to_string(), width)
+}
+
+/// `template` (with the keys `{msamples}`, done, and `{rate}`, both in millions) as a style.
+pub fn progress_style_of(template: &str) -> ProgressStyle {
+    ProgressStyle::with_template(template)
+        .unwrap_or_else(|_| ProgressStyle::default_bar())
+        .with_key("msamples", |s: &indicatif::ProgressState, w: &mut dyn std::fmt::Write| {
+            let _ = w.write_str(&millions(s.pos() as f64));
+        })
+        .with_key("rate", |s: &indicatif::ProgressState, w: &mut dyn std::fmt::Write| {
+            let _ = w.write_str(&millions(s.per_sec()));
+        })
+}
+
+/// `x` in millions with 3 or 4 significant digits, at most 6 characters below 10^12.
+fn millions(x: f64) -> String {
+    let m = x / 1e6;
+    if !m.is_finite() || m < 0.0 {
+        "?".into()
+    } else if m < 10.0 {
+        format!("{m:.2}")
+    } else if m < 1000.0 {
+        format!("{m:.1}")
+    } else {
+        format!("{m:.0}")
+    }
+}
+
+fn parse_define(s: &str) -> Result<Define, String> {
+    s.parse()
 }
 
 fn parse_part(s: &str) -> Result<PartSpec, String> {
@@ -303,6 +379,20 @@ pub fn spp_parser() -> clap::builder::RangedI64ValueParser<u32> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_progress_line_fits_80_columns_and_reads_in_millions() {
+        assert_eq!(
+            (millions(1.234e6), millions(45.67e6), millions(999.94e6), millions(123_456.0e6)),
+            ("1.23".into(), "45.7".into(), "999.9".into(), "123456".into())
+        );
+        let widest = widest_progress_line(PROGRESS_TEMPLATE);
+        assert!(!widest.contains('{'), "every key is replaced: {widest}");
+        assert!(widest.contains("M samples/s"), "{widest}");
+        assert!(widest.chars().count() <= PROGRESS_COLUMNS, "{} columns: {widest}", widest.chars().count());
+        // The template is one indicatif accepts (else the plain bar would be drawn).
+        assert!(ProgressStyle::with_template(PROGRESS_TEMPLATE).is_ok());
+    }
 
     #[test]
     fn camera_flag_parses_and_rejects_garbage() {

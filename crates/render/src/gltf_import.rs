@@ -19,7 +19,7 @@ use crate::camera::Camera;
 use crate::lights::Punctual;
 use crate::material::Material;
 use crate::scene::{default_camera, Scene, SceneError, SceneParts};
-use crate::sidecar::Sidecar;
+use crate::sidecar::{sidecar_path, Define, Sidecar};
 use crate::texture::{srgb_to_linear, Texture};
 use cvtrace_streams::input_file::{regular_file, NotAFile};
 use glam::{Mat3, Mat4, Vec2, Vec3A};
@@ -38,8 +38,9 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
 /// Node hierarchies deeper than this are treated as cyclic (the spec forbids cycles).
 const MAX_NODE_DEPTH: usize = 1024;
 
-/// Loads `path` (.gltf or .glb).
-pub fn load(path: &Path) -> Result<Scene, SceneError> {
+/// Loads `path` (.gltf or .glb), its sidecar with `defines` applied.
+pub fn load(path: &Path, defines: &[Define]) -> Result<Scene, SceneError> {
+    crate::sidecar::check_define_keys(defines)?;
     require_regular_file(path, path)?;
     let bytes = std::fs::read(path).map_err(|e| SceneError::Io { path: path.to_path_buf(), error: e })?;
     let malformed = |e: gltf::Error| SceneError::Malformed { path: path.to_path_buf(), message: e.to_string() };
@@ -88,7 +89,11 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
     if let (Some((w, h)), Some(cam)) = (resolution, parts.camera.as_mut()) {
         (cam.width, cam.height) = (w, h);
     }
-    if let Some(sidecar) = Sidecar::discover(path)? {
+    let sidecar = match Sidecar::discover(path)? {
+        None if defines.is_empty() => None,
+        found => Some(found.unwrap_or_else(|| Sidecar { path: sidecar_path(path), ..Sidecar::default() }).with_defines(defines)?),
+    };
+    if let Some(sidecar) = sidecar {
         parts.environment = sidecar.environment()?;
         parts.render_defaults = sidecar.render;
     }

@@ -36,5 +36,5 @@ pub use lights::{Environment, Punctual};
 pub use material::Material;
 pub use render::{render_reference_pass, render_stream_part, render_streams, ReferenceAccum, RenderError, RenderSettings};
 pub use scene::{Scene, SceneError, SceneParts};
-pub use sidecar::{RenderDefaults, Sidecar};
+pub use sidecar::{Define, RenderDefaults, Sidecar};
 pub use texture::Texture;

@@ -25,6 +25,9 @@ pub enum SceneError {
     MissingFile { path: PathBuf, file: PathBuf, message: String },
     #[error("{path}: {message}")]
     Invalid { path: PathBuf, message: String },
+    /// A `-D key=value` override that names no setting or gives it an unusable value.
+    #[error("-D {define}: {message}")]
+    Define { define: String, message: String },
 }
 
 impl SceneError {
@@ -98,7 +101,12 @@ pub const MAX_COORDINATE: f32 = 1e15;
 impl Scene {
     /// Loads a glTF 2.0 scene (`.gltf` with external or embedded buffers, or `.glb`).
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        crate::gltf_import::load(path)
+        crate::gltf_import::load(path, &[])
+    }
+
+    /// As [`Scene::load`], with `-D` overrides of the sidecar's settings.
+    pub fn load_with(path: &Path, defines: &[crate::sidecar::Define]) -> Result<Scene, SceneError> {
+        crate::gltf_import::load(path, defines)
     }
 
     /// Builds a scene from flat arrays, checking every index.

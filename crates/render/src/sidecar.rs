@@ -175,6 +175,160 @@ impl Sidecar {
     }
 }
 
+/// A `-D key=value` override of one sidecar setting, as `mitsuba -D spp=64`: it replaces the
+/// sidecar's value (or stands in for a missing sidecar); command-line flags still win over it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Define {
+    pub key: String,
+    pub value: String,
+}
+
+/// The keys `-D` accepts: the sidecar's, `[render]` ones also without their table name.
+pub const DEFINE_KEYS: [&str; 10] = [
+    "width",
+    "height",
+    "spp",
+    "max_depth",
+    "rr_depth",
+    "reference_spp",
+    "environment.color",
+    "environment.map",
+    "environment.strength",
+    "environment.rotation",
+];
+
+impl std::str::FromStr for Define {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Define, String> {
+        match s.split_once('=') {
+            Some((key, value)) if !key.trim().is_empty() => Ok(Define { key: key.trim().to_string(), value: value.trim().to_string() }),
+            _ => Err(format!("{s:?}: expected KEY=VALUE, e.g. -D max_depth=8 (keys: {})", DEFINE_KEYS.join(", "))),
+        }
+    }
+}
+
+impl std::fmt::Display for Define {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}={}", self.key, self.value)
+    }
+}
+
+impl Define {
+    /// The key as in [`DEFINE_KEYS`] (`render.width` → `width`), if it is one.
+    pub fn canonical_key(&self) -> Option<&'static str> {
+        let key = self.key.strip_prefix("render.").unwrap_or(&self.key);
+        DEFINE_KEYS.iter().copied().find(|k| *k == key)
+    }
+
+    fn error(&self, message: impl Into<String>) -> SceneError {
+        SceneError::Define { define: self.to_string(), message: message.into() }
+    }
+
+    fn number<T: std::str::FromStr>(&self, what: &str) -> Result<T, SceneError> {
+        self.value.parse().map_err(|_| self.error(format!("{:?} is not {what}", self.value)))
+    }
+}
+
+/// Checks every define's key (before the scene is read, so a typo fails at once).
+pub fn check_define_keys(defines: &[Define]) -> Result<(), SceneError> {
+    for d in defines {
+        if d.canonical_key().is_none() {
+            return Err(d.error(format!("no such setting; the keys are {}", DEFINE_KEYS.join(", "))));
+        }
+    }
+    Ok(())
+}
+
+impl Sidecar {
+    /// The sidecar with `defines` applied in order and checked as a file's values are. Giving
+    /// one side of the image only (`-D width=64`) takes the other from the camera's aspect, as
+    /// `--width` alone does; a new `environment.color` replaces a map and the other way round.
+    pub fn with_defines(mut self, defines: &[Define]) -> Result<Sidecar, SceneError> {
+        check_define_keys(defines)?;
+        let sides: Vec<&str> = defines.iter().filter_map(Define::canonical_key).filter(|k| matches!(*k, "width" | "height")).collect();
+        if !sides.is_empty() {
+            if !sides.contains(&"width") {
+                self.render.width = None;
+            }
+            if !sides.contains(&"height") {
+                self.render.height = None;
+            }
+        }
+        for d in defines {
+            let key = d.canonical_key().unwrap_or_default();
+            let whole = "a whole number";
+            let r = &mut self.render;
+            match key {
+                "width" => r.width = Some(d.number(whole)?),
+                "height" => r.height = Some(d.number(whole)?),
+                "spp" => r.spp = Some(d.number(whole)?),
+                "rr_depth" => r.rr_depth = Some(d.number(whole)?),
+                "reference_spp" => r.reference_spp = Some(d.number(whole)?),
+                "max_depth" => r.max_depth = Some(d.number("a whole number (-1 for unlimited)")?),
+                _ => {
+                    let env = self.environment.get_or_insert_with(EnvironmentSpec::default);
+                    match key {
+                        "environment.color" => {
+                            env.color = Some(parse_color(&d.value).ok_or_else(|| {
+                                d.error("expected linear RGB as r,g,b (e.g. 0.6,0.7,1.0) or one grey value, finite and non-negative")
+                            })?);
+                            env.map = None;
+                        }
+                        "environment.map" => {
+                            // Relative to where the command runs, not to the sidecar's folder.
+                            let file = std::path::absolute(&d.value).map_err(|e| d.error(e.to_string()))?;
+                            if let Err(e) = regular_file(&file) {
+                                return Err(d.error(format!("cannot read {}: {e}", file.display())));
+                            }
+                            env.map = Some(file);
+                            env.color = None;
+                        }
+                        "environment.strength" => {
+                            let k: f32 = d.number("a number")?;
+                            if !(k.is_finite() && k >= 0.0) {
+                                return Err(d.error("must be finite and non-negative"));
+                            }
+                            env.strength = Some(k);
+                        }
+                        _ => {
+                            let r: f32 = d.number("a number of degrees")?;
+                            if !r.is_finite() {
+                                return Err(d.error("must be finite"));
+                            }
+                            env.rotation = Some(r);
+                        }
+                    }
+                }
+            }
+            self.render.validate().map_err(|m| d.error(m))?;
+        }
+        if let Some(env) = &self.environment {
+            if env.color.is_none() && env.map.is_none() {
+                let given: Vec<String> = defines.iter().filter(|d| d.key.starts_with("environment.")).map(Define::to_string).collect();
+                return Err(SceneError::Define {
+                    define: given.join(" -D "),
+                    message: "the scene has no environment light to change; give -D environment.color=r,g,b or -D environment.map=FILE too"
+                        .into(),
+                });
+            }
+        }
+        Ok(self)
+    }
+}
+
+/// `r,g,b` (brackets allowed, as in the sidecar) or one grey value.
+fn parse_color(text: &str) -> Option<[f32; 3]> {
+    let inner = text.trim().trim_start_matches('[').trim_end_matches(']');
+    let v: Vec<f32> = inner.split(',').map(|x| x.trim().parse::<f32>()).collect::<Result<_, _>>().ok()?;
+    let c = match v[..] {
+        [g] => [g; 3],
+        [r, g, b] => [r, g, b],
+        _ => return None,
+    };
+    c.iter().all(|x| x.is_finite() && *x >= 0.0).then_some(c)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -253,5 +407,53 @@ mod tests {
         let e = Sidecar::load(&path).unwrap().environment().unwrap_err().to_string();
         assert!(e.contains("sky.exr"), "{e}");
         assert!(Sidecar::discover(&dir.path().join("other.gltf")).unwrap().is_none());
+    }
+
+    fn define(s: &str) -> Define {
+        s.parse().unwrap()
+    }
+
+    #[test]
+    fn defines_override_the_sidecar_and_bad_ones_name_the_key() {
+        let base = parse("[render]\nwidth = 320\nheight = 180\nmax_depth = -1\n\n[environment]\ncolor = [1, 1, 1]\n").unwrap();
+        let s = base
+            .clone()
+            .with_defines(&[
+                define("max_depth=8"),
+                define("render.spp=16"),
+                define("environment.strength=2.5"),
+                define("environment.color=0.5"),
+            ])
+            .unwrap();
+        assert_eq!((s.render.width, s.render.height, s.render.max_depth, s.render.spp), (Some(320), Some(180), Some(8), Some(16)));
+        let env = s.environment().unwrap().unwrap();
+        assert!((env.eval(Vec3A::Y) - Vec3A::splat(1.25)).length() < 1e-6);
+        // One side alone keeps the camera's aspect, as --width does.
+        let s = base.clone().with_defines(&[define("width=64")]).unwrap();
+        assert_eq!((s.render.width, s.render.height), (Some(64), None));
+        // No sidecar: the defines stand alone.
+        let s = Sidecar::default().with_defines(&[define("environment.color=0.1,0.2,0.3")]).unwrap();
+        assert_eq!(s.environment.unwrap().color, Some([0.1, 0.2, 0.3]));
+        let cases: [(&str, &[&str]); 9] = [
+            ("widht=64", &["-D widht=64", "no such setting", "width"]),
+            ("width=abc", &["-D width=abc", "not a whole number"]),
+            ("width=0", &["-D width=0", "between 1"]),
+            ("max_depth=0", &["-D max_depth=0", "-1 (unlimited)"]),
+            ("max_depth=x", &["-D max_depth=x", "whole number"]),
+            ("environment.strength=-1", &["-D environment.strength=-1", "non-negative"]),
+            ("environment.color=1,2", &["-D environment.color=1,2", "r,g,b"]),
+            ("environment.rotation=nan", &["-D environment.rotation=nan", "finite"]),
+            ("environment.map=no-such-sky.exr", &["-D environment.map=no-such-sky.exr", "no-such-sky.exr"]),
+        ];
+        for (text, needles) in cases {
+            let e = base.clone().with_defines(&[define(text)]).expect_err(text).to_string();
+            for n in needles {
+                assert!(e.contains(n), "error for {text:?} lacks {n:?}: {e}");
+            }
+        }
+        let e = Sidecar::default().with_defines(&[define("environment.strength=2")]).unwrap_err().to_string();
+        assert!(e.contains("environment.strength=2") && e.contains("no environment light"), "{e}");
+        assert!("novalue".parse::<Define>().unwrap_err().contains("KEY=VALUE"));
+        assert!("=3".parse::<Define>().is_err());
     }
 }

@@ -178,10 +178,8 @@ impl Study<'_> {
             render: scene.render,
         };
         let too_noisy = noise.zip(result.best_relmse()).and_then(|(noise, best)| too_noisy_warning(noise.relmse, best));
-        for w in reference.unusable_warning().into_iter().chain(too_noisy) {
-            tracing::warn!("{w}");
-            result.warnings.push(w);
-        }
+        // Not logged here: the caller shows the results, warnings included, once.
+        result.warnings.extend(reference.unusable_warning().into_iter().chain(too_noisy));
         let results = StudyResults::new(vec![result]);
         results.write_json(&out.join("results.json"), true)?;
         table::write_csv(&results, &out.join("results.csv"), true)?;
