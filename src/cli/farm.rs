@@ -50,15 +50,8 @@ pub struct FarmRenderArgs {
     /// Number of parts (array tasks): at most the number of batches (or passes).
     #[arg(long)]
     pub parts: u32,
-    /// The job folder [default: the output's name with `.farm` for `.exr`].
-    #[arg(long)]
-    pub dir: Option<PathBuf>,
-    /// Submit with sbatch: the parts that are missing or failed, and the merge after them.
-    #[arg(long)]
-    pub submit: bool,
-    /// An argument for sbatch (repeatable), e.g. --sbatch-arg=--partition=gpu.
-    #[arg(long = "sbatch-arg", value_name = "ARG", allow_hyphen_values = true)]
-    pub sbatch_args: Vec<String>,
+    #[command(flatten)]
+    pub job: JobArgs,
     /// Let the merge replace an existing output.
     #[arg(long)]
     pub force: bool,
@@ -68,10 +61,19 @@ pub struct FarmRenderArgs {
 pub struct FarmStudyArgs {
     #[command(flatten)]
     pub study: StudyArgs,
-    /// The job folder [default: the study folder's name with `.farm`].
+    #[command(flatten)]
+    pub job: JobArgs,
+}
+
+/// The job folder and its submission, the same for every farm command.
+#[derive(clap::Args, Debug)]
+pub struct JobArgs {
+    /// The job folder [default: the output's name (for `farm study`, the study folder's) with
+    /// `.farm`].
     #[arg(long)]
     pub dir: Option<PathBuf>,
-    /// Submit with sbatch: the cells that are missing or failed, and the study after them.
+    /// Submit with sbatch: the tasks (parts or study cells) that are missing or failed, and the
+    /// job that then merges or summarises them.
     #[arg(long)]
     pub submit: bool,
     /// An argument for sbatch (repeatable), e.g. --sbatch-arg=--partition=gpu.
@@ -144,7 +146,7 @@ fn render(a: FarmRenderArgs) -> Result<()> {
     v.session_options()?;
     render_args.extend(["--traversal".into(), v.traversal.name().into()]);
 
-    let dir = a.dir.clone().unwrap_or_else(|| default_dir(&a.output));
+    let dir = a.job.dir.clone().unwrap_or_else(|| default_dir(&a.output));
     let plan = Plan {
         kind: if a.reference { "reference" } else { "streams" }.into(),
         cvtrace: std::env::current_exe().context("the path of this cvtrace binary")?,
@@ -170,11 +172,11 @@ fn render(a: FarmRenderArgs) -> Result<()> {
     if new {
         tracing::info!("wrote the job folder {} ({} parts of {units} {what})", folder.dir.display(), a.parts);
     }
-    if !a.submit {
+    if !a.job.submit {
         say!("job folder {}: submit it with\n{}or run this command again with --submit", folder.dir.display(), folder.how_to_submit());
         return Ok(());
     }
-    submit(&folder, &a.sbatch_args)
+    submit(&folder, &a.job.sbatch_args)
 }
 
 /// Submits what `folder` still needs and says what was submitted.
@@ -263,7 +265,7 @@ fn study(a: FarmStudyArgs) -> Result<()> {
     spps.sort_unstable();
     spps.dedup();
     let cells = 2 * spps.len() as u32 * s.seeds;
-    let dir = a.dir.clone().unwrap_or_else(|| default_dir(&s.output));
+    let dir = a.job.dir.clone().unwrap_or_else(|| default_dir(&s.output));
     if crate::cli::same_output(&dir, &s.output) {
         bail!("{}: given as both --dir and -o; the job folder and the study folder must differ", dir.display());
     }
@@ -285,11 +287,11 @@ fn study(a: FarmStudyArgs) -> Result<()> {
     if new {
         tracing::info!("wrote the job folder {} ({cells} cells)", folder.dir.display());
     }
-    if !a.submit {
+    if !a.job.submit {
         say!("job folder {}: submit it with\n{}or run this command again with --submit", folder.dir.display(), folder.how_to_submit());
         return Ok(());
     }
-    submit(&folder, &a.sbatch_args)
+    submit(&folder, &a.job.sbatch_args)
 }
 
 fn status(dir: &Path) -> Result<()> {
