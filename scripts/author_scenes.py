@@ -416,6 +416,26 @@ def tex_painting(width=160, height=120):
 # ---------------------------------------------------------------------------------------------
 
 
+def f32(x):
+    """x rounded to the float32 the file stores, as the accessors' min and max must be."""
+    return struct.unpack("<f", struct.pack("<f", x))[0]
+
+
+class BinaryBuffer:
+    """The bytes of scene.bin and their buffer views, each view aligned to 4 bytes."""
+
+    def __init__(self):
+        self.blob = bytearray()
+        self.views = []
+
+    def view(self, data, target):
+        while len(self.blob) % 4:
+            self.blob.append(0)
+        self.views.append({"buffer": 0, "byteOffset": len(self.blob), "byteLength": len(data), "target": target})
+        self.blob.extend(data)
+        return len(self.views) - 1
+
+
 class Scene:
     def __init__(self, name):
         self.name = name
@@ -478,18 +498,9 @@ class Scene:
 
     def write(self, out_dir):
         os.makedirs(out_dir, exist_ok=True)
-        blob = bytearray()
-        views, accessors, meshes, nodes = [], [], [], []
-
-        def add_view(data, target):
-            while len(blob) % 4:
-                blob.append(0)
-            views.append({"buffer": 0, "byteOffset": len(blob), "byteLength": len(data), "target": target})
-            blob.extend(data)
-            return len(views) - 1
-
-        def f32(x):
-            return struct.unpack("<f", struct.pack("<f", x))[0]
+        buffer = BinaryBuffer()
+        blob, views, add_view = buffer.blob, buffer.views, buffer.view
+        accessors, meshes, nodes = [], [], []
 
         for name, mat, g in self.objects:
             pos = b"".join(struct.pack("<3f", *p) for p in g.p)

@@ -325,18 +325,10 @@ class Scene:
 
     def write(self, out_dir):
         os.makedirs(out_dir, exist_ok=True)
-        blob = bytearray()
-        views, accessors, meshes, nodes = [], [], [], []
-
-        def view(data, target):
-            while len(blob) % 4:
-                blob.append(0)
-            views.append({"buffer": 0, "byteOffset": len(blob), "byteLength": len(data), "target": target})
-            blob.extend(data)
-            return len(views) - 1
-
-        def f32(x):
-            return struct.unpack("<f", struct.pack("<f", x))[0]
+        buffer = au.BinaryBuffer()
+        blob, views, view = buffer.blob, buffer.views, buffer.view
+        f32 = au.f32
+        accessors, meshes, nodes = [], [], []
 
         for mi in self.group_order:
             m = self.groups[mi]
