@@ -21,7 +21,7 @@ VARIANTS = [
     ("penalty none", ["--penalty", "none"]), ("penalty max", ["--penalty", "max"]), ("penalty residual", ["--penalty", "residual"]),
     ("errors variance", ["--errors", "variance"]), ("errors cbf-residual", ["--errors", "cbf-residual"]),
     ("shared coefficients", ["--shared-coefficients"]),
-    # Issue 5: the floor on the CRN covariance (docs/estimators.md) and cross-fitting.
+    # The floor on the CRN covariance (docs/estimators.md) and cross-fitting.
     ("floor 0", ["--crn-floor", "0"]), ("floor common 0.02", ["--crn-floor", "0.02"]),
     ("floor common 0.05", ["--crn-floor", "0.05"]), ("floor common 0.1", ["--crn-floor", "0.1"]),
     ("floor common 0.25", ["--crn-floor", "0.25"]), ("floor common 0.5", ["--crn-floor", "0.5"]),
@@ -43,6 +43,8 @@ VARIANTS = [
     ("cv pt-noise", ["--method", "cv", "--cv-pt-noise"]),
     ("cv pt-noise low-pass 8", ["--method", "cv", "--cv-pt-noise", "--cv-low-pass-sigma", "8"]),
     ("cv pt-noise ridge 0.01 low-pass 8", ["--method", "cv", "--cv-pt-noise", "--cv-ridge", "0.01", "--cv-low-pass-sigma", "8"]),
+    ("cv centre out", ["--method", "cv", "--cv-centre", "out"]),
+    ("cv classic", ["--method", "cv", "--cv-centre", "out", "--param", "cv.pt_noise=false", "--cv-low-pass-sigma", "0"]),
 ]
 
 

@@ -2,7 +2,10 @@
 //! k-NN set as `ours` but **without the centre**: the centre's own PT value never enters, so the
 //! estimator can only explain the centre's CRN value by its neighbours. That is the one thing
 //! `ours` adds (with the centre, `β = e_c` returns PT), which is what makes `ours ÷ cv` the
-//! effect of the centre in the set.
+//! effect of the centre in the set. With `centre = inverse-variance` the estimate is then
+//! combined with the centre's own PT mean by inverse variance: an imperfect control variate in
+//! two stages rather than the paper's baseline, kept as the `cv-two-stage` variant to compare
+//! the joint solve of `ours` with.
 //!
 //! By default `β` solves `(V_g + V_h' + ridge) β = V_fg` with the covariances of `ours` (CRN
 //! batch covariances, the PT error filter's estimates with the `avg` penalty) and the low-pass
@@ -19,7 +22,7 @@ use crate::pt_error::{pt_errors, CbfOptions, ErrorEstimate};
 use crate::selection::{Selection, Selector, MAX_SEARCH_WINDOW};
 use crate::solve::{MAX_BATCHES, MAX_K};
 use crate::spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples, Variant};
-use crate::{Diagnostics, Estimator, Input, Needs, Output, ReconError};
+use crate::{Diagnostics, Estimator, Image, Input, Needs, Output, ReconError};
 
 pub static SPEC: EstimatorSpec = EstimatorSpec {
     name: "cv",
@@ -79,6 +82,13 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
             alias: Some("cv-low-pass-sigma"),
         },
         ParamSpec {
+            name: "centre",
+            kind: ParamKind::Choice(Centre::NAMES),
+            default: "out",
+            doc: "The centre's own PT mean: out (left out, as in the paper's baseline) or inverse-variance (combined with the control-variate estimate by inverse variance, which makes this an imperfect control variate in two stages; needs pt_noise).",
+            alias: Some("cv-centre"),
+        },
+        ParamSpec {
             name: "seed",
             kind: ParamKind::Int { min: 0, max: i64::MAX },
             default: "0",
@@ -91,9 +101,28 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
     variants: &[Variant {
         key: "cv-classic",
         label: "CV, PT means as exact (classic)",
-        params: &[("pt_noise", "false"), ("low_pass_sigma", "0")],
+        params: &[("pt_noise", "false"), ("low_pass_sigma", "0"), ("centre", "out")],
+    }, Variant {
+        key: "cv-two-stage",
+        label: "CV, then the centre's PT mean by inverse variance",
+        params: &[("centre", "inverse-variance")],
     }],
 };
+
+crate::named::named_enum! {
+    /// What `cv` does with the centre's own PT mean, which its control variates leave out.
+    pub enum Centre: "centre" {
+        /// Nothing: the output is the control-variate estimate alone, as in the paper's baseline.
+        Out => "out",
+        /// Combined with the control-variate estimate by inverse variance: the two are
+        /// independent (the centre is not one of its own control variates), so weights
+        /// `e_c / (e_c + v_F)` and `v_F / (e_c + v_F)` (with `e_c` the PT error estimate of the
+        /// centre and `v_F` Eq. 7 at β) give the least variance of any mix of the two. Where the
+        /// centre's CRN value carries a firefly its neighbours lack, `v_F` is large and the PT
+        /// mean takes over.
+        InverseVariance => "inverse-variance",
+    }
+}
 
 fn needs(select: Selection) -> Needs {
     Needs {
@@ -120,6 +149,8 @@ pub struct ClassicCvOptions {
     pub pt_noise: bool,
     /// σ (pixels) of the low-pass correction towards the PT mean; 0 = off.
     pub low_pass_sigma: f64,
+    /// What the output does with the centre's own PT mean.
+    pub centre: Centre,
 }
 
 impl Default for ClassicCvOptions {
@@ -140,6 +171,7 @@ impl ClassicCvOptions {
             seed: p.int("seed") as u64,
             pt_noise: p.bool("pt_noise"),
             low_pass_sigma: p.float("low_pass_sigma"),
+            centre: p.choice("centre"),
         }
     }
 
@@ -147,6 +179,13 @@ impl ClassicCvOptions {
         // The command line's `k` counts the centre too.
         if self.neighbours == 0 {
             return Err(ReconError::option("k", 1, "cv needs at least one neighbour besides the centre: at least 2"));
+        }
+        if self.centre == Centre::InverseVariance && !self.pt_noise {
+            return Err(ReconError::option(
+                "cv-centre",
+                "inverse-variance",
+                "the weights need the PT error estimates, which only pt_noise = true computes: choose --cv-pt-noise or --cv-centre out",
+            ));
         }
         check_selection(self.neighbours + 1, self.search_window, self.ridge, "cv-ridge")
     }
@@ -181,13 +220,34 @@ impl Estimator for ClassicCv {
             include_centre: false,
             floor: None,
             folds: Folds::All,
-            variance: false,
+            variance: o.centre == Centre::InverseVariance,
         };
         let out = pass.run();
-        let image = restore_low_frequencies(&out.image, &set.pt.mean, o.low_pass_sigma);
+        let image = match (&out.variance, errors.as_deref()) {
+            (Some(v_f), Some(e)) => combine_with_centre(&out.image, v_f, &set.pt.mean, e),
+            _ => out.image,
+        };
+        let image = restore_low_frequencies(&image, &set.pt.mean, o.low_pass_sigma);
         let mut d = Diagnostics::default();
         out.stats.report(&mut d);
         d.int("batches", set.batch_count() as i64);
         Ok(Output::new(image, d))
     }
+}
+
+/// The inverse-variance combination of the control-variate estimate `f` (variance `v_f`) with the
+/// centre's PT mean `h` (error estimate `e`), per pixel and channel. Where both variances are 0
+/// (a black, noiseless pixel) the two agree and `f` is kept.
+fn combine_with_centre(f: &Image, v_f: &Image, h: &Image, e: &[[f32; 3]]) -> Image {
+    let mut out = f.clone();
+    for (((o, vf), hc), ec) in out.pixels.iter_mut().zip(&v_f.pixels).zip(&h.pixels).zip(e) {
+        for ch in 0..3 {
+            let (vf, ec) = (f64::from(vf[ch].max(0.0)), f64::from(ec[ch].max(0.0)));
+            let total = vf + ec;
+            if total > 0.0 && total.is_finite() {
+                o[ch] = ((ec * f64::from(o[ch]) + vf * f64::from(hc[ch])) / total) as f32;
+            }
+        }
+    }
+    out
 }
