@@ -54,6 +54,7 @@ fn ours_matches_a_dense_solve_of_eq7_from_the_batches() {
         "ours.crn_floor=0",
         "ours.shared_coefficients=false",
         "ours.low_pass_sigma=0",
+        "ours.two_stage_weight=0",
     ])
     .unwrap();
     // (B, k): panel widths 8, 16, 32 and 64, then B ≥ k (the general f64 solve).

@@ -1,4 +1,5 @@
-//! The options of `ours` added for issue 5: the floor on the CRN covariance and cross-fitting.
+//! The options of `ours` that shape its joint solve: the floor on the CRN covariance and
+//! cross-fitting (the two-stage mix is off here, so each test sees the joint solve alone).
 //! Exact expectations on hand-made stream sets where the CRN batches are degenerate.
 mod common;
 
@@ -22,7 +23,7 @@ fn degenerate_set() -> StreamSet {
 /// `ours` with the given changes and without the low-pass correction, so that a pixel's value
 /// is the control-variate pass's alone.
 fn ours(f: impl Fn(&mut ImperfectCvOptions)) -> ImperfectCv {
-    let mut o = ImperfectCvOptions { low_pass_sigma: 0.0, ..Default::default() };
+    let mut o = ImperfectCvOptions { low_pass_sigma: 0.0, two_stage_weight: 0.0, ..Default::default() };
     f(&mut o);
     ImperfectCv::new(o).unwrap()
 }

@@ -14,7 +14,7 @@
 //! guards against the PT noise it copies in, and with fewer batches than control variates `V_g`
 //! is singular, so the ridge is essential. See docs/estimators.md for both, measured.
 use super::ours::check_selection;
-use crate::cv_pass::{CvPass, Folds};
+use crate::cv_pass::{CvPass, Folds, PassStats};
 use crate::input::BatchNeed;
 use crate::low_pass::restore_low_frequencies;
 use crate::penalty::Penalty;
@@ -22,7 +22,7 @@ use crate::pt_error::{pt_errors, CbfOptions, ErrorEstimate};
 use crate::selection::{Selection, Selector, MAX_SEARCH_WINDOW};
 use crate::solve::{MAX_BATCHES, MAX_K};
 use crate::spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples, Variant};
-use crate::{Diagnostics, Estimator, Image, Input, Needs, Output, ReconError};
+use crate::{Diagnostics, Estimator, Image, Input, Needs, Output, ReconError, StreamSet};
 
 pub static SPEC: EstimatorSpec = EstimatorSpec {
     name: "cv",
@@ -209,45 +209,88 @@ impl Estimator for ClassicCv {
         let o = &self.options;
         let set = input.streams;
         let errors = o.pt_noise.then(|| pt_errors(ErrorEstimate::Cbf, set, None, &CbfOptions::default()));
-        let pass = CvPass {
-            set,
-            selector: Selector::new(o.select, o.neighbours, o.search_window, false, o.seed, set),
-            k: o.neighbours,
-            errors: errors.as_deref(),
-            penalty: if o.pt_noise { Penalty::Avg } else { Penalty::None },
-            ridge: o.ridge,
-            shared: o.shared_coefficients,
-            include_centre: false,
-            floor: None,
-            folds: Folds::All,
-            variance: o.centre == Centre::InverseVariance,
-        };
-        let out = pass.run();
-        let image = match (&out.variance, errors.as_deref()) {
-            (Some(v_f), Some(e)) => combine_with_centre(&out.image, v_f, &set.pt.mean, e),
-            _ => out.image,
+        let selector = Selector::new(o.select, o.neighbours, o.search_window, false, o.seed, set);
+        let (image, stats) = match (o.centre, errors.as_deref()) {
+            (Centre::InverseVariance, Some(e)) => {
+                let (two, stats) = two_stage(set, selector, o.neighbours, e, o.ridge, o.shared_coefficients);
+                (two.image, stats)
+            }
+            _ => {
+                let out = cv_pass(set, selector, o.neighbours, errors.as_deref(), o.ridge, o.shared_coefficients, false).run();
+                (out.image, out.stats)
+            }
         };
         let image = restore_low_frequencies(&image, &set.pt.mean, o.low_pass_sigma);
         let mut d = Diagnostics::default();
-        out.stats.report(&mut d);
+        stats.report(&mut d);
         d.int("batches", set.batch_count() as i64);
         Ok(Output::new(image, d))
     }
 }
 
+/// The control-variate pass of `cv`: the centre left out, the PT noise modelled when `errors`
+/// are given (with the `avg` penalty).
+fn cv_pass<'a>(
+    set: &'a StreamSet,
+    selector: Selector<'a>,
+    neighbours: usize,
+    errors: Option<&'a [[f32; 3]]>,
+    ridge: f64,
+    shared: bool,
+    variance: bool,
+) -> CvPass<'a> {
+    CvPass {
+        set,
+        selector,
+        k: neighbours,
+        errors,
+        penalty: if errors.is_some() { Penalty::Avg } else { Penalty::None },
+        ridge,
+        shared,
+        include_centre: false,
+        floor: None,
+        folds: Folds::All,
+        variance,
+    }
+}
+
+/// An estimate and its predicted variance per pixel and channel.
+pub(crate) struct Estimate {
+    pub image: Image,
+    pub variance: Image,
+}
+
+/// The two-stage estimate: control variates without the centre (`selector` must leave it out),
+/// then combined with the centre's PT mean by inverse variance. `errors` are the PT error
+/// estimates (variances of the PT means).
+pub(crate) fn two_stage(
+    set: &StreamSet,
+    selector: Selector<'_>,
+    neighbours: usize,
+    errors: &[[f32; 3]],
+    ridge: f64,
+    shared: bool,
+) -> (Estimate, PassStats) {
+    let out = cv_pass(set, selector, neighbours, Some(errors), ridge, shared, true).run();
+    let v_f = out.variance.expect("asked for the variance");
+    (combine_with_centre(&out.image, &v_f, &set.pt.mean, errors), out.stats)
+}
+
 /// The inverse-variance combination of the control-variate estimate `f` (variance `v_f`) with the
-/// centre's PT mean `h` (error estimate `e`), per pixel and channel. Where both variances are 0
-/// (a black, noiseless pixel) the two agree and `f` is kept.
-fn combine_with_centre(f: &Image, v_f: &Image, h: &Image, e: &[[f32; 3]]) -> Image {
-    let mut out = f.clone();
-    for (((o, vf), hc), ec) in out.pixels.iter_mut().zip(&v_f.pixels).zip(&h.pixels).zip(e) {
+/// centre's PT mean `h` (error estimate `e`), per pixel and channel, and its variance
+/// `e·v_f / (e + v_f)`. Where both variances are 0 (a black, noiseless pixel) the two agree and
+/// `f` is kept.
+fn combine_with_centre(f: &Image, v_f: &Image, h: &Image, e: &[[f32; 3]]) -> Estimate {
+    let (mut image, mut variance) = (f.clone(), v_f.clone());
+    for ((((o, v), vf), hc), ec) in image.pixels.iter_mut().zip(&mut variance.pixels).zip(&v_f.pixels).zip(&h.pixels).zip(e) {
         for ch in 0..3 {
             let (vf, ec) = (f64::from(vf[ch].max(0.0)), f64::from(ec[ch].max(0.0)));
             let total = vf + ec;
             if total > 0.0 && total.is_finite() {
                 o[ch] = ((ec * f64::from(o[ch]) + vf * f64::from(hc[ch])) / total) as f32;
+                v[ch] = (ec * vf / total) as f32;
             }
         }
     }
-    out
+    Estimate { image, variance }
 }

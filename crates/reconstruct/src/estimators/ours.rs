@@ -5,6 +5,7 @@
 //! covariances and `V_h` the (penalised) PT error estimates. Because the centre is in the
 //! set, the estimator ranges over PT (`β = e_c`), CRN (`β = 0`) and every blend of
 //! neighbours in between. See docs/estimators.md for the defaults and their measurements.
+use super::cv::{two_stage, ClassicCvOptions, Estimate};
 use crate::batch_stats::variance_of_mean;
 use crate::cv_pass::{CvPass, Folds};
 use crate::floor::{Floor, FloorMode, FloorSource};
@@ -47,11 +48,13 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
         param("crn_floor_mode", ParamKind::Choice(FloorMode::NAMES), "common", "Shape of the floor: common (noise shared by the set) or independent (diagonal).", Some("crn-floor-mode")),
         param("crn_floor_source", ParamKind::Choice(FloorSource::NAMES), "pt", "The floor's variance: pt (the PT error estimates) or crn (filtered CRN variance).", Some("crn-floor-source")),
         param("low_pass_sigma", ParamKind::Float(Bounds::at_least(0.0)), "8", "σ in pixels of the Gaussian below which the output's frequencies are taken from the PT mean, which removes the estimator's bias at coarser scales (0 = off).", Some("low-pass-sigma")),
+        param("two_stage_weight", ParamKind::Float(Bounds::between(0.0, 1.0)), "0.5", "Weight of the two-stage estimate (cv without the centre, then the centre's PT mean by inverse variance) averaged into the joint one (0 = the joint solve alone; needs k ≥ 2).", Some("two-stage-weight")),
         param("folds", ParamKind::Choice(Folds::NAMES), "all", "Which CRN batches β is estimated from and applied to: all, or halves (each half's β applied to the other half's mean; even batch count ≥ 4).", Some("folds")),
     ],
     needs: |p| needs(&ImperfectCvOptions::from_params(p)),
     build: |p| Ok(Box::new(ImperfectCv::new(ImperfectCvOptions::from_params(p))?)),
     variants: &[
+        Variant { key: "ours-joint", label: "Ours, the joint solve alone", params: &[("two_stage_weight", "0")] },
         Variant { key: "ours-no-low-pass", label: "Ours, no low-pass correction", params: &[("low_pass_sigma", "0")] },
         Variant { key: "ours-no-penalty", label: "Ours, no penalty (CBF errors)", params: &[("penalty", "none")] },
         Variant { key: "ours-oracle", label: "Ours, oracle errors", params: &[("errors", "oracle")] },
@@ -94,6 +97,8 @@ pub struct ImperfectCvOptions {
     pub folds: Folds,
     /// σ (pixels) of the low-pass correction towards the PT mean ([`crate::low_pass`]); 0 = off.
     pub low_pass_sigma: f64,
+    /// Weight of the two-stage estimate in the output (0 = the joint solve alone).
+    pub two_stage_weight: f64,
 }
 
 impl Default for ImperfectCvOptions {
@@ -126,6 +131,7 @@ impl ImperfectCvOptions {
             crn_floor_source: p.choice("crn_floor_source"),
             folds: p.choice("folds"),
             low_pass_sigma: p.float("low_pass_sigma"),
+            two_stage_weight: p.float("two_stage_weight"),
         }
     }
 }
@@ -171,6 +177,13 @@ pub(crate) fn check_selection(k: usize, search_window: usize, ridge: f64, ridge_
 impl ImperfectCvOptions {
     pub fn validate(&self) -> Result<(), ReconError> {
         check_selection(self.k, self.search_window, self.ridge, "ridge")?;
+        if self.two_stage_weight > 0.0 && self.k < 2 {
+            return Err(ReconError::option(
+                "k",
+                self.k,
+                "the two-stage estimate needs at least one neighbour besides the centre: choose k ≥ 2 or --two-stage-weight 0",
+            ));
+        }
         if !(self.crn_floor >= 0.0 && self.crn_floor.is_finite()) {
             return Err(ReconError::option("crn-floor", self.crn_floor, "must be a finite number ≥ 0 (0 turns the floor off)"));
         }
@@ -234,8 +247,14 @@ impl Estimator for ImperfectCv {
         };
         let out = pass.run();
         let st = out.stats;
-        let image = restore_low_frequencies(&out.image, &set.pt.mean, o.low_pass_sigma);
-        let mut variance = out.variance.expect("asked for the variance");
+        let mut joint = Estimate { image: out.image, variance: out.variance.expect("asked for the variance") };
+        if o.two_stage_weight > 0.0 {
+            let neighbours = Selector::new(o.select, o.k - 1, o.search_window, false, o.seed, set);
+            let (two, _) = two_stage(set, neighbours, o.k - 1, &errors, ClassicCvOptions::default().ridge, o.shared_coefficients);
+            joint = mix(&joint, &two, o.two_stage_weight);
+        }
+        let image = restore_low_frequencies(&joint.image, &set.pt.mean, o.low_pass_sigma);
+        let mut variance = joint.variance;
         for (v, add) in variance.pixels.iter_mut().zip(low_pass_variance(&errors, set.width, set.height, o.low_pass_sigma)) {
             for ch in 0..3 {
                 v[ch] = (v[ch] as f64 + add[ch]) as f32;
@@ -249,4 +268,19 @@ impl Estimator for ImperfectCv {
             .float("seconds_prepare", t_prepare);
         Ok(Output { image, diagnostics: d, aovs: vec![("variance".into(), variance)] })
     }
+}
+
+/// `(1 − w)·a + w·b` and a bound on its variance: both estimates come from the same samples, so
+/// their correlation is unknown but at most 1, where the variance is `((1 − w)·σ_a + w·σ_b)²`.
+fn mix(a: &Estimate, b: &Estimate, w: f64) -> Estimate {
+    let (mut image, mut variance) = (a.image.clone(), a.variance.clone());
+    let pairs = image.pixels.iter_mut().zip(&mut variance.pixels).zip(&b.image.pixels).zip(&b.variance.pixels);
+    for (((x, v), xb), vb) in pairs {
+        for ch in 0..3 {
+            x[ch] = ((1.0 - w) * f64::from(x[ch]) + w * f64::from(xb[ch])) as f32;
+            let s = (1.0 - w) * f64::from(v[ch].max(0.0)).sqrt() + w * f64::from(vb[ch].max(0.0)).sqrt();
+            v[ch] = (s * s) as f32;
+        }
+    }
+    Estimate { image, variance }
 }
