@@ -374,8 +374,9 @@
         return isNaN(v) ? (col === 0 ? td.textContent : Infinity) : v;
       };
       main.sort((a, b) => { const x = value(a), y = value(b); return (x < y ? -1 : x > y ? 1 : 0) * sorted.dir; });
-      const first = tbody.firstChild;
-      for (const tr of main) tbody.insertBefore(tr, first);
+      // Before the ablations' group row (or at the end): never before a row being moved.
+      const after = [...tbody.children].find((tr) => !tr.classList.contains("main")) || null;
+      for (const tr of main) tbody.insertBefore(tr, after);
     };
     table.appendChild(el("thead", {}, el("tr", {}, ...head.map((h, i) => el("th", { text: h, title: titles[h] || "click to sort", class: "sortable", onclick: () => sortBy(i) })))));
     const efficiency = (m) => { const t = m.time_seconds || {}; const s = (t.render || 0) + (t.reconstruct || 0); return s > 0 ? m.relmse_mean * s : null; };
