@@ -35,7 +35,9 @@ enum Command {
     Study(cli::study::StudyArgs),
     /// Score finished images against a reference: a table, CSV or JSON.
     Compare(cli::compare::CompareArgs),
-    /// Write the static HTML comparison viewer from study folders.
+    /// Write the static HTML comparison viewer from study folders (images, relMSE and signed
+    /// difference maps, a readout of every image's linear values under the cursor, sortable
+    /// tables, relMSE against spp and against time).
     Report(cli::report::ReportArgs),
 }
 

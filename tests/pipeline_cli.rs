@@ -260,6 +260,11 @@ fn study_resumes_and_report_builds_the_viewer() {
     let light = pngs("light");
     assert!(light.contains(&"ours.png".to_string()) && !light.iter().any(|p| p.starts_with("ours-")), "{light:?}");
     assert!(std::fs::read_to_string(d.join("light/data.js")).unwrap().contains("ours-window"));
+    // The pixel readout's values follow the images: all of them in the full viewer, none of the
+    // ablations' in the light one (the study's files are found through the nested study folder).
+    let pixels = |dir: &str| std::fs::read_to_string(d.join(dir).join("images/cornell-box/pixels.js")).unwrap();
+    assert!(pixels("report").contains("\"ours\":") && pixels("report").contains("\"ours-window\":"));
+    assert!(pixels("light").contains("\"ours\":") && !pixels("light").contains("\"ours-window\":"));
 
     // A viewer written among the studies is not taken for a study when the report is redone.
     ok(&cvtrace(d, &["--log", "warn", "report", "study", "-o", "study/viewer"]));

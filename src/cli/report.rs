@@ -19,7 +19,8 @@ pub struct ReportArgs {
     /// ratios with their geometric means, the ablations, then each scene's table) to this file.
     #[arg(long, value_name = "FILE")]
     pub markdown: Option<PathBuf>,
-    /// Leave the ablations' images out of the viewer (their numbers stay): a lighter folder to publish.
+    /// Leave the ablations' images (and their pixel values) out of the viewer (their numbers
+    /// stay): a lighter folder to publish.
     #[arg(long)]
     pub no_ablation_images: bool,
     /// Replace an existing report (and Markdown file).
@@ -110,12 +111,14 @@ pub fn run(args: ReportArgs) -> Result<()> {
         let prefix = abs.strip_prefix(&root).unwrap_or(Path::new("")).to_path_buf();
         for mut s in r.scenes {
             rebase(&mut s.reference.image, &prefix);
+            rebase(&mut s.reference.values, &prefix);
             for m in &mut s.methods {
                 if args.no_ablation_images && m.ablation {
-                    (m.image, m.error_map) = (None, None);
+                    (m.image, m.error_map, m.difference_map, m.values) = (None, None, None, None);
                 }
-                rebase(&mut m.image, &prefix);
-                rebase(&mut m.error_map, &prefix);
+                for p in [&mut m.image, &mut m.error_map, &mut m.difference_map, &mut m.values] {
+                    rebase(p, &prefix);
+                }
             }
             scenes.push(s);
         }

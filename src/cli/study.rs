@@ -360,7 +360,13 @@ fn study_in_folder(
     };
     let scene = SceneInfo {
         name: study_name(args),
-        reference: ReferenceInfo { path: ReferenceInfo::path_of(&args.reference), spp: reference_spp, image: None, noise: None },
+        reference: ReferenceInfo {
+            path: ReferenceInfo::path_of(&args.reference),
+            spp: reference_spp,
+            image: None,
+            noise: None,
+            values: None,
+        },
         // The seed differs between the renders; it is in each file.
         render: planned.fields().into_iter().filter(|(k, _)| *k != "seed").map(|(k, v)| (k.to_string(), v)).collect(),
     };

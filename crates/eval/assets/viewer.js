@@ -104,7 +104,12 @@
       saveHash(st);
     }, { passive: false });
     let drag = null;
+    const report = (ev) => {
+      const [u, v] = imagePoint(vp, st, ev.clientX, ev.clientY);
+      if (onPixel && u >= 0 && u < 1 && v >= 0 && v < 1) onPixel(Math.floor(u * st.scene.width), Math.floor(v * st.scene.height), vp.dataset.method);
+    };
     vp.addEventListener("pointerdown", (ev) => {
+      report(ev);
       drag = { x: ev.clientX, y: ev.clientY, moved: false };
       vp.setPointerCapture(ev.pointerId);
       vp.classList.add("dragging");
@@ -120,8 +125,7 @@
         drag.y = ev.clientY;
         apply(st);
       }
-      const [u, v] = imagePoint(vp, st, ev.clientX, ev.clientY);
-      if (onPixel && u >= 0 && u < 1 && v >= 0 && v < 1) onPixel(Math.floor(u * st.scene.width), Math.floor(v * st.scene.height));
+      report(ev);
     });
     const end = (ev) => {
       if (!drag) return;
@@ -174,6 +178,47 @@
     return (ev) => funcs.forEach((f) => f.setAttribute("slope", String(Math.pow(2, ev))));
   }
 
+  // ---- linear values for the pixel readout ---------------------------------------------------
+  // images/<scene>/pixels.js (little-endian f32 in base64) is a plain script, since a page from
+  // file:// may not fetch; it is loaded when a pixel is first pointed at, not with the page.
+  const pixelCache = {};
+  function b64View(text) {
+    const bin = atob(text);
+    const bytes = new Uint8Array(bin.length);
+    for (let i = 0; i < bin.length; i++) bytes[i] = bin.charCodeAt(i);
+    return new DataView(bytes.buffer);
+  }
+  function decodePixels(d) {
+    const one = (e) => (e ? { rgb: b64View(e.rgb), relmse: e.relmse ? b64View(e.relmse) : null } : null);
+    const methods = {};
+    for (const [k, e] of Object.entries(d.methods || {})) methods[k] = one(e);
+    return { width: d.width, height: d.height, reference: one(d.reference), methods };
+  }
+  // The decoded values of a scene, or null while they load (then `onLoad` runs once they have).
+  function pixelData(view, onLoad) {
+    const c = pixelCache[view.slug];
+    if (c && c.data) return c.data;
+    const raw = window.CVTRACE_PIXELS && window.CVTRACE_PIXELS[view.slug];
+    if (raw) {
+      pixelCache[view.slug] = { data: decodePixels(raw) };
+      return pixelCache[view.slug].data;
+    }
+    if (!c) {
+      pixelCache[view.slug] = { loading: true };
+      const script = el("script", { src: view.pixels });
+      script.addEventListener("load", onLoad);
+      script.addEventListener("error", () => { pixelCache[view.slug] = { failed: true }; onLoad(); });
+      document.head.appendChild(script);
+    }
+    return null;
+  }
+  // Linear RGB and relMSE of one image at pixel i (null where the image has no values).
+  function pixelValues(e, i) {
+    if (!e) return null;
+    const g = (c) => e.rgb.getFloat32((3 * i + c) * 4, true);
+    return { rgb: [g(0), g(1), g(2)], relmse: e.relmse ? e.relmse.getFloat32(4 * i, true) : null };
+  }
+
   // ---- one scene -------------------------------------------------------------------------------
   const states = [];
   const hash = readHash();
@@ -181,6 +226,8 @@
   function box(st, entry, index, onPixel) {
     const vp = el("div", { class: "viewport" + (entry.photo ? " photo" : ""), style: "aspect-ratio:" + st.scene.width + " / " + st.scene.height });
     vp.dataset.flipIndex = String(index);
+    vp.dataset.method = entry.key;
+    vp.dataset.kind = entry.kind;
     vp.title = "click: flip view · wheel: zoom · drag: pan";
     vp.appendChild(el("img", { src: entry.src, alt: entry.label, draggable: false, "data-method": entry.key }));
     attachInteraction(vp, st, onPixel);
@@ -230,22 +277,76 @@
     section.appendChild(el("div", { class: "toolbar" },
       el("label", {}, "Exposure", slider, evValue), evReset,
       el("label", {}, "Zoom", zoomValue), fitBtn, oneBtn, readout,
-      el("span", { class: "hint", text: "wheel: zoom · drag: pan · click: flip view (1–9, ←/→)" })));
-    const onPixel = (x, y) => { readout.textContent = "pixel (" + x + ", " + y + ")"; };
+      el("span", { class: "hint", text: "hover or tap: pixel values · wheel: zoom · drag: pan · click: flip view (1–9, ←/→)" })));
+    // The readout table: one row per image, filled for the pixel under the cursor.
+    const readoutRows = {};
+    const readoutTable = el("table", { class: "results readout-table" });
+    readoutTable.appendChild(el("thead", {}, el("tr", {}, ...["Pixel", "R", "G", "B", "relMSE"].map((h) => el("th", { text: h })))));
+    const readoutBody = el("tbody");
+    readoutTable.appendChild(readoutBody);
+    const onPixel = (x, y, key) => {
+      st.pixel = [x, y];
+      readout.textContent = "pixel (" + x + ", " + y + ")";
+      section.dataset.pixel = x + "," + y;
+      for (const [k, row] of Object.entries(readoutRows)) row.tr.classList.toggle("hover", k === key);
+      if (!readoutBlock.classList.contains("active")) {
+        document.querySelectorAll(".readout-block.active").forEach((b) => b.classList.remove("active"));
+        readoutBlock.classList.add("active");
+      }
+      if (!view.pixels) return;
+      const data = pixelData(view, () => st.pixel && onPixel(st.pixel[0], st.pixel[1], key));
+      if (!data) {
+        readoutNote.textContent = pixelCache[view.slug] && pixelCache[view.slug].failed ? view.pixels + " did not load" : "loading the linear values…";
+        return;
+      }
+      readoutNote.textContent = "linear values of pixel (" + x + ", " + y + "); relMSE is the per-pixel mean over seeds the relMSE map shows";
+      const i = y * scene.width + x;
+      for (const [k, row] of Object.entries(readoutRows)) {
+        const v = pixelValues(k === "reference" ? data.reference : data.methods[k], i);
+        const cells = v ? v.rgb.concat([v.relmse]) : [null, null, null, null];
+        row.cells.forEach((td, c) => {
+          const x = cells[c];
+          td.textContent = x === null || x === undefined ? "–" : fmt(x);
+          if (x === null || x === undefined) td.removeAttribute("data-value"); else td.setAttribute("data-value", String(x));
+        });
+      }
+      st.flipReadout && st.flipReadout(x, y);
+    };
+    st.onPixel = onPixel;
+    st.pixelAt = (x, y, key) => {
+      const data = view.pixels ? pixelData(view, () => {}) : null;
+      return data ? pixelValues(key === "reference" ? data.reference : data.methods[key], y * scene.width + x) : null;
+    };
+    const readoutNote = el("p", { class: "note", text: view.pixels ? "Point at a pixel of any image for its linear values." : "These results carry no linear values (a study by an older cvtrace): only the pixel position is shown." });
 
     // Image boxes: every method with a preview, then the reference.
     const methods = orderedMethods(scene);
     const main = methods.filter((m) => !m.ablation);
     const ablations = methods.filter((m) => m.ablation);
     const colors = view.colors || {};
-    const photoEntry = (m) => ({ key: m.name, label: m.label, src: m.image, photo: true, color: colors[m.name] || "#888", caption: "relMSE " + fmt(m.relmse_mean) + (m.spp_total ? " · " + m.spp_total + " spp" : "") });
+    const photoEntry = (m) => ({ key: m.name, label: m.label, src: m.image, photo: true, kind: "image", color: colors[m.name] || "#888", caption: "relMSE " + fmt(m.relmse_mean) + (m.spp_total ? " · " + m.spp_total + " spp" : "") });
     const photos = main.filter((m) => m.image).map(photoEntry);
-    if (ref.image) photos.push({ key: "reference", label: "Reference", src: ref.image, photo: true, color: "#ffffff", caption: ref.spp ? ref.spp + " spp" : "" });
-    const maps = main.filter((m) => m.error_map).map((m) => ({ key: m.name, label: m.label, src: m.error_map, photo: false, color: colors[m.name] || "#888", caption: "relMSE " + fmt(m.relmse_mean) }));
+    if (ref.image) photos.push({ key: "reference", label: "Reference", src: ref.image, photo: true, kind: "image", color: "#ffffff", caption: ref.spp ? ref.spp + " spp" : "" });
+    const maps = main.filter((m) => m.error_map).map((m) => ({ key: m.name, label: m.label, src: m.error_map, photo: false, kind: "relmse", color: colors[m.name] || "#888", caption: "relMSE " + fmt(m.relmse_mean) }));
+    const diffs = main.filter((m) => m.difference_map).map((m) => ({ key: m.name, label: m.label, src: m.difference_map, photo: false, kind: "diff", color: colors[m.name] || "#888", caption: "difference to the reference" }));
     const ablationPhotos = ablations.filter((m) => m.image).map(photoEntry);
-    st.entries = photos.concat(maps, ablationPhotos);
+    st.entries = photos.concat(maps, diffs, ablationPhotos);
+
+    // Readout rows: the images in the order of the boxes.
+    for (const e of photos.concat(ablationPhotos)) {
+      const cells = ["R", "G", "B", "relmse"].map((c) => el("td", { text: "–", "data-key": view.slug + "/pixel/" + e.key + "/" + c }));
+      const tr = el("tr", { "data-method": e.key }, el("td", {}, el("span", { class: "swatch", style: "background:" + e.color + ";margin-right:7px" }), e.label), ...cells);
+      readoutRows[e.key] = { tr, cells };
+      readoutBody.appendChild(tr);
+    }
+    // A panel in the corner of the window, so it stays in view beside whichever image is pointed
+    // at; shown for the scene last pointed at, until closed.
+    const closeBtn = el("button", { type: "button", text: "×", title: "close (pointing at a pixel opens it again)" });
+    const readoutBlock = el("div", { class: "readout-block" }, el("div", { class: "readout-head" }, el("b", { text: scene.name + " · pixel readout" }), closeBtn), readoutNote, readoutTable);
+    closeBtn.addEventListener("click", () => readoutBlock.classList.remove("active"));
 
     let index = 0;
+    if (photos.length) section.appendChild(readoutBlock);
     if (photos.length) {
       section.appendChild(el("h3", { text: "Images" }));
       const grid = el("div", { class: "grid images" });
@@ -267,6 +368,23 @@
             el("span", { text: fmt(Math.pow(10, 0.5 * (scale.log10_min + scale.log10_max))) }),
             el("span", { text: fmt(Math.pow(10, scale.log10_max)), "data-key": view.slug + "/error_map/max" })),
           el("div", { class: "legend-note", text: "dark = low error · colour map " + scale.colormap })));
+      }
+      section.appendChild(grid);
+    }
+    if (diffs.length) {
+      section.appendChild(el("h3", { text: "Signed difference to the reference" }));
+      const grid = el("div", { class: "grid diffs" });
+      for (const e of diffs) grid.appendChild(box(st, e, index++, onPixel));
+      const scale = scene.difference_scale;
+      if (scale && D.difference_colorbar) {
+        grid.appendChild(el("div", { class: "legend" },
+          el("div", { class: "legend-title", text: "(x̄ − r̄) / √(r̄² + 0.01) of the image shown above (linear scale, symmetric, shared by all methods)" }),
+          el("img", { src: D.difference_colorbar, alt: "diverging colour scale" }),
+          el("div", { class: "legend-ticks" },
+            el("span", { text: fmt(-scale.max_abs), "data-key": view.slug + "/difference/min" }),
+            el("span", { text: "0" }),
+            el("span", { text: "+" + fmt(scale.max_abs), "data-key": view.slug + "/difference/max" })),
+          el("div", { class: "legend-note", text: "blue = darker than the reference · orange = brighter · black = equal; x̄, r̄: channel means" })));
       }
       section.appendChild(grid);
     }
@@ -294,8 +412,12 @@
     }
     const right = el("div", { class: "plot" });
     right.appendChild(el("h3", { text: "Convergence" }));
-    if (view.plot) right.appendChild(el("img", { src: view.plot, alt: "relMSE against spp, log-log" }));
-    else right.appendChild(el("div", { class: "none", text: "No convergence data: run the study with an --spp list to plot relMSE against spp." }));
+    if (view.plot) {
+      const plots = el("div", { class: "plots" }, el("img", { src: view.plot, alt: "relMSE against spp, log-log", "data-plot": "spp" }));
+      if (view.time_plot) plots.appendChild(el("img", { src: view.time_plot, alt: "relMSE against seconds per image, log-log", "data-plot": "time" }));
+      else plots.appendChild(el("div", { class: "none", text: "No times per point in these results (a study by an older cvtrace): rerun the study to plot relMSE against time." }));
+      right.appendChild(plots);
+    } else right.appendChild(el("div", { class: "none", text: "No convergence data: run the study with an --spp list to plot relMSE against spp and against time." }));
     section.appendChild(el("div", { class: "columns" }, left, right));
 
     if (ablationPhotos.length) {
@@ -374,8 +496,9 @@
         return isNaN(v) ? (col === 0 ? td.textContent : Infinity) : v;
       };
       main.sort((a, b) => { const x = value(a), y = value(b); return (x < y ? -1 : x > y ? 1 : 0) * sorted.dir; });
-      const first = tbody.firstChild;
-      for (const tr of main) tbody.insertBefore(tr, first);
+      // Before the ablations' group row (or at the end): never before a row being moved.
+      const after = [...tbody.children].find((tr) => !tr.classList.contains("main")) || null;
+      for (const tr of main) tbody.insertBefore(tr, after);
     };
     table.appendChild(el("thead", {}, el("tr", {}, ...head.map((h, i) => el("th", { text: h, title: titles[h] || "click to sort", class: "sortable", onclick: () => sortBy(i) })))));
     const efficiency = (m) => { const t = m.time_seconds || {}; const s = (t.render || 0) + (t.reconstruct || 0); return s > 0 ? m.relmse_mean * s : null; };
@@ -427,17 +550,27 @@
     if (!img) { img = el("img", { draggable: false }); flipVp.appendChild(img); }
     img.src = e.src;
     img.alt = e.label;
-    flipTitle.textContent = st.scene.name + " — " + e.label + (e.photo ? "" : " (relMSE map)");
+    flipTitle.textContent = st.scene.name + " — " + e.label + (e.kind === "relmse" ? " (relMSE map)" : e.kind === "diff" ? " (difference to the reference)" : "");
+    if (st.pixel) flipShowPixel(st, st.pixel[0], st.pixel[1]);
     [...flipButtons.children].forEach((b, k) => b.classList.toggle("on", k === flipIndex));
     layout(flipVp, st);
   }
+  // The flip view's one-line readout: the shown image's values at the pixel.
+  const flipReadout = document.getElementById("flip-readout");
+  function flipShowPixel(st, x, y) {
+    if (!flipReadout || flipState !== st) return;
+    const e = st.entries[flipIndex];
+    const v = st.pixelAt ? st.pixelAt(x, y, e.key) : null;
+    flipReadout.textContent = "(" + x + ", " + y + ")" + (v ? " · RGB " + v.rgb.map(fmt).join(" ") + (v.relmse !== null ? " · relMSE " + fmt(v.relmse) : "") : "");
+  }
   function openFlip(st, i) {
+    st.flipReadout = (x, y) => flipShowPixel(st, x, y);
     if (flipState !== st) {
       if (flipState) flipState.viewports.delete(flipVp);
       flipState = st;
       flipButtons.textContent = "";
       st.entries.forEach((e, k) => {
-        const b = el("button", { type: "button", text: (k < 9 ? k + 1 + " " : "") + e.label + (e.photo ? "" : " map") });
+        const b = el("button", { type: "button", text: (k < 9 ? k + 1 + " " : "") + e.label + (e.kind === "relmse" ? " map" : e.kind === "diff" ? " diff" : "") });
         b.addEventListener("click", () => showFlip(k));
         flipButtons.appendChild(b);
       });
@@ -464,8 +597,19 @@
       st.cy = v - (py - H / 2) / (fh * st.z);
       apply(st);
     }, { passive: false });
-    flipVp.addEventListener("pointerdown", (ev) => { drag = { x: ev.clientX, y: ev.clientY }; flipVp.setPointerCapture(ev.pointerId); });
+    // Hover or tap: the readout of the pixel, here and in the scene's table.
+    const report = (ev) => {
+      const st = proxy.get(); if (!st) return;
+      const [u, v] = imagePoint(flipVp, st, ev.clientX, ev.clientY);
+      if (!(u >= 0 && u < 1 && v >= 0 && v < 1)) return;
+      const x = Math.floor(u * st.scene.width), y = Math.floor(v * st.scene.height);
+      st.pixel = [x, y];
+      if (st.onPixel) st.onPixel(x, y, st.entries[flipIndex].key);
+      flipShowPixel(st, x, y);
+    };
+    flipVp.addEventListener("pointerdown", (ev) => { report(ev); drag = { x: ev.clientX, y: ev.clientY }; flipVp.setPointerCapture(ev.pointerId); });
     flipVp.addEventListener("pointermove", (ev) => {
+      report(ev);
       const st = proxy.get(); if (!st || !drag) return;
       const [fw, fh] = fitSize(flipVp, st);
       st.cx -= (ev.clientX - drag.x) / (fw * st.z);

@@ -8,17 +8,21 @@
 //! - [`results`]: the one JSON-able tree a study produces, plus headline ratios;
 //! - [`table`]: terminal, Markdown and CSV printers;
 //! - [`compare`]: metrics of loose EXR files against a reference (`cvtrace compare`);
-//! - [`falsecolor`], [`plots`]: relMSE maps as PNG and convergence plots as SVG;
+//! - [`falsecolor`], [`difference`], [`plots`]: relMSE maps and signed difference maps as PNG,
+//!   convergence plots (against spp and against time) as SVG;
+//! - [`pixels`]: the linear values of a study's images, for the viewer's pixel readout;
 //! - [`report`]: the static, offline HTML comparison viewer;
 //! - [`synthetic`]: a renderer-free synthetic study for tests, docs and trying the viewer.
 //!
 //! Nothing here renders or reconstructs; it depends only on `cvtrace-streams`.
 
 pub mod compare;
+pub mod difference;
 pub mod error;
 pub mod falsecolor;
 pub mod metrics;
 pub mod palette;
+pub mod pixels;
 pub mod plots;
 pub mod reference_noise;
 pub mod report;
@@ -31,5 +35,7 @@ pub mod table;
 pub use error::EvalError;
 pub use metrics::{Metrics, Reference};
 pub use report::{write_report, ReportOptions};
-pub use results::{keys, ConvergencePoint, ErrorMapScale, MethodResult, ReferenceInfo, SceneResult, StageTimes, StudyResults};
+pub use results::{
+    keys, ConvergencePoint, DifferenceScale, ErrorMapScale, MethodResult, ReferenceInfo, SceneResult, StageTimes, StudyResults,
+};
 pub use stats::{SeedAccumulator, SeedStats};

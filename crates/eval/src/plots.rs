@@ -1,4 +1,5 @@
-//! Convergence plots: relMSE against total spp, log-log, one line per estimator, as SVG.
+//! Convergence plots: relMSE against total spp and against seconds per image, log-log, one
+//! line per estimator, as SVG.
 //!
 //! Drawn with `plotters`' SVG backend, which writes `<text>` elements and only estimates
 //! text extents, so no system fonts are needed. Colours match the viewer (dark theme).
@@ -26,15 +27,46 @@ struct Line {
 /// A method key and its legend position to its legend label and colour.
 pub type StyleOf<'a> = &'a dyn Fn(&str, usize) -> (String, [u8; 3]);
 
-fn lines(points: &[ConvergencePoint], style_of: StyleOf) -> Vec<Line> {
+/// What a convergence plot puts on its x axis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum XAxis {
+    /// Total samples per pixel.
+    Spp,
+    /// Mean seconds per image: render of the streams plus reconstruction (points without a
+    /// time are left out).
+    Seconds,
+}
+
+impl XAxis {
+    fn of(self, p: &ConvergencePoint) -> Option<f64> {
+        match self {
+            XAxis::Spp => (p.spp_total > 0).then_some(p.spp_total as f64),
+            XAxis::Seconds => p.seconds.filter(|t| *t > 0.0 && t.is_finite()),
+        }
+    }
+    fn description(self) -> &'static str {
+        match self {
+            XAxis::Spp => "total samples per pixel",
+            XAxis::Seconds => "seconds per image (render + reconstruction)",
+        }
+    }
+    fn guide(self) -> &'static str {
+        match self {
+            XAxis::Spp => "∝ 1/spp",
+            XAxis::Seconds => "∝ 1/time",
+        }
+    }
+}
+
+fn lines(points: &[(f64, &ConvergencePoint)], style_of: StyleOf) -> Vec<Line> {
     // First-appearance order of methods, so the legend follows the results file.
     let mut order: Vec<String> = Vec::new();
     let mut by_method: BTreeMap<String, Vec<(f64, f64, Option<f64>)>> = BTreeMap::new();
-    for p in points {
+    for (x, p) in points {
         if !by_method.contains_key(&p.method) {
             order.push(p.method.clone());
         }
-        by_method.entry(p.method.clone()).or_default().push((p.spp_total as f64, p.relmse, p.relmse_se));
+        by_method.entry(p.method.clone()).or_default().push((*x, p.relmse, p.relmse_se));
     }
     order
         .into_iter()
@@ -63,20 +95,29 @@ fn plot_err(e: impl std::fmt::Display) -> EvalError {
     EvalError::invalid("convergence plot", e.to_string())
 }
 
-/// The SVG text of a convergence plot. `style_of` maps a method key and its position in the
-/// legend to its legend label and colour. A dashed grey guide shows the `1/spp` slope of an
-/// unbiased Monte Carlo estimator.
+/// The SVG text of a convergence plot against total spp; see [`convergence_svg_against`].
 pub fn convergence_svg(points: &[ConvergencePoint], title: &str, style_of: StyleOf) -> Result<String, EvalError> {
-    let valid: Vec<ConvergencePoint> =
-        points.iter().filter(|p| p.spp_total > 0 && p.relmse > 0.0 && p.relmse.is_finite()).cloned().collect();
+    convergence_svg_against(points, XAxis::Spp, title, style_of)
+}
+
+/// The SVG text of a convergence plot with `axis` along x. `style_of` maps a method key and its
+/// position in the legend to its legend label and colour. A dashed grey guide shows the
+/// `1/spp` (or `1/time`) slope of an unbiased Monte Carlo estimator.
+pub fn convergence_svg_against(points: &[ConvergencePoint], axis: XAxis, title: &str, style_of: StyleOf) -> Result<String, EvalError> {
+    let valid: Vec<(f64, &ConvergencePoint)> =
+        points.iter().filter(|p| p.relmse > 0.0 && p.relmse.is_finite()).filter_map(|p| axis.of(p).map(|x| (x, p))).collect();
     if valid.is_empty() {
-        return Err(EvalError::invalid("convergence plot", "no point with spp > 0 and a finite relMSE > 0"));
+        let need = match axis {
+            XAxis::Spp => "spp > 0",
+            XAxis::Seconds => "seconds > 0",
+        };
+        return Err(EvalError::invalid("convergence plot", format!("no point with {need} and a finite relMSE > 0")));
     }
     let lines = lines(&valid, style_of);
-    let xs = valid.iter().map(|p| p.spp_total as f64);
+    let xs = valid.iter().map(|(x, _)| *x);
     let (xmin, xmax) = xs.fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(x), b.max(x)));
-    let lows = valid.iter().map(|p| (p.relmse - p.relmse_se.unwrap_or(0.0)).max(p.relmse * 0.5));
-    let highs = valid.iter().map(|p| p.relmse + p.relmse_se.unwrap_or(0.0));
+    let lows = valid.iter().map(|(_, p)| (p.relmse - p.relmse_se.unwrap_or(0.0)).max(p.relmse * 0.5));
+    let highs = valid.iter().map(|(_, p)| p.relmse + p.relmse_se.unwrap_or(0.0));
     let ymin = lows.fold(f64::MAX, f64::min);
     let ymax = highs.fold(f64::MIN, f64::max);
     let (x0, x1) = (xmin / 1.3, xmax * 1.3);
@@ -95,7 +136,7 @@ pub fn convergence_svg(points: &[ConvergencePoint], title: &str, style_of: Style
             .map_err(plot_err)?;
         chart
             .configure_mesh()
-            .x_desc("total samples per pixel")
+            .x_desc(axis.description())
             .y_desc("relMSE")
             .x_label_formatter(&|v| tick(*v))
             .y_label_formatter(&|v| tick(*v))
@@ -107,13 +148,13 @@ pub fn convergence_svg(points: &[ConvergencePoint], title: &str, style_of: Style
             .draw()
             .map_err(plot_err)?;
 
-        // 1/spp guide through the first point of the first line (PT when present).
+        // 1/spp (1/time) guide through the first point of the first line (PT when present).
         if let Some(&(sx, sy, _)) = lines.first().and_then(|l| l.points.first()) {
             let guide = [(x0, sy * sx / x0), (x1, sy * sx / x1)];
             chart
                 .draw_series(DashedLineSeries::new(guide, 6, 6, RGBColor(0x70, 0x74, 0x7c).stroke_width(1)))
                 .map_err(plot_err)?
-                .label("∝ 1/spp")
+                .label(axis.guide())
                 .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], RGBColor(0x70, 0x74, 0x7c)));
         }
         for line in &lines {
@@ -149,16 +190,25 @@ pub fn convergence_svg(points: &[ConvergencePoint], title: &str, style_of: Style
     Ok(svg.replacen("<svg ", &format!("<svg data-methods=\"{}\" ", keys.join(" ")), 1))
 }
 
-/// Writes the convergence plot of `scene` atomically; `Ok(false)` when it has no points.
+/// Writes the convergence plot of `scene` against spp atomically; `Ok(false)` when it has no points.
 pub fn write_convergence_svg(scene: &SceneResult, path: &Path, overwrite: bool) -> Result<bool, EvalError> {
-    if scene.convergence.is_empty() {
+    write_convergence_svg_against(scene, XAxis::Spp, path, overwrite)
+}
+
+/// Writes the convergence plot of `scene` with `axis` along x atomically; `Ok(false)` when it
+/// has no points (against time: none with a recorded time, as in results of older studies).
+pub fn write_convergence_svg_against(scene: &SceneResult, axis: XAxis, path: &Path, overwrite: bool) -> Result<bool, EvalError> {
+    if scene.convergence.is_empty() || (axis == XAxis::Seconds && scene.convergence.iter().all(|p| axis.of(p).is_none())) {
         return Ok(false);
     }
     let style_of = |k: &str, i: usize| {
         (scene.method(k).map(|m| m.label.clone()).unwrap_or_else(|| k.to_string()), crate::palette::method_colour(scene, k, i))
     };
-    let title = format!("{}: relMSE vs spp", scene.name);
-    let svg = convergence_svg(&scene.convergence, &title, &style_of)
+    let title = match axis {
+        XAxis::Spp => format!("{}: relMSE vs spp", scene.name),
+        XAxis::Seconds => format!("{}: relMSE vs time", scene.name),
+    };
+    let svg = convergence_svg_against(&scene.convergence, axis, &title, &style_of)
         .map_err(|e| EvalError::invalid(format!("scene `{}`", scene.name), e.to_string()))?;
     cvtrace_streams::atomic::write_atomically(path, overwrite, |tmp| std::fs::write(tmp, svg.as_bytes()))?;
     Ok(true)
@@ -177,6 +227,7 @@ mod tests {
                     spp_total: spp,
                     relmse: c / spp as f64,
                     relmse_se: Some(0.1 * c / spp as f64),
+                    seconds: Some(0.01 * spp as f64),
                 });
             }
         }
@@ -200,6 +251,22 @@ mod tests {
     }
 
     #[test]
+    fn time_plot_puts_seconds_along_x_and_skips_points_without_one() {
+        let style = |k: &str, _| (format!("label-{k}"), [0x80; 3]);
+        let mut points = pts();
+        points[0].seconds = None;
+        let svg = convergence_svg_against(&points, XAxis::Seconds, "cbox: relMSE vs time", &style).unwrap();
+        assert!(svg.contains("seconds per image") && svg.contains("∝ 1/time") && svg.contains("relMSE vs time"), "{svg}");
+        assert!(!svg.contains("total samples per pixel"));
+        assert_eq!(svg.matches("<circle").count(), 5, "the point without a time is not drawn");
+        // Results of a study that recorded no times have no time plot.
+        for p in points.iter_mut() {
+            p.seconds = None;
+        }
+        assert!(convergence_svg_against(&points, XAxis::Seconds, "t", &style).is_err());
+    }
+
+    #[test]
     fn ticks_are_short() {
         assert_eq!(tick(0.01), "0.01");
         assert_eq!(tick(0.010000000002), "0.01");
@@ -210,7 +277,7 @@ mod tests {
 
     #[test]
     fn invalid_points_are_rejected_not_drawn() {
-        let bad = vec![ConvergencePoint { method: "pt".into(), spp_total: 0, relmse: 1.0, relmse_se: None }];
+        let bad = vec![ConvergencePoint { method: "pt".into(), spp_total: 0, relmse: 1.0, relmse_se: None, seconds: None }];
         assert!(convergence_svg(&bad, "t", &|k, _| (k.to_string(), [0; 3])).is_err());
     }
 }

@@ -3,16 +3,19 @@
 //! ```text
 //! out/index.html  viewer.css  viewer.js     the page (fixed assets, built into the crate)
 //! out/data.js                                window.CVTRACE_DATA = { results, per-scene view data }
-//! out/images/<scene>/*.png                  copies of the study's previews and relMSE maps
-//! out/plots/<scene>.svg                      convergence plots
-//! out/colorbar.png  results.json  results.csv
+//! out/images/<scene>/*.png                  copies of the study's previews, relMSE and difference maps
+//! out/images/<scene>/pixels.js               linear values for the pixel readout (see `pixels`)
+//! out/plots/<scene>.svg  <scene>.time.svg    convergence plots against spp and against time
+//! out/colorbar.png  colorbar-diff.png  results.json  results.csv
 //! out/.cvtrace-report                        the images and plots this report wrote (one per line)
 //! ```
 //! The page builds itself from data.js (a plain script, so no server or fetch is needed);
 //! every number it shows comes from the results tree, formatted like the terminal table.
+use crate::difference::write_difference_colorbar_png;
 use crate::falsecolor::write_colorbar_png;
 use crate::palette::{hex, method_colour};
-use crate::plots::write_convergence_svg;
+use crate::pixels::read_values_exr;
+use crate::plots::{write_convergence_svg_against, XAxis};
 use crate::results::{Ratio, SceneResult, StudyResults};
 use crate::table::write_csv;
 use crate::EvalError;
@@ -48,6 +51,7 @@ struct ViewerData<'a> {
     scenes: Vec<ViewerScene>,
     geomean_ratios: Vec<Ratio>,
     colorbar: &'a str,
+    difference_colorbar: &'a str,
     files: BTreeMap<&'a str, &'a str>,
 }
 
@@ -56,6 +60,10 @@ struct ViewerScene {
     /// HTML id and folder name of the scene.
     slug: String,
     plot: Option<String>,
+    /// relMSE against seconds per image, beside `plot`.
+    time_plot: Option<String>,
+    /// The script with the linear values of the scene's images, loaded on first use.
+    pixels: Option<String>,
     ratios: Vec<Ratio>,
     colors: BTreeMap<String, String>,
 }
@@ -140,7 +148,7 @@ const MANIFEST: &str = ".cvtrace-report";
 /// Every file a report writes at the top of its folder, and the folders of its images and
 /// plots: what nothing else may be written over (`report --markdown`).
 pub const REPORT_FILES: &[&str] =
-    &["index.html", "viewer.css", "viewer.js", "data.js", "colorbar.png", "results.json", "results.csv", MANIFEST];
+    &["index.html", "viewer.css", "viewer.js", "data.js", "colorbar.png", "colorbar-diff.png", "results.json", "results.csv", MANIFEST];
 pub const REPORT_FOLDERS: &[&str] = &["images", "plots"];
 
 fn manifest_text<'a>(files: impl IntoIterator<Item = &'a String>) -> String {
@@ -211,7 +219,7 @@ fn write_viewer(
         }
         let name = scene.name.clone();
         for m in scene.methods.iter_mut() {
-            for (field, what) in [(&mut m.image, "image"), (&mut m.error_map, "error_map")] {
+            for (field, what) in [(&mut m.image, "image"), (&mut m.error_map, "error_map"), (&mut m.difference_map, "difference_map")] {
                 if let Some(p) = field.as_mut() {
                     *p = copier.plan(p, &format!("scene `{name}`, method `{}`, {what}", m.name))?;
                 }
@@ -219,9 +227,13 @@ fn write_viewer(
         }
         files.extend(copier.copies.iter().map(|(_, dst)| dst.clone()));
         copies.extend(copier.copies);
+        let pixels = pixels_script(scene, source_dir, &slug)?.map(|text| (format!("images/{slug}/pixels.js"), text));
+        files.extend(pixels.iter().map(|(rel, _)| rel.clone()));
         let plot_rel = format!("plots/{slug}.svg");
+        let time_rel = format!("plots/{slug}.time.svg");
         files.insert(plot_rel.clone());
-        plots.push((slug, plot_rel));
+        files.insert(time_rel.clone());
+        plots.push((slug, plot_rel, time_rel, pixels));
     }
     write_text(&out_dir.join(MANIFEST), &manifest_text(earlier.union(&files)))?;
 
@@ -233,18 +245,35 @@ fn write_viewer(
         write_atomically(&dst, true, |tmp| std::fs::copy(src, tmp).map(|_| ()))?;
     }
     let mut scenes = Vec::new();
-    for (scene, (slug, plot_rel)) in out.scenes.iter().zip(plots) {
+    for (scene, (slug, plot_rel, time_rel, pixels)) in out.scenes.iter_mut().zip(plots) {
         cvtrace_streams::atomic::create_dir_all(&out_dir.join("plots"))?;
-        let plot = write_convergence_svg(scene, &out_dir.join(&plot_rel), true)?.then_some(plot_rel);
-        if plot.is_none() {
-            files.remove(&format!("plots/{slug}.svg"));
-        }
+        let mut plot_of = |axis, rel: String| -> Result<Option<String>, EvalError> {
+            let written = write_convergence_svg_against(scene, axis, &out_dir.join(&rel), true)?;
+            if !written {
+                files.remove(&rel);
+            }
+            Ok(written.then_some(rel))
+        };
+        let plot = plot_of(XAxis::Spp, plot_rel)?;
+        let time_plot = plot_of(XAxis::Seconds, time_rel)?;
+        let pixels = match pixels {
+            Some((rel, text)) => {
+                cvtrace_streams::atomic::create_dir_all(&out_dir.join("images").join(&slug))?;
+                write_text(&out_dir.join(&rel), &text)?;
+                Some(rel)
+            }
+            None => None,
+        };
+        // The values files stay in the study: the report carries them in pixels.js.
+        scene.reference.values = None;
+        scene.methods.iter_mut().for_each(|m| m.values = None);
         let colors =
             scene.ordered_methods().iter().enumerate().map(|(i, m)| (m.name.clone(), hex(method_colour(scene, &m.name, i)))).collect();
-        scenes.push(ViewerScene { slug, plot, ratios: scene.ratios(), colors });
+        scenes.push(ViewerScene { slug, plot, time_plot, pixels, ratios: scene.ratios(), colors });
     }
 
     write_colorbar_png(&out_dir.join("colorbar.png"), 256, 12, true)?;
+    write_difference_colorbar_png(&out_dir.join("colorbar-diff.png"), 256, 12, true)?;
     out.write_json(&out_dir.join("results.json"), true)?;
     write_csv(&out, &out_dir.join("results.csv"), true)?;
     let data = ViewerData {
@@ -253,6 +282,7 @@ fn write_viewer(
         scenes,
         geomean_ratios: out.geomean_ratios(),
         colorbar: "colorbar.png",
+        difference_colorbar: "colorbar-diff.png",
         files: BTreeMap::from([("results.json", "results.json"), ("results.csv", "results.csv")]),
     };
     let json = serde_json::to_string(&data).map_err(|e| EvalError::invalid("report data", e.to_string()))?;
@@ -265,6 +295,39 @@ fn write_viewer(
         &INDEX_HTML.replace("<title>cvtrace — estimator comparison</title>", &format!("<title>{title} — estimator comparison</title>")),
     )?;
     Ok(files)
+}
+
+/// The script that hands the viewer the linear values of a scene's images (the reference's and
+/// every method's that has a values file), or `None` when the study recorded none. Each file
+/// is read and checked against the scene's size here, before the report writes anything.
+fn pixels_script(scene: &SceneResult, source_dir: &Path, slug: &str) -> Result<Option<String>, EvalError> {
+    let read = |rel: &str, ctx: String| -> Result<serde_json::Value, EvalError> {
+        let path = source_dir.join(rel);
+        let v = read_values_exr(&path).map_err(|e| EvalError::invalid(&ctx, e.to_string()))?;
+        if (v.width, v.height) != (scene.width, scene.height) {
+            return Err(EvalError::invalid(
+                ctx,
+                format!("{} is {}x{}, expected the scene size {}x{}", path.display(), v.width, v.height, scene.width, scene.height),
+            ));
+        }
+        Ok(v.to_json())
+    };
+    let mut methods = serde_json::Map::new();
+    for m in &scene.methods {
+        if let Some(rel) = &m.values {
+            methods.insert(m.name.clone(), read(rel, format!("scene `{}`, method `{}`, values", scene.name, m.name))?);
+        }
+    }
+    let reference = match &scene.reference.values {
+        Some(rel) => Some(read(rel, format!("scene `{}`, reference values", scene.name))?),
+        None => None,
+    };
+    if methods.is_empty() && reference.is_none() {
+        return Ok(None);
+    }
+    let data = serde_json::json!({ "width": scene.width, "height": scene.height, "reference": reference, "methods": methods });
+    let key = serde_json::to_string(slug).map_err(|e| EvalError::invalid("report data", e.to_string()))?;
+    Ok(Some(format!("(window.CVTRACE_PIXELS = window.CVTRACE_PIXELS || {{}})[{key}] = {data};\n")))
 }
 
 fn write_text(path: &Path, text: &str) -> Result<(), EvalError> {
@@ -451,6 +514,83 @@ mod tests {
         assert!(again.unwrap_err().to_string().contains("already exists"));
         let opts = ReportOptions { overwrite: true, ..Default::default() };
         write_report(&results, &dir.path().join("study"), &out, &opts).unwrap();
+    }
+
+    fn unbase64(text: &str) -> Vec<u8> {
+        let value = |c: u8| "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/".bytes().position(|a| a == c).unwrap() as u32;
+        let mut out = Vec::new();
+        for chunk in text.as_bytes().chunks(4) {
+            let pad = chunk.iter().filter(|&&c| c == b'=').count();
+            let n = chunk.iter().filter(|&&c| c != b'=').fold(0u32, |n, &c| n << 6 | value(c)) << (6 * pad);
+            out.extend_from_slice(&n.to_be_bytes()[1..4 - pad]);
+        }
+        out
+    }
+
+    #[test]
+    fn pixels_script_carries_every_values_file_exactly() {
+        let (dir, results) = study();
+        let out = dir.path().join("report");
+        write_report(&results, &dir.path().join("study"), &out, &ReportOptions::default()).unwrap();
+        let scene = &results.scenes[0];
+        let slug = slug(&scene.name);
+        let rel = format!("images/{slug}/pixels.js");
+        let text = std::fs::read_to_string(out.join(&rel)).unwrap();
+        assert!(std::fs::read_to_string(out.join(MANIFEST)).unwrap().lines().any(|l| l == rel), "listed in the manifest");
+        let prefix = format!("(window.CVTRACE_PIXELS = window.CVTRACE_PIXELS || {{}})[\"{slug}\"] = ");
+        let json: serde_json::Value =
+            serde_json::from_str(text.strip_prefix(&prefix).unwrap().trim_end().strip_suffix(';').unwrap()).unwrap();
+        assert_eq!((json["width"].as_u64(), json["height"].as_u64()), (Some(scene.width as u64), Some(scene.height as u64)));
+        let floats = |b64: &serde_json::Value| -> Vec<f32> {
+            unbase64(b64.as_str().unwrap()).chunks(4).map(|c| f32::from_le_bytes(c.try_into().unwrap())).collect()
+        };
+        for m in &scene.methods {
+            let v = crate::pixels::read_values_exr(&dir.path().join("study").join(m.values.as_ref().unwrap())).unwrap();
+            let rgb = floats(&json["methods"][&m.name]["rgb"]);
+            assert_eq!(rgb.len(), 3 * scene.width * scene.height, "{}", m.name);
+            for (i, px) in rgb.chunks(3).enumerate() {
+                assert_eq!(px, [v.rgb[0][i], v.rgb[1][i], v.rgb[2][i]], "{} pixel {i}", m.name);
+            }
+            assert_eq!(floats(&json["methods"][&m.name]["relmse"]), v.relmse.unwrap(), "{}", m.name);
+        }
+        let reference = floats(&json["reference"]["rgb"]);
+        assert_eq!(reference.len(), 3 * scene.width * scene.height);
+        assert!(json["reference"].get("relmse").is_none());
+        // The report's copy of the results names no values file it did not copy.
+        let copied = StudyResults::read_json(&out.join("results.json")).unwrap();
+        assert!(copied.scenes[0].reference.values.is_none() && copied.scenes[0].methods.iter().all(|m| m.values.is_none()));
+        // A values file of another size is refused, naming the method.
+        let ours = scene.method("ours").unwrap().values.clone().unwrap();
+        crate::pixels::write_values_exr(&dir.path().join("study").join(&ours), &cvtrace_streams::Image::new(3, 2), None, true).unwrap();
+        let e =
+            write_report(&results, &dir.path().join("study"), &dir.path().join("r2"), &ReportOptions::default()).unwrap_err().to_string();
+        assert!(e.contains("`ours`") && e.contains("3x2"), "{e}");
+    }
+
+    #[test]
+    fn results_of_older_studies_still_read_and_report() {
+        let (dir, results) = study();
+        // What a study wrote before values, difference maps and times per point were recorded.
+        let mut json: serde_json::Value = serde_json::from_str(&results.to_json()).unwrap();
+        let scene = &mut json["scenes"][0];
+        scene.as_object_mut().unwrap().remove("difference_scale");
+        scene["reference"].as_object_mut().unwrap().remove("values");
+        for m in scene["methods"].as_array_mut().unwrap() {
+            m.as_object_mut().unwrap().remove("values");
+            m.as_object_mut().unwrap().remove("difference_map");
+        }
+        for p in scene["convergence"].as_array_mut().unwrap() {
+            p.as_object_mut().unwrap().remove("seconds");
+        }
+        let path = dir.path().join("study/old.json");
+        std::fs::write(&path, serde_json::to_string(&json).unwrap()).unwrap();
+        let old = StudyResults::read_json(&path).unwrap();
+        assert!(old.scenes[0].convergence.iter().all(|p| p.seconds.is_none()));
+        let out = dir.path().join("report");
+        write_report(&old, &dir.path().join("study"), &out, &ReportOptions::default()).unwrap();
+        let slug = slug(&old.scenes[0].name);
+        assert!(out.join(format!("plots/{slug}.svg")).is_file());
+        assert!(!out.join(format!("plots/{slug}.time.svg")).exists() && !out.join(format!("images/{slug}/pixels.js")).exists());
     }
 
     #[test]

@@ -58,6 +58,9 @@ pub struct SceneResult {
     /// Log10 range of the false-colour relMSE maps, shared by all methods of the scene.
     #[serde(default)]
     pub error_map_scale: Option<ErrorMapScale>,
+    /// The symmetric range of the signed difference maps, shared by all methods of the scene.
+    #[serde(default)]
+    pub difference_scale: Option<DifferenceScale>,
     /// Human-readable warnings (e.g. a reference too noisy to rank the methods).
     #[serde(default)]
     pub warnings: Vec<String>,
@@ -83,6 +86,10 @@ pub struct ReferenceInfo {
     /// The relMSE the reference's own noise adds to every method (see `reference_noise`).
     #[serde(default)]
     pub noise: Option<ReferenceNoise>,
+    /// The reference's linear RGB as the study scored against it, an EXR relative to the
+    /// results folder (see `pixels`): what the viewer's pixel readout shows.
+    #[serde(default)]
+    pub values: Option<String>,
 }
 
 impl ReferenceInfo {
@@ -145,6 +152,14 @@ pub struct MethodResult {
     /// False-colour relMSE map PNG, relative to the results folder.
     #[serde(default)]
     pub error_map: Option<String>,
+    /// False-colour signed difference of `image` to the reference (see `difference`), PNG,
+    /// relative to the results folder.
+    #[serde(default)]
+    pub difference_map: Option<String>,
+    /// Linear RGB of `image` and the per-pixel relMSE of `error_map`, an EXR relative to the
+    /// results folder (see `pixels`): what the viewer's pixel readout shows.
+    #[serde(default)]
+    pub values: Option<String>,
     /// Part of `--ablations` (shown in a separate table).
     #[serde(default)]
     pub ablation: bool,
@@ -175,6 +190,10 @@ pub struct ConvergencePoint {
     pub relmse: f64,
     #[serde(default)]
     pub relmse_se: Option<f64>,
+    /// Mean seconds per image at this point: the render of the streams the method reads plus
+    /// its reconstruction (absent in results of studies that did not record it).
+    #[serde(default)]
+    pub seconds: Option<f64>,
 }
 
 /// The colour scale of false-colour maps: log10 relMSE from `log10_min` (darkest) to
@@ -184,6 +203,15 @@ pub struct ErrorMapScale {
     pub log10_min: f64,
     pub log10_max: f64,
     /// Name of the colour map (see `falsecolor`).
+    pub colormap: String,
+}
+
+/// The colour scale of signed difference maps: from `-max_abs` (one end of the diverging
+/// map) through 0 (its dark centre) to `+max_abs`; values outside are clamped.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DifferenceScale {
+    pub max_abs: f64,
+    /// Name of the colour map (see `difference`).
     pub colormap: String,
 }
 
@@ -210,6 +238,8 @@ impl MethodResult {
             time_seconds: StageTimes::default(),
             image: None,
             error_map: None,
+            difference_map: None,
+            values: None,
             ablation: false,
             base: None,
         }
@@ -358,8 +388,15 @@ impl StudyResults {
             if scene.methods.is_empty() {
                 return Err(EvalError::invalid(&ctx, "has no methods"));
             }
-            if let Some(p) = &scene.reference.image {
-                check_relative_path(p, &format!("{ctx}, reference image"))?;
+            for (p, what) in [(&scene.reference.image, "image"), (&scene.reference.values, "values")] {
+                if let Some(p) = p {
+                    check_relative_path(p, &format!("{ctx}, reference {what}"))?;
+                }
+            }
+            if let Some(scale) = &scene.difference_scale {
+                if !(scale.max_abs.is_finite() && scale.max_abs > 0.0) {
+                    return Err(EvalError::invalid(&ctx, "difference_scale needs a finite max_abs > 0"));
+                }
             }
             if let Some(noise) = &scene.reference.noise {
                 check_number(noise.relmse, true, &format!("{ctx}, reference noise"))?;
@@ -393,7 +430,9 @@ impl StudyResults {
                 }
                 check_number(m.time_seconds.render, true, &format!("{mctx}, render time"))?;
                 check_number(m.time_seconds.reconstruct, true, &format!("{mctx}, reconstruct time"))?;
-                for (p, what) in [(&m.image, "image"), (&m.error_map, "error_map")] {
+                for (p, what) in
+                    [(&m.image, "image"), (&m.error_map, "error_map"), (&m.difference_map, "difference_map"), (&m.values, "values")]
+                {
                     if let Some(p) = p {
                         check_relative_path(p, &format!("{mctx}, {what}"))?;
                     }
@@ -403,6 +442,9 @@ impl StudyResults {
                 let cctx = format!("{ctx}, convergence point of `{}` at {} spp", c.method, c.spp_total);
                 if c.spp_total == 0 || !(c.relmse > 0.0 && c.relmse.is_finite()) {
                     return Err(EvalError::invalid(cctx, "needs spp_total > 0 and a finite relMSE > 0 (log-log plot)"));
+                }
+                if let Some(t) = c.seconds {
+                    check_number(t, true, &format!("{cctx}, seconds"))?;
                 }
             }
         }

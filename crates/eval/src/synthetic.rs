@@ -5,8 +5,10 @@
 //! false-colour maps, convergence, results.json) exactly as a real study would, for tests,
 //! docs and trying the viewer. Its numbers say nothing about the real estimators, and its
 //! labels say "synthetic" so nobody mistakes them.
+use crate::difference::{scale_for_differences, signed_difference, write_difference_png};
 use crate::falsecolor::{scale_for_maps, write_false_color_png};
 use crate::metrics::Reference;
+use crate::pixels::write_values_exr;
 use crate::reference_noise::{from_half_references, too_noisy_warning};
 use crate::results::{keys, ConvergencePoint, MethodResult, ReferenceInfo, SceneResult, StageTimes, StudyResults};
 use crate::rng::Rng;
@@ -255,6 +257,7 @@ pub fn write_synthetic_study(dir: &Path, opts: &SyntheticOptions) -> Result<Stud
     let n = opts.spp_per_stream;
     let mut accs: Vec<SeedAccumulator> = list.iter().map(|(k, _, _)| SeedAccumulator::new(&reference, *k)).collect();
     let mut times = vec![StageTimes::default(); list.len()];
+    let mut first_images = Vec::new();
     for seed in 0..opts.seeds {
         for (i, (img, t)) in run_seed(&truth, n, 1000 + seed as u64, opts.ablations).into_iter().enumerate() {
             accs[i].add(&img)?;
@@ -262,11 +265,15 @@ pub fn write_synthetic_study(dir: &Path, opts: &SyntheticOptions) -> Result<Stud
             times[i].reconstruct += t.reconstruct / opts.seeds as f64;
             if seed == 0 {
                 cvtrace_streams::preview::write_png(&dir.join(format!("{}.png", list[i].0)), &img, 0.0, true)?;
+                first_images.push(img);
             }
         }
     }
     let maps: Vec<Vec<f32>> = accs.iter().map(|a| a.mean_rel_mse_map()).collect();
     let scale = scale_for_maps(&maps.iter().map(|m| m.as_slice()).collect::<Vec<_>>());
+    let diffs = first_images.iter().map(|img| signed_difference(img, &reference.image)).collect::<Result<Vec<_>, _>>()?;
+    let diff_scale = scale_for_differences(&diffs.iter().map(|m| m.as_slice()).collect::<Vec<_>>());
+    write_values_exr(&dir.join("reference.values.exr"), &reference.image, None, true)?;
     let mut results = Vec::new();
     for (i, (key, label, ablation)) in list.iter().enumerate() {
         let stats = accs[i].finish()?;
@@ -279,6 +286,12 @@ pub fn write_synthetic_study(dir: &Path, opts: &SyntheticOptions) -> Result<Stud
         let map_file = format!("{key}.relmse.png");
         write_false_color_png(&dir.join(&map_file), &maps[i], opts.width, opts.height, &scale, true)?;
         m.error_map = Some(map_file);
+        let diff_file = format!("{key}.diff.png");
+        write_difference_png(&dir.join(&diff_file), &diffs[i], opts.width, opts.height, &diff_scale, true)?;
+        m.difference_map = Some(diff_file);
+        let values_file = format!("{key}.values.exr");
+        write_values_exr(&dir.join(&values_file), &first_images[i], Some(&maps[i]), true)?;
+        m.values = Some(values_file);
         results.push(m);
     }
 
@@ -286,15 +299,24 @@ pub fn write_synthetic_study(dir: &Path, opts: &SyntheticOptions) -> Result<Stud
     let mut convergence = Vec::new();
     for &spp in &opts.convergence_spp {
         let mut accs: Vec<SeedAccumulator> = list.iter().map(|(k, _, _)| SeedAccumulator::new(&reference, *k)).collect();
+        let mut seconds = vec![0.0; list.len()];
         for seed in 0..2u64 {
-            for (i, (img, _)) in run_seed(&truth, spp, 50_000 + 100 * spp as u64 + seed, false).into_iter().enumerate() {
+            for (i, (img, t)) in run_seed(&truth, spp, 50_000 + 100 * spp as u64 + seed, false).into_iter().enumerate() {
                 accs[i].add(&img)?;
+                seconds[i] += t.total() / 2.0;
             }
         }
-        for (acc, (key, _, _)) in accs.iter().zip(&list).filter(|(_, (_, _, abl))| !abl) {
+        for ((acc, (key, _, _)), t) in accs.iter().zip(&list).zip(&seconds).filter(|((_, (_, _, abl)), _)| !abl) {
             let s = acc.finish()?;
             let spp_total = if one_stream(key) { spp } else { 2 * spp };
-            convergence.push(ConvergencePoint { method: key.to_string(), spp_total, relmse: s.relmse_mean, relmse_se: s.relmse_se });
+            convergence.push(ConvergencePoint {
+                method: key.to_string(),
+                spp_total,
+                relmse: s.relmse_mean,
+                relmse_se: s.relmse_se,
+                // A time of 0 (a clock too coarse for a tiny image) has no place on a log axis.
+                seconds: (*t > 0.0).then_some(*t),
+            });
         }
     }
 
@@ -309,10 +331,12 @@ pub fn write_synthetic_study(dir: &Path, opts: &SyntheticOptions) -> Result<Stud
             spp: Some(ref_spp),
             image: Some("reference.png".into()),
             noise: Some(noise),
+            values: Some("reference.values.exr".into()),
         },
         methods: results,
         convergence,
         error_map_scale: Some(scale),
+        difference_scale: Some(diff_scale),
         warnings: Vec::new(),
         headline: crate::results::paper_headline(),
         render: Vec::new(),
@@ -336,7 +360,10 @@ mod tests {
         let b = write_synthetic_study(&dir.path().join("b"), &SyntheticOptions::small()).unwrap();
         let strip = |r: &StudyResults| {
             let mut r = r.clone();
-            r.scenes.iter_mut().for_each(|s| s.methods.iter_mut().for_each(|m| m.time_seconds = StageTimes::default()));
+            for s in r.scenes.iter_mut() {
+                s.methods.iter_mut().for_each(|m| m.time_seconds = StageTimes::default());
+                s.convergence.iter_mut().for_each(|p| p.seconds = None);
+            }
             r
         };
         assert_eq!(strip(&a), strip(&b), "same seeds, same numbers (times aside)");

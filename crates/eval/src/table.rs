@@ -481,7 +481,7 @@ mod tests {
             height: 4,
             spp_per_stream: 96,
             seeds: 1,
-            reference: crate::results::ReferenceInfo { path: "ref.exr".into(), spp: None, image: None, noise: None },
+            reference: crate::results::ReferenceInfo { path: "ref.exr".into(), spp: None, image: None, noise: None, values: None },
             methods: relmse
                 .iter()
                 .map(|&(k, v, ablation)| MethodResult {
@@ -500,6 +500,8 @@ mod tests {
                     time_seconds: Default::default(),
                     image: None,
                     error_map: None,
+                    difference_map: None,
+                    values: None,
                     ablation,
                     base: ablation.then(|| "ours".into()),
                     // The short labels travel with the results: the tables print these, not the keys.
@@ -511,6 +513,7 @@ mod tests {
                 .collect(),
             convergence: Vec::new(),
             error_map_scale: None,
+            difference_scale: None,
             warnings: Vec::new(),
             headline: crate::results::paper_headline(),
             render: Vec::new(),

@@ -39,9 +39,12 @@ fn two_scene_study(dir: &Path) -> StudyResults {
             }
         };
         prefix(&mut scene.reference.image);
+        prefix(&mut scene.reference.values);
         for m in scene.methods.iter_mut() {
             prefix(&mut m.image);
             prefix(&mut m.error_map);
+            prefix(&mut m.difference_map);
+            prefix(&mut m.values);
         }
         scenes.push(scene);
     }
@@ -218,15 +221,16 @@ fn viewer_loads_every_image_and_shows_the_json_numbers() {
     let failed_src = attr(&dom, "<body", "data-failed-src").unwrap_or_default();
     assert_eq!(ok, total, "only {ok} of {total} images loaded; failed: {failed_src}");
     assert_eq!(attr(&dom, "<body", "data-ready").as_deref(), Some("1"));
-    // Expected images: per scene the previews, the reference, the maps, the ablation
-    // previews and the plot; plus one colour bar per scene legend.
+    // Expected images: per scene the previews, the reference, the relMSE and difference maps,
+    // the ablation previews and the two plots; plus a colour bar per legend.
     let expected: usize = results
         .scenes
         .iter()
         .map(|s| {
             let photos = s.methods.iter().filter(|m| m.image.is_some()).count();
             let maps = s.methods.iter().filter(|m| !m.ablation && m.error_map.is_some()).count();
-            photos + maps + usize::from(s.reference.image.is_some()) + usize::from(!s.convergence.is_empty()) + 1
+            let diffs = s.methods.iter().filter(|m| !m.ablation && m.difference_map.is_some()).count();
+            photos + maps + diffs + usize::from(s.reference.image.is_some()) + 2 * usize::from(!s.convergence.is_empty()) + 2
         })
         .sum();
     assert_eq!(total, expected, "number of <img> elements");
@@ -282,11 +286,15 @@ fn viewer_copes_with_minimal_results() {
     scene.seeds = 1;
     scene.reference.image = None;
     scene.reference.noise = None;
+    scene.reference.values = None;
     scene.error_map_scale = None;
+    scene.difference_scale = None;
     scene.methods.retain(|m| m.name == "pt" || m.name == "ours");
     for m in scene.methods.iter_mut() {
         m.image = None;
         m.error_map = None;
+        m.difference_map = None;
+        m.values = None;
         m.relmse_se = None;
         m.bias2 = None;
         m.variance = None;
@@ -304,4 +312,149 @@ fn viewer_copes_with_minimal_results() {
         assert_shows(&dom, &format!("{sl}/{}/bias2", m.name), None);
     }
     assert!(dom.contains("No convergence data"));
+
+    // Results of a study by an older cvtrace: images and a convergence plot, but no linear
+    // values, no difference maps and no times per point.
+    let mut old = full.clone();
+    let scene = &mut old.scenes[0];
+    scene.reference.values = None;
+    scene.difference_scale = None;
+    for m in scene.methods.iter_mut() {
+        m.values = None;
+        m.difference_map = None;
+    }
+    scene.convergence = (1..=3)
+        .map(|k| cvtrace_eval::ConvergencePoint {
+            method: "pt".into(),
+            spp_total: 4 << k,
+            relmse: 1.0 / k as f64,
+            relmse_se: None,
+            seconds: None,
+        })
+        .collect();
+    let index = write_report(&old, &study, &dir.path().join("old"), &ReportOptions::default()).unwrap();
+    assert!(!dir.path().join("old/images").join(&sl).join("pixels.js").exists());
+    assert!(!dir.path().join(format!("old/plots/{sl}.time.svg")).exists());
+    let dom = chromium(&dir.path().join("profile-old"), &["--dump-dom".to_string()], &file_url(&index));
+    assert_eq!(attr(&dom, "<body", "data-ready").as_deref(), Some("1"), "viewer.js did not finish");
+    assert!(dom.contains("carry no linear values"), "the readout says why it shows only the position");
+    assert!(dom.contains("No times per point") && dom.contains("data-plot=\"spp\""), "the spp plot stays, the time plot is explained");
+    assert!(!dom.contains("grid diffs"), "no difference view without difference maps");
+}
+
+/// Drives the page as a user would, from a script loaded after viewer.js: points at pixel
+/// (`X`, `Y`) of the first scene's `ours` image (a pointer event at that pixel's centre), waits
+/// for the readout to fill, and clicks the relMSE header twice. What it saw goes into the body's
+/// data attributes, which `--dump-dom` prints.
+const DRIVER: &str = r#"
+"use strict";
+(function () {
+  const body = document.body;
+  const sec = document.querySelector("section.scene");
+  const vp = sec.querySelector('.grid.images .viewport[data-method="ours"]');
+  const scene = window.CVTRACE_DATA.results.scenes[0];
+  const r = vp.getBoundingClientRect();
+  const at = { clientX: r.left + (X + 0.5) / scene.width * r.width, clientY: r.top + (Y + 0.5) / scene.height * r.height, bubbles: true };
+  body.dataset.pixelsBefore = String(document.querySelectorAll('script[src*="pixels.js"]').length);
+  vp.dispatchEvent(new PointerEvent("pointermove", at));
+  const rows = () => [...sec.querySelectorAll("table.results:not(.readout-table):not(.settings) tbody tr.main")].map((tr) => tr.dataset.method).join(" ");
+  const th = [...sec.querySelectorAll("table.results:not(.readout-table) th")].find((h) => h.textContent === "relMSE");
+  th.click();
+  body.dataset.sortAsc = rows();
+  th.click();
+  body.dataset.sortDesc = rows();
+  let tries = 0;
+  (function wait() {
+    const cell = sec.querySelector('[data-key$="/pixel/ours/R"]');
+    if (cell && cell.hasAttribute("data-value")) { body.dataset.driver = "done"; body.dataset.pixel = sec.dataset.pixel; return; }
+    if (++tries > 200) { body.dataset.driver = "timeout"; return; }
+    setTimeout(wait, 20);
+  })();
+})();
+"#;
+
+#[test]
+fn viewer_pixel_readout_shows_the_exr_values_and_the_table_sorts() {
+    if !have_chromium() {
+        eprintln!("SKIPPED viewer_chromium: {CHROMIUM} not found.");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let study = dir.path().join("study");
+    let results = two_scene_study(&study);
+    let out = dir.path().join("report");
+    write_report(&results, &study, &out, &ReportOptions::default()).unwrap();
+    let scene = &results.scenes[0];
+    let sl = slug(&scene.name);
+    // Not symmetric, so swapped axes or a wrong row stride show other values.
+    let (x, y) = (61usize, 17usize);
+    assert!(x < scene.width && y < scene.height);
+    std::fs::write(
+        out.join("driver.js"),
+        DRIVER.replace("(X + 0.5)", &format!("({x} + 0.5)")).replace("(Y + 0.5)", &format!("({y} + 0.5)")),
+    )
+    .unwrap();
+    let html = std::fs::read_to_string(out.join("index.html")).unwrap();
+    std::fs::write(out.join("driver.html"), html.replace("</body>", "<script src=\"driver.js\"></script>\n</body>")).unwrap();
+    let dom = chromium(&dir.path().join("profile"), &["--dump-dom".to_string()], &file_url(&out.join("driver.html")));
+    assert_eq!(attr(&dom, "<body", "data-driver").as_deref(), Some("done"), "the readout never filled");
+    assert_eq!(attr(&dom, "<body", "data-pixels-before").as_deref(), Some("0"), "pixels.js loads on first use, not with the page");
+    assert_eq!(attr(&dom, "<body", "data-pixel"), Some(format!("{x},{y}")), "the pointer event hit another pixel");
+    let loaded = attr(&dom, "<body", "data-loaded").unwrap();
+    assert!(loaded.split_once('/').is_some_and(|(a, b)| a == b), "images loaded: {loaded}");
+
+    // 1. The readout shows every image's values at (x, y), exactly as the study's EXRs hold them.
+    let i = y * scene.width + x;
+    let mut images: Vec<(String, String)> = vec![("reference".into(), scene.reference.values.clone().unwrap())];
+    images.extend(scene.methods.iter().map(|m| (m.name.clone(), m.values.clone().unwrap())));
+    let mut distinct = std::collections::HashSet::new();
+    for (key, file) in &images {
+        let exr = cvtrace_streams::exr_io::ExrChannels::read(&study.join(file)).unwrap();
+        let mut channels = vec![("R", "R"), ("G", "G"), ("B", "B")];
+        if key != "reference" {
+            channels.push(("relmse", "relmse"));
+        }
+        for (shown_as, channel) in channels {
+            let want = exr.channels[channel][i];
+            let k = format!("{sl}/pixel/{key}/{shown_as}");
+            let got = attr(&dom, &format!("data-key=\"{k}\""), "data-value").unwrap_or_else(|| panic!("{k} has no value"));
+            let got: f64 = got.parse().unwrap();
+            assert_eq!(got as f32, want, "{k}: the page shows {got}, the EXR has {want}");
+            assert_eq!(got, want as f64, "{k}: not an f32 value");
+            assert_shows(&dom, &k, Some(want as f64));
+            distinct.insert(want.to_bits());
+        }
+        // The reference has no relMSE of its own.
+        if key == "reference" {
+            assert_eq!(cell(&dom, &format!("{sl}/pixel/reference/relmse")).as_deref(), Some("–"));
+        }
+    }
+    assert!(distinct.len() > images.len(), "the images should differ at the pixel, or the check proves little");
+
+    // 2. Sorting: the first click on relMSE orders the main methods ascending, the second reverses.
+    let mut main: Vec<_> = scene.methods.iter().filter(|m| !m.ablation).collect();
+    main.sort_by(|a, b| a.relmse_mean.total_cmp(&b.relmse_mean));
+    let asc: Vec<&str> = main.iter().map(|m| m.name.as_str()).collect();
+    assert_eq!(attr(&dom, "<body", "data-sort-asc").unwrap(), asc.join(" "));
+    let desc: Vec<&str> = asc.iter().rev().copied().collect();
+    assert_eq!(attr(&dom, "<body", "data-sort-desc").unwrap(), desc.join(" "));
+
+    // 3. relMSE against time beside relMSE against spp, for every scene.
+    for s in &results.scenes {
+        let sl = slug(&s.name);
+        let plot = format!("plots/{sl}.time.svg");
+        assert!(dom.contains(&format!("src=\"{plot}\"")) && dom.contains("data-plot=\"time\""), "no time plot for {sl}");
+        let svg = std::fs::read_to_string(out.join(&plot)).unwrap();
+        assert!(svg.contains("relMSE vs time") && svg.contains("seconds per image"), "{plot}");
+    }
+
+    // 4. The signed difference view: one map per main method, and its legend's symmetric scale.
+    let diffs = scene.methods.iter().filter(|m| !m.ablation).count();
+    let grid = &dom[dom.find("class=\"grid diffs\"").expect("no difference grid")..];
+    let grid = &grid[..grid.find("</section>").unwrap_or(grid.len())];
+    assert_eq!(grid.matches("data-kind=\"diff\"").count(), diffs, "difference maps");
+    let max = scene.difference_scale.as_ref().unwrap().max_abs;
+    assert_shows(&dom, &format!("{sl}/difference/max"), Some(max));
+    assert_shows(&dom, &format!("{sl}/difference/min"), Some(-max));
+    assert!(dom.contains("src=\"colorbar-diff.png\""));
 }

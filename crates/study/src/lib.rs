@@ -3,7 +3,8 @@
 //! column (the registered estimators, the PT(2n) image, the declared ablation variants)
 //! scored against the reference — relMSE mean ± standard error, bias² and variance over seeds,
 //! time per stage, diagnostics — then `results.json`, `results.csv` and the PNGs of the first
-//! seed with false-colour error maps.
+//! seed with false-colour error and signed difference maps, and the linear values behind them
+//! (`<column>.values.exr`, `reference.values.exr`) for the viewer's pixel readout.
 //!
 //! A source is anything that makes stream sets and PT images: the real renderer (the `cvtrace`
 //! package's render session, which also reuses finished files) or [`SyntheticSource`], the
@@ -18,7 +19,9 @@ mod synthetic;
 pub use columns::{columns, headline, Column, ColumnKind, PT_2N_COLOUR};
 pub use synthetic::SyntheticSource;
 
+use cvtrace_eval::difference::{scale_for_differences, signed_difference, write_difference_png};
 use cvtrace_eval::falsecolor::{scale_for_maps, write_false_color_png};
+use cvtrace_eval::pixels::write_values_exr;
 use cvtrace_eval::reference_noise::{from_variance_image, too_noisy_warning};
 use cvtrace_eval::results::{ConvergencePoint, ReferenceInfo, SceneResult, StageTimes, StudyResults};
 use cvtrace_eval::{table, EvalError, Reference, SeedAccumulator};
@@ -116,7 +119,7 @@ impl Study<'_> {
         for (si, &n) in self.spps.iter().enumerate() {
             let last = si + 1 == self.spps.len();
             let r = self.run_spp(source, reference, n, last)?;
-            for (c, acc) in self.columns.iter().zip(&r.accs) {
+            for ((c, acc), t) in self.columns.iter().zip(&r.accs).zip(&r.times) {
                 if c.base.is_some() {
                     continue;
                 }
@@ -126,6 +129,7 @@ impl Study<'_> {
                     spp_total: c.samples.total(n),
                     relmse: s.relmse_mean,
                     relmse_se: s.relmse_se,
+                    seconds: Some(t.total()),
                 });
             }
             if last {
@@ -135,9 +139,12 @@ impl Study<'_> {
         let main = main.ok_or_else(|| StudyError::Invalid("a study needs at least one spp value".into()))?;
         let n = *self.spps.last().expect("main is set, so there is an spp value");
 
-        // Images of the first seed and false-colour maps of the mean relMSE over seeds.
+        // Images of the first seed, false-colour maps of the mean relMSE over seeds and of the
+        // first seed's signed difference, and the linear values behind them for the viewer.
         let maps: Vec<Vec<f32>> = main.accs.iter().map(|a| a.mean_rel_mse_map()).collect();
         let scale = scale_for_maps(&maps.iter().map(|m| m.as_slice()).collect::<Vec<_>>());
+        let diffs = main.first_images.iter().map(|img| signed_difference(img, &reference.image)).collect::<Result<Vec<_>, _>>()?;
+        let diff_scale = scale_for_differences(&diffs.iter().map(|m| m.as_slice()).collect::<Vec<_>>());
         let mut methods = Vec::new();
         for (i, c) in self.columns.iter().enumerate() {
             let stats = main.accs[i].finish()?;
@@ -150,9 +157,16 @@ impl Study<'_> {
             let map = format!("{}.relmse.png", c.key);
             write_false_color_png(&out.join(&map), &maps[i], reference.width(), reference.height(), &scale, true)?;
             m.error_map = Some(map);
+            let diff = format!("{}.diff.png", c.key);
+            write_difference_png(&out.join(&diff), &diffs[i], reference.width(), reference.height(), &diff_scale, true)?;
+            m.difference_map = Some(diff);
+            let values = format!("{}.values.exr", c.key);
+            write_values_exr(&out.join(&values), &main.first_images[i], Some(&maps[i]), true)?;
+            m.values = Some(values);
             methods.push(m);
         }
         write_png(&out.join("reference.png"), &reference.image, 0.0, true)?;
+        write_values_exr(&out.join("reference.values.exr"), &reference.image, None, true)?;
 
         // The reference's own noise, from the PT streams' batch variance scaled to its spp.
         let noise = match (scene.reference.spp, &main.pt_variance) {
@@ -169,10 +183,16 @@ impl Study<'_> {
             height: reference.height(),
             spp_per_stream: n,
             seeds: self.seeds,
-            reference: ReferenceInfo { image: Some("reference.png".into()), noise, ..scene.reference },
+            reference: ReferenceInfo {
+                image: Some("reference.png".into()),
+                values: Some("reference.values.exr".into()),
+                noise,
+                ..scene.reference
+            },
             methods,
             convergence: if self.spps.len() > 1 { convergence } else { Vec::new() },
             error_map_scale: Some(scale),
+            difference_scale: Some(diff_scale),
             warnings: Vec::new(),
             headline: self.headline.clone(),
             render: scene.render,

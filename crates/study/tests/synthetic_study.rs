@@ -17,7 +17,7 @@ fn a_study_of_the_synthetic_scene_scores_every_estimator() {
     let reference = Reference::new(source.reference(), "exact".to_string()).unwrap();
     let info = SceneInfo {
         name: "soft shadow".into(),
-        reference: ReferenceInfo { path: "synthetic".into(), spp: None, image: None, noise: None },
+        reference: ReferenceInfo { path: "synthetic".into(), spp: None, image: None, noise: None, values: None },
         render: vec![("scene".into(), "synthetic".into())],
     };
     let results = study.run(&mut source, &reference, info, dir.path()).unwrap();
