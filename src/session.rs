@@ -10,10 +10,10 @@
 use crate::embree::{set_flush_denormals, BuildOptions, Device, EmbreeError, EmbreeScene};
 use crate::throughput::PhaseClock;
 use cvtrace_render::checkpoint::{self, checkpoint_path};
-use cvtrace_render::part::{write_reference, write_reference_part, write_stream_file, PartError, PartSpec};
+use cvtrace_render::part::{write_reference, write_reference_part, PartError, PartSpec};
+use cvtrace_render::stream_file::{render_to_file, Written};
 use cvtrace_render::{
-    render_reference_pass, render_stream_part, Camera, Define, ReferenceAccum, RenderDefaults, RenderError, RenderSettings, Scene,
-    SceneError,
+    render_reference_pass, Camera, Define, ReferenceAccum, RenderDefaults, RenderError, RenderSettings, Scene, SceneError, StreamRender,
 };
 use cvtrace_streams::atomic::{check_extension, check_writable};
 use cvtrace_streams::output_lock::{lock_path_for, OutputLock};
@@ -377,21 +377,17 @@ impl RenderSession {
         );
         progress.start(total, 0);
         let clock = PhaseClock::start();
-        let result = engine.pool.install(|| render_stream_part(&self.scene, &engine.tracer, s, batches, &|k| progress.advance(k)));
-        progress.finish();
-        let part = result?;
-        clock.log_rate("render", total);
         let scene = self.path.to_string_lossy().into_owned();
-        let t = Instant::now();
-        match job.part {
-            Some(spec) => part.write(&job.output, &plan.provenance, &scene, spec, job.overwrite)?,
-            None => {
-                let mut set = part.into_stream_set(s.seed, s.max_depth).expect("a render of every batch");
-                set.meta.scene = scene;
-                write_stream_file(&job.output, &set, &plan.provenance, job.overwrite)?;
-            }
-        }
-        tracing::info!("wrote {} in {:.1} ms", job.output.display(), ms(t));
+        // Rendered straight into the file, band by band: the image is never held whole.
+        let result = engine.pool.install(|| -> Result<Written, SessionError> {
+            let render = StreamRender::new(&self.scene, &engine.tracer, s, batches)?;
+            Ok(render_to_file(&render, &job.output, &plan.provenance, &scene, job.part, job.overwrite, &|k| progress.advance(k))?)
+        });
+        progress.finish();
+        let written = result?;
+        // The phase includes compressing the file, which runs alongside the rendering.
+        clock.log_rate("render and write", total);
+        tracing::info!("wrote {} while rendering; {:.1} ms after the last sample", job.output.display(), written.tail.as_secs_f64() * 1e3);
         Ok(())
     }
 

@@ -174,6 +174,11 @@ impl StreamPart {
 
     /// Writes the part to `path` atomically with the whole render's `provenance`.
     pub fn write(&self, path: &Path, provenance: &Provenance, scene: &str, of: PartSpec, overwrite: bool) -> Result<(), StreamError> {
+        self.to_exr(provenance, scene, of).write(path, overwrite)
+    }
+
+    /// The part file's channels and header.
+    pub fn to_exr(&self, provenance: &Provenance, scene: &str, of: PartSpec) -> ExrChannels {
         let mut ch = ExrChannels::new(self.width, self.height);
         for (name, batches) in [("pt", &self.pt), ("crn", &self.crn)] {
             for (b, im) in self.range.clone().zip(batches) {
@@ -194,7 +199,7 @@ impl StreamPart {
         a.insert(ATTR_OF.into(), AttrValue::Text(of.to_string()));
         a.insert(ATTR_SCENE.into(), AttrValue::Text(scene.into()));
         a.insert(ATTR_NON_FINITE.into(), AttrValue::Text(self.non_finite.to_string()));
-        ch.write(path, overwrite)
+        ch
     }
 
     /// Reads the part at `path` whose header `header` was read already.
@@ -233,9 +238,14 @@ impl StreamPart {
 /// Writes the stream file of `set` with `provenance`: what a one-shot render and a merge both
 /// write, so the two are the same bytes.
 pub fn write_stream_file(path: &Path, set: &StreamSet, provenance: &Provenance, overwrite: bool) -> Result<(), StreamError> {
+    stream_file_exr(path, set, provenance)?.write(path, overwrite)
+}
+
+/// The channels and header [`write_stream_file`] writes (`path` names the file in errors).
+pub fn stream_file_exr(path: &Path, set: &StreamSet, provenance: &Provenance) -> Result<ExrChannels, StreamError> {
     let mut file = set.to_exr(path)?;
     provenance.write_to(&mut file.attributes);
-    file.write(path, overwrite)
+    Ok(file)
 }
 
 /// Writes the finished reference of `accum` (samples `0..accum.samples_done`): what a

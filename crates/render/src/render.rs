@@ -7,7 +7,7 @@
 //! pixel it was taken in.
 use crate::camera::CameraFrame;
 use crate::exact;
-use crate::film::{tiles, Tile, TileResult, TileStream};
+use crate::film::{tiles, Tile, TileResult, TileStream, TILE_SIZE};
 use crate::integrator::{radiance_from_hit, FirstHit, PathLimits};
 use crate::intersect::{Hit, Intersector, Ray};
 use crate::part::{StreamPart, StreamSums};
@@ -102,13 +102,14 @@ impl RenderSettings {
         Ok(())
     }
 
-    /// About the peak memory in bytes of a stream render of these settings: per pixel and RGB
-    /// image (2 × (batches + 1) of them plus the features), the tiles' results, the assembled
-    /// images and the EXR planes written from them, measured at 45–52 bytes; plus the exact
-    /// sums (13 i128 per pixel, in the tiles and in the image) and, for a part file, their
-    /// 104 planes and the writer's copy of them.
+    /// About the peak memory in bytes of a stream render of these settings, which goes into
+    /// its file band by band ([`crate::stream_file`]): per pixel of a band (a row of tiles),
+    /// its tile results, images, sums and file channels, measured as for the whole image at
+    /// 45–52 bytes per pixel and RGB image plus the sums and, for a part, their 104 planes;
+    /// for three bands (one compressing while the next renders, and the compressed blocks).
     pub fn stream_memory_estimate(&self) -> u64 {
-        self.width as u64 * self.height as u64 * ((2 * (self.batches as u64 + 1) + 2) * 54 + 13 * 16 * 2 + 104 * 4 * 2)
+        let band = self.width as u64 * TILE_SIZE as u64;
+        3 * band * ((2 * (self.batches as u64 + 1) + 2) * 54 + 13 * 16 * 2 + 104 * 4 * 2)
     }
 
     /// About the peak memory in bytes of a reference render: per pixel the sums, the mean and
@@ -231,19 +232,107 @@ pub fn render_stream_part<T: Intersector>(
     batches: Range<u32>,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<StreamPart, RenderError> {
-    settings.validate()?;
-    if batches.is_empty() || batches.end > settings.batches {
-        return Err(RenderError::InvalidSettings(format!("batches {batches:?} are not a range of the {} batches", settings.batches)));
+    let render = StreamRender::new(scene, tracer, settings, batches)?;
+    // All rows at once: one parallel loop over every tile, with no wait at the end of each band.
+    let whole = render.render_band(0..settings.height as usize, progress);
+    if whole.non_finite > 0 {
+        tracing::warn!("{} samples were NaN or infinite and were replaced by zero", whole.non_finite);
     }
-    let ctx = context(scene, tracer, settings)?;
-    let pt = StreamSampler::new(settings.seed, StreamKind::Pt);
-    let crn = StreamSampler::new(settings.seed, StreamKind::Crn);
-    let (spp, nb) = (settings.spp, batches.len());
-    let per_batch = spp / settings.batches;
-    let samples = batches.start * per_batch..batches.end * per_batch;
-    let batch_of = |s: u32| ((s - samples.start) / per_batch) as usize;
+    Ok(whole)
+}
 
-    let render_tile = |tile: &Tile| -> TileResult {
+/// A stream render of some batches, one band of rows at a time: a band is one row of tiles,
+/// full width, and what it gives is final (every sample of its pixels), so a writer can store
+/// it and drop it before the next band is rendered.
+pub struct StreamRender<'a, T: Intersector> {
+    ctx: Context<'a, T>,
+    pt: StreamSampler,
+    crn: StreamSampler,
+    settings: RenderSettings,
+    batches: Range<u32>,
+}
+
+impl<'a, T: Intersector> StreamRender<'a, T> {
+    pub fn new(scene: &'a Scene, tracer: &'a T, settings: &RenderSettings, batches: Range<u32>) -> Result<Self, RenderError> {
+        settings.validate()?;
+        if batches.is_empty() || batches.end > settings.batches {
+            return Err(RenderError::InvalidSettings(format!("batches {batches:?} are not a range of the {} batches", settings.batches)));
+        }
+        Ok(StreamRender {
+            ctx: context(scene, tracer, settings)?,
+            pt: StreamSampler::new(settings.seed, StreamKind::Pt),
+            crn: StreamSampler::new(settings.seed, StreamKind::Crn),
+            settings: settings.clone(),
+            batches,
+        })
+    }
+
+    pub fn settings(&self) -> &RenderSettings {
+        &self.settings
+    }
+
+    /// The bands' rows, top to bottom: [`TILE_SIZE`] rows each (the last may be fewer).
+    pub fn bands(&self) -> impl Iterator<Item = Range<usize>> {
+        let (h, t) = (self.settings.height as usize, TILE_SIZE as usize);
+        (0..h).step_by(t).map(move |y| y..(y + t).min(h))
+    }
+
+    /// Renders rows `rows` (one of [`StreamRender::bands`], or several in a row) in parallel
+    /// over their tiles: a part of the rows' height whose pixels are theirs, row-major.
+    /// `progress(k)`: `k` more pixel-samples done.
+    pub fn render_band(&self, rows: Range<usize>, progress: &(dyn Fn(u64) + Sync)) -> StreamPart {
+        let settings = &self.settings;
+        assert!(rows.start.is_multiple_of(TILE_SIZE as usize), "rows {rows:?} do not start a row of tiles");
+        let (w, band_h) = (settings.width as usize, rows.len());
+        let y0 = rows.start as u32;
+        let band_tiles: Vec<Tile> = (rows.start as u32..rows.end as u32)
+            .step_by(TILE_SIZE as usize)
+            .flat_map(|ty| {
+                let h = TILE_SIZE.min(rows.end as u32 - ty);
+                (0..settings.width).step_by(TILE_SIZE as usize).map(move |x0| Tile { x0, y0: ty, w: TILE_SIZE.min(settings.width - x0), h })
+            })
+            .collect();
+        let results: Vec<TileResult> = band_tiles.par_iter().map(|t| self.render_tile(t, progress)).collect();
+        let nb = self.batches.len();
+        let blank = || Image::new(w, band_h);
+        let mut pt_batches: Vec<Image> = (0..nb).map(|_| blank()).collect();
+        let mut crn_batches: Vec<Image> = (0..nb).map(|_| blank()).collect();
+        let mut sums = StreamSums::zero(w * band_h);
+        let mut non_finite = 0u64;
+        for r in &results {
+            non_finite += r.non_finite;
+            for (i, (x, y)) in r.tile.pixels().enumerate() {
+                let p = (y - y0) as usize * w + x as usize;
+                sums.pt[p] = r.pt.sum[i];
+                sums.crn[p] = r.crn.sum[i];
+                for b in 0..nb {
+                    pt_batches[b].pixels[p] = r.pt.batches[b][i];
+                    crn_batches[b].pixels[p] = r.crn.batches[b][i];
+                }
+                sums.albedo[p] = r.albedo[i];
+                sums.normal[p] = r.normal[i];
+                sums.depth[p] = r.depth[i];
+            }
+        }
+        StreamPart {
+            width: w,
+            height: band_h,
+            spp: settings.spp,
+            batches: settings.batches,
+            range: self.batches.clone(),
+            pt: pt_batches,
+            crn: crn_batches,
+            sums,
+            non_finite,
+        }
+    }
+
+    fn render_tile(&self, tile: &Tile, progress: &(dyn Fn(u64) + Sync)) -> TileResult {
+        let (ctx, pt, crn) = (&self.ctx, &self.pt, &self.crn);
+        let nb = self.batches.len();
+        let per_batch = self.settings.spp / self.settings.batches;
+        let samples = self.batches.start * per_batch..self.batches.end * per_batch;
+        let batch_of = |s: u32| ((s - samples.start) / per_batch) as usize;
         let n = tile.pixel_count();
         let mut r = TileResult {
             tile: *tile,
@@ -264,7 +353,7 @@ pub fn render_stream_part<T: Intersector>(
         // PT with features.
         r.pt.sum = vec![[0; 3]; n];
         for s in samples.clone() {
-            ctx.tile_samples(&pt, tile, s..s + 1, true, |i, _, v, bad, fh| {
+            ctx.tile_samples(pt, tile, s..s + 1, true, |i, _, v, bad, fh| {
                 r.non_finite += bad as u64;
                 exact::add3(&mut r.pt.sum[i], exact::fixed3(v.to_array()));
                 batch[i] += v.as_dvec3();
@@ -279,7 +368,7 @@ pub fn render_stream_part<T: Intersector>(
         // CRN.
         r.crn.sum = vec![[0; 3]; n];
         for s in samples.clone() {
-            ctx.tile_samples(&crn, tile, s..s + 1, false, |i, _, v, bad, _| {
+            ctx.tile_samples(crn, tile, s..s + 1, false, |i, _, v, bad, _| {
                 r.non_finite += bad as u64;
                 exact::add3(&mut r.crn.sum[i], exact::fixed3(v.to_array()));
                 batch[i] += v.as_dvec3();
@@ -290,45 +379,7 @@ pub fn render_stream_part<T: Intersector>(
         }
         progress(n as u64 * samples.len() as u64 * 2);
         r
-    };
-    let results: Vec<TileResult> = tiles(settings.width, settings.height).par_iter().map(render_tile).collect();
-
-    let (w, h) = (settings.width as usize, settings.height as usize);
-    let blank = || Image::new(w, h);
-    let mut pt_batches: Vec<Image> = (0..nb).map(|_| blank()).collect();
-    let mut crn_batches: Vec<Image> = (0..nb).map(|_| blank()).collect();
-    let mut sums = StreamSums::zero(w * h);
-    let mut non_finite = 0u64;
-    for r in &results {
-        let tile = r.tile;
-        non_finite += r.non_finite;
-        for (i, (x, y)) in tile.pixels().enumerate() {
-            let p = y as usize * w + x as usize;
-            sums.pt[p] = r.pt.sum[i];
-            sums.crn[p] = r.crn.sum[i];
-            for b in 0..nb {
-                pt_batches[b].pixels[p] = r.pt.batches[b][i];
-                crn_batches[b].pixels[p] = r.crn.batches[b][i];
-            }
-            sums.albedo[p] = r.albedo[i];
-            sums.normal[p] = r.normal[i];
-            sums.depth[p] = r.depth[i];
-        }
     }
-    if non_finite > 0 {
-        tracing::warn!("{non_finite} samples were NaN or infinite and were replaced by zero");
-    }
-    Ok(StreamPart {
-        width: w,
-        height: h,
-        spp,
-        batches: settings.batches,
-        range: batches,
-        pt: pt_batches,
-        crn: crn_batches,
-        sums,
-        non_finite,
-    })
 }
 
 /// Running sums of a progressive PT reference render, or of one part of it: samples

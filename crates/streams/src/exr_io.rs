@@ -1,11 +1,8 @@
 //! Flat f32 multi-channel OpenEXR read/write: the one place that talks to the `exr` crate.
-use crate::atomic::write_atomically;
+use crate::block_writer::{write_by_blocks, ExrLayout, Late, ROWS_PER_BLOCK};
 use crate::input_file::NotAFile;
 use crate::StreamError;
-use exr::prelude::{
-    read, AnyChannel, AnyChannels, AttributeValue, Blocks, Compression, Encoding, FlatSamples, Layer, LayerAttributes, LineOrder,
-    ReadChannels, ReadLayers, SmallVec, Text, WritableImage,
-};
+use exr::prelude::{read, AttributeValue, FlatSamples, ReadChannels, ReadLayers, Text};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
@@ -93,11 +90,17 @@ impl ExrChannels {
         if image.layer_data.len() != 1 {
             return Err(StreamError::invalid(path, format!("expected a single-part EXR, found {} parts", image.layer_data.len())));
         }
-        let layer = &image.layer_data[0];
+        let layer = image.layer_data.into_iter().next().expect("one layer");
         let (width, height) = (layer.size.width(), layer.size.height());
         let mut out = ExrChannels::new(width, height);
+        let attrs = || image.attributes.other.iter().chain(layer.attributes.other.iter());
+        out.attributes = custom_attributes(attrs());
+        out.other_attributes = attrs()
+            .filter(|(k, _)| !out.attributes.contains_key(&k.to_string()))
+            .map(|(k, v)| (k.to_string(), String::from_utf8_lossy(v.kind_name()).into_owned()))
+            .collect();
         let prefix = layer.attributes.layer_name.as_ref().map(|n| format!("{n}."));
-        for ch in &layer.channel_data.list {
+        for ch in layer.channel_data.list {
             let mut name = ch.name.to_string();
             if let Some(p) = &prefix {
                 // A named single layer whose channels are bare (`R` in layer `pt`): give them
@@ -107,18 +110,17 @@ impl ExrChannels {
                     name = format!("{p}{name}");
                 }
             }
-            if matches!(ch.sample_data, FlatSamples::U32(_)) {
-                out.integer_channels.insert(name.clone());
-            }
-            let plane: Vec<f32> = ch.sample_data.values_as_f32().collect();
+            // f32 planes (what cvtrace writes) are moved, not copied.
+            let plane: Vec<f32> = match ch.sample_data {
+                FlatSamples::F32(v) => v,
+                FlatSamples::U32(v) => {
+                    out.integer_channels.insert(name.clone());
+                    v.into_iter().map(|x| x as f32).collect()
+                }
+                other => other.values_as_f32().collect(),
+            };
             out.channels.insert(name, plane);
         }
-        let attrs = || image.attributes.other.iter().chain(layer.attributes.other.iter());
-        out.attributes = custom_attributes(attrs());
-        out.other_attributes = attrs()
-            .filter(|(k, _)| !out.attributes.contains_key(&k.to_string()))
-            .map(|(k, v)| (k.to_string(), String::from_utf8_lossy(v.kind_name()).into_owned()))
-            .collect();
         Ok(out)
     }
 
@@ -259,77 +261,23 @@ fn custom_attributes<'a>(attrs: impl Iterator<Item = (&'a Text, &'a AttributeVal
 }
 
 impl ExrChannels {
-    /// Writes a single-part, ZIP-compressed, f32 scanline EXR atomically.
+    /// Writes a single-part, ZIP-compressed, f32 scanline EXR atomically, block by block from
+    /// the planes (no copy of them is made).
     pub fn write(&self, path: &Path, overwrite: bool) -> Result<(), StreamError> {
-        crate::atomic::check_extension(path, "exr")?;
-        let size = (self.width, self.height);
-        let list: SmallVec<[AnyChannel<FlatSamples>; 4]> =
-            self.channels.iter().map(|(name, plane)| AnyChannel::new(name.as_str(), FlatSamples::F32(plane.clone()))).collect();
-        let channels = AnyChannels::sort(list);
-        let mut attributes = LayerAttributes::default();
-        for (k, v) in &self.attributes {
-            let value = match v {
-                AttrValue::Int(i) => AttributeValue::I32(*i),
-                AttrValue::Float(f) => AttributeValue::F32(*f),
-                // UTF-8 bytes: the exr crate only builds Latin-1 text (it panics on anything
-                // else, such as a scene path in Chinese), while OpenEXR strings are plain bytes
-                // that OpenImageIO reads as UTF-8.
-                AttrValue::Text(s) => AttributeValue::Text(Text::from_slice_unchecked(s.as_bytes())),
-            };
-            attributes.other.insert(Text::new_or_panic(k.as_str()), value);
-        }
-        let encoding = Encoding { compression: Compression::ZIP16, blocks: Blocks::ScanLines, line_order: LineOrder::Increasing };
-        let layer = Layer::new(size, attributes, encoding, channels);
-        let image = exr::image::Image::from_layer(layer);
-        write_atomically(path, overwrite, |tmp| -> Result<(), String> {
-            image.write().to_file(tmp).map_err(|e| e.to_string())?;
-            sort_header_attributes(tmp).map_err(|e| e.to_string())
+        let layout = ExrLayout::new(self.width, self.height, self.channels.keys().cloned(), self.attributes.clone());
+        // `layout.channels` is sorted as the map's keys are.
+        let planes: Vec<&[f32]> = self.channels.values().map(Vec::as_slice).collect();
+        let w = self.width;
+        let fill = |c: usize, y: usize, out: &mut [f32]| out.copy_from_slice(&planes[c][y * w..(y + 1) * w]);
+        write_by_blocks(path, overwrite, &layout, |sink| -> Result<Late, StreamError> {
+            // A few blocks per thread at a time: parallel, and never more than those compressed.
+            let step = ROWS_PER_BLOCK * (4 * rayon::current_num_threads()).max(8);
+            for y0 in (0..self.height).step_by(step) {
+                sink.put(y0..(y0 + step).min(self.height), &fill)?;
+            }
+            Ok(Late::new())
         })
     }
-}
-
-/// Rewrites the header of a single-part EXR with its attributes sorted by name.
-///
-/// The `exr` crate keeps custom attributes in a `HashMap`, so their order in the file (not
-/// their values) changes from run to run. OpenEXR readers look attributes up by name, so the
-/// order is free; sorting it makes equal images give byte-identical files. The header keeps
-/// its length, so the chunk offsets after it stay valid.
-fn sort_header_attributes(path: &Path) -> std::io::Result<()> {
-    use std::io::{Read, Seek, SeekFrom, Write};
-    let bad = |m: &str| std::io::Error::new(std::io::ErrorKind::InvalidData, m.to_string());
-    let mut file = std::fs::OpenOptions::new().read(true).write(true).open(path)?;
-    let mut head = Vec::new();
-    Read::by_ref(&mut file).take(1 << 20).read_to_end(&mut head)?;
-    if head.len() < 8 || head[..4] != [0x76, 0x2f, 0x31, 0x01] {
-        return Err(bad("not an OpenEXR file"));
-    }
-    if head[5] & 0x10 != 0 {
-        return Err(bad("multi-part files are not sorted"));
-    }
-    let cstr_end = |from: usize| head[from..].iter().position(|&b| b == 0).map(|i| from + i);
-    let mut attributes: Vec<&[u8]> = Vec::new();
-    let mut at = 8;
-    loop {
-        let name_end = cstr_end(at).ok_or_else(|| bad("header runs past 1 MiB"))?;
-        if name_end == at {
-            break; // the empty name that ends the header
-        }
-        let type_end = cstr_end(name_end + 1).ok_or_else(|| bad("truncated attribute type"))?;
-        let size_at = type_end + 1;
-        let size_bytes: [u8; 4] = head.get(size_at..size_at + 4).ok_or_else(|| bad("truncated attribute size"))?.try_into().unwrap();
-        let end = size_at + 4 + i32::from_le_bytes(size_bytes).max(0) as usize;
-        if end > head.len() {
-            return Err(bad("truncated attribute value"));
-        }
-        attributes.push(&head[at..end]);
-        at = end;
-    }
-    // Sort by name (the bytes up to the first NUL).
-    attributes.sort_by(|a, b| a.split(|&c| c == 0).next().cmp(&b.split(|&c| c == 0).next()));
-    let sorted: Vec<u8> = attributes.concat();
-    debug_assert_eq!(sorted.len(), at - 8);
-    file.seek(SeekFrom::Start(8))?;
-    file.write_all(&sorted)
 }
 
 /// Reads an RGB image (a reference, a reconstruction) from its channels `R/G/B`. A stream
@@ -384,6 +332,7 @@ pub fn write_rgb(path: &Path, img: &crate::Image, attributes: &[(&str, AttrValue
 #[cfg(test)]
 mod tests {
     use super::*;
+    use exr::prelude::{AnyChannel, AnyChannels, Encoding, Layer, LayerAttributes, SmallVec, WritableImage};
 
     #[test]
     fn a_named_part_keeps_dotted_channel_names_and_completes_bare_ones() {

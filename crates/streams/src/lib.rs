@@ -9,6 +9,7 @@
 //! reconstruction stage can read them.
 
 pub mod atomic;
+pub mod block_writer;
 pub mod error;
 pub mod exr_io;
 pub mod iduw_layout;
