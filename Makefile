@@ -12,7 +12,7 @@ REF_SPP ?= 4096
 # is a reference of the same image), else one rendered once into $(OUT).
 REF    ?= $(or $(wildcard $(dir $(SCENE))scene.ref.exr),$(OUT)/reference.exr)
 
-.PHONY: setup build install demo study test test-debian13 bench compare-mitsuba clean-demo
+.PHONY: setup build install demo study test fuzz-smoke test-debian13 bench compare-mitsuba clean-demo
 
 setup:
 	@bash scripts/setup.sh
@@ -44,6 +44,11 @@ test: setup
 	$(CARGO) fmt --all --check
 	$(CARGO) clippy --workspace --all-targets --locked -- -D warnings
 	CVTRACE_REQUIRE_TOOLS=1 $(CARGO) test --workspace --locked
+
+# Every committed fuzz corpus file and crash regression through every fuzz target (docs/fuzzing.md),
+# as a normal stable test: no nightly, no cargo-fuzz. `make test` runs it too, with the workspace.
+fuzz-smoke:
+	$(CARGO) test -p cvtrace-fuzz-targets --locked
 
 # The same tests inside a Debian 13 root (debootstrap; needs root and deb.debian.org), where
 # Debian's Embree is 4.x: checks the Embree 4 side of build.rs and the shim. Not part of CI.

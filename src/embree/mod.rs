@@ -65,10 +65,13 @@ struct ErrorSink {
 
 /// Called by Embree on any API error. It must not unwind into C, so it only logs and records.
 unsafe extern "C" fn on_embree_error(user: *mut c_void, code: ffi::RTCError, text: *const c_char) {
-    let detail = if text.is_null() { String::new() } else { CStr::from_ptr(text).to_string_lossy().into_owned() };
+    // SAFETY: Embree passes a NUL-terminated message (or null) valid for this call.
+    let detail = if text.is_null() { String::new() } else { unsafe { CStr::from_ptr(text) }.to_string_lossy().into_owned() };
     let message = format!("{} ({detail})", error_name(code));
     tracing::error!("Embree: {message}");
-    if let Some(sink) = (user as *const ErrorSink).as_ref() {
+    // SAFETY: `user` is the `ErrorSink` the device was created with (or null), and it outlives
+    // the device.
+    if let Some(sink) = unsafe { (user as *const ErrorSink).as_ref() } {
         if let Ok(mut slot) = sink.message.lock() {
             slot.get_or_insert(message);
         }

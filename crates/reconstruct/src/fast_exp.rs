@@ -30,21 +30,25 @@ pub fn exp_neg(x: f32) -> f32 {
 #[inline(always)]
 pub unsafe fn exp_neg8_avx2(x: std::arch::x86_64::__m256) -> std::arch::x86_64::__m256 {
     use std::arch::x86_64::*;
-    const ROUND: f32 = 12_582_912.0;
-    let c = |v: f32| _mm256_set1_ps(v);
-    let x = _mm256_max_ps(_mm256_min_ps(x, c(0.0)), c(-87.0));
-    let kf = _mm256_add_ps(_mm256_mul_ps(x, c(std::f32::consts::LOG2_E)), c(ROUND));
-    let n = _mm256_sub_ps(kf, c(ROUND));
-    let r = _mm256_sub_ps(_mm256_sub_ps(x, _mm256_mul_ps(n, c(0.693_145_75))), _mm256_mul_ps(n, c(1.428_606_8e-6)));
-    let mut p = _mm256_add_ps(c(0.008_333_452), _mm256_mul_ps(r, c(0.001_388_720_5)));
-    for k in [0.041_666_668, 0.166_666_67, 0.5, 1.0, 1.0] {
-        p = _mm256_add_ps(c(k), _mm256_mul_ps(r, p));
+    // SAFETY: the caller guarantees AVX2 (this function's contract); the intrinsics only
+    // compute on values, with no memory access.
+    unsafe {
+        const ROUND: f32 = 12_582_912.0;
+        let c = |v: f32| _mm256_set1_ps(v);
+        let x = _mm256_max_ps(_mm256_min_ps(x, c(0.0)), c(-87.0));
+        let kf = _mm256_add_ps(_mm256_mul_ps(x, c(std::f32::consts::LOG2_E)), c(ROUND));
+        let n = _mm256_sub_ps(kf, c(ROUND));
+        let r = _mm256_sub_ps(_mm256_sub_ps(x, _mm256_mul_ps(n, c(0.693_145_75))), _mm256_mul_ps(n, c(1.428_606_8e-6)));
+        let mut p = _mm256_add_ps(c(0.008_333_452), _mm256_mul_ps(r, c(0.001_388_720_5)));
+        for k in [0.041_666_668, 0.166_666_67, 0.5, 1.0, 1.0] {
+            p = _mm256_add_ps(c(k), _mm256_mul_ps(r, p));
+        }
+        let bits = _mm256_slli_epi32::<23>(_mm256_add_epi32(
+            _mm256_sub_epi32(_mm256_castps_si256(kf), _mm256_set1_epi32(ROUND.to_bits() as i32)),
+            _mm256_set1_epi32(127),
+        ));
+        _mm256_mul_ps(p, _mm256_castsi256_ps(bits))
     }
-    let bits = _mm256_slli_epi32::<23>(_mm256_add_epi32(
-        _mm256_sub_epi32(_mm256_castps_si256(kf), _mm256_set1_epi32(ROUND.to_bits() as i32)),
-        _mm256_set1_epi32(127),
-    ));
-    _mm256_mul_ps(p, _mm256_castsi256_ps(bits))
 }
 
 #[cfg(test)]

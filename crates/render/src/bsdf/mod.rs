@@ -5,6 +5,8 @@
 //! Conventions: `wo` points away from the surface towards the previous vertex, `wi` towards the
 //! next one; both are unit vectors. `eval` returns `f(wo, wi)` *without* the cosine; the sampled
 //! `weight` is `f · |cos θi| / pdf`. Transmission is scaled by `1/η²` for radiance transport.
+#[cfg(test)]
+mod chi2;
 pub mod dielectric;
 pub mod diffuse;
 pub mod fresnel;
