@@ -56,6 +56,43 @@ pub(crate) trait Simd {
     fn exp_weighted(t: &[f32], d: &[f32], gamma: f32) -> (f32, f32);
     /// `t_i ← e^(−t_i)`.
     fn exp_neg_in_place(t: &mut [f32]);
+    /// IDUW's window sums for eight horizontally adjacent centres at once: for centre
+    /// `c0 + l` (`l < 8`) window element `i` is pixel `n0 + offsets[i] + l` of the planes
+    /// `[h, g, x, y]`, `t_i = (m·v_i)·v_i` with `v_i = (x_c − x_i) − (y_c − y_i)` and
+    /// `d_i = (g_c − g_i) − (h_c − h_i)`, and for every `gammas[q]` lane `l` of `acc[q]` and
+    /// `wsum[q]` receives exactly what [`Simd::exp_weighted`] returns for that centre's window.
+    ///
+    /// Vectorising across centres instead of along the window needs no window buffer and no
+    /// horizontal sums, and shares the window's loads and differences among the γ values;
+    /// element `i` still goes to partial sum `i mod 8`, in the same order, so the bits agree.
+    #[allow(clippy::too_many_arguments)]
+    fn iduw_sums8(
+        planes: [&[f32]; 4],
+        c0: usize,
+        n0: usize,
+        offsets: &[usize],
+        m: f32,
+        gammas: &[f32],
+        acc: &mut [[f32; 8]],
+        wsum: &mut [[f32; 8]],
+    );
+}
+
+/// Most γ values [`Simd::iduw_sums8`] keeps partial sums for at once; longer lists run in
+/// chunks of this many.
+const IDUW_GAMMAS_AT_ONCE: usize = 10;
+/// Most window elements [`Simd::iduw_sums8`] takes (a 31×31 window).
+pub(crate) const IDUW_MAX_WINDOW: usize = 31 * 31;
+
+/// Checks the contract of [`Simd::iduw_sums8`] that keeps its loads in bounds.
+#[inline(always)]
+fn check_iduw_bounds(planes: &[&[f32]; 4], c0: usize, n0: usize, offsets: &[usize], gammas: usize, acc: usize, wsum: usize) {
+    let len = planes.iter().map(|p| p.len()).min().unwrap_or(0);
+    let far = offsets.iter().copied().max().unwrap_or(0);
+    assert!(
+        offsets.len() <= IDUW_MAX_WINDOW && c0 + 8 <= len && n0 + far + 8 <= len && acc >= gammas && wsum >= gammas,
+        "IDUW window outside the planes"
+    );
 }
 
 #[inline(always)]
@@ -90,6 +127,36 @@ impl Simd for Portable {
     fn exp_neg_in_place(t: &mut [f32]) {
         for v in t {
             *v = exp_neg(-*v);
+        }
+    }
+
+    #[inline(always)]
+    fn iduw_sums8(
+        planes: [&[f32]; 4],
+        c0: usize,
+        n0: usize,
+        offsets: &[usize],
+        m: f32,
+        gammas: &[f32],
+        acc: &mut [[f32; 8]],
+        wsum: &mut [[f32; 8]],
+    ) {
+        check_iduw_bounds(&planes, c0, n0, offsets, gammas.len(), acc.len(), wsum.len());
+        let [h, g, x, y] = planes;
+        let n = offsets.len();
+        let (mut tb, mut db) = ([0.0f32; IDUW_MAX_WINDOW], [0.0f32; IDUW_MAX_WINDOW]);
+        let (t, d) = (&mut tb[..n], &mut db[..n]);
+        for l in 0..8 {
+            let c = c0 + l;
+            for (i, &o) in offsets.iter().enumerate() {
+                let j = n0 + o + l;
+                let v = (x[c] - x[j]) - (y[c] - y[j]);
+                t[i] = m * v * v;
+                d[i] = (g[c] - g[j]) - (h[c] - h[j]);
+            }
+            for (q, &gamma) in gammas.iter().enumerate() {
+                (acc[q][l], wsum[q][l]) = Portable::exp_weighted(t, d, gamma);
+            }
         }
     }
 
@@ -177,6 +244,70 @@ impl Simd for Avx2 {
     }
 
     #[inline(always)]
+    fn iduw_sums8(
+        planes: [&[f32]; 4],
+        c0: usize,
+        n0: usize,
+        offsets: &[usize],
+        m: f32,
+        gammas: &[f32],
+        acc: &mut [[f32; 8]],
+        wsum: &mut [[f32; 8]],
+    ) {
+        use std::arch::x86_64::*;
+        check_iduw_bounds(&planes, c0, n0, offsets, gammas.len(), acc.len(), wsum.len());
+        let [h, g, x, y] = planes;
+        let n = offsets.len();
+        for (chunk, gs) in gammas.chunks(IDUW_GAMMAS_AT_ONCE).enumerate() {
+            let q0 = chunk * IDUW_GAMMAS_AT_ONCE;
+            // SAFETY: AVX2 is available (see the type's contract); every load reads 8 values
+            // starting at `c0` or at `n0 + offsets[i]`, in bounds by the check above.
+            unsafe {
+                let zero = _mm256_setzero_ps();
+                let ld = |p: &[f32], at: usize| _mm256_loadu_ps(p.as_ptr().add(at));
+                let (hc, gc, xc, yc) = (ld(h, c0), ld(g, c0), ld(x, c0), ld(y, c0));
+                let mv = _mm256_set1_ps(m);
+                let mut neg = [zero; IDUW_GAMMAS_AT_ONCE];
+                for (v, &gamma) in neg.iter_mut().zip(gs) {
+                    *v = _mm256_set1_ps(-gamma);
+                }
+                // Partial sum `a` of every centre holds the elements i ≡ a (mod 8), in order.
+                let mut part = [[zero; 8]; IDUW_GAMMAS_AT_ONCE];
+                let mut wpart = [[zero; 8]; IDUW_GAMMAS_AT_ONCE];
+                for a in 0..8 {
+                    let mut sa = [zero; IDUW_GAMMAS_AT_ONCE];
+                    let mut wa = [zero; IDUW_GAMMAS_AT_ONCE];
+                    for &o in offsets[a.min(n)..].iter().step_by(8) {
+                        let j = n0 + o;
+                        let v = _mm256_sub_ps(_mm256_sub_ps(xc, ld(x, j)), _mm256_sub_ps(yc, ld(y, j)));
+                        let t = _mm256_mul_ps(_mm256_mul_ps(mv, v), v);
+                        let d = _mm256_sub_ps(_mm256_sub_ps(gc, ld(g, j)), _mm256_sub_ps(hc, ld(h, j)));
+                        for q in 0..gs.len() {
+                            let w = exp_neg8_avx2(_mm256_mul_ps(neg[q], t));
+                            sa[q] = _mm256_add_ps(sa[q], _mm256_mul_ps(w, d));
+                            wa[q] = _mm256_add_ps(wa[q], w);
+                        }
+                    }
+                    for q in 0..gs.len() {
+                        part[q][a] = sa[q];
+                        wpart[q][a] = wa[q];
+                    }
+                }
+                let pairwise = |p: &[__m256; 8]| {
+                    _mm256_add_ps(
+                        _mm256_add_ps(_mm256_add_ps(p[0], p[1]), _mm256_add_ps(p[2], p[3])),
+                        _mm256_add_ps(_mm256_add_ps(p[4], p[5]), _mm256_add_ps(p[6], p[7])),
+                    )
+                };
+                for q in 0..gs.len() {
+                    _mm256_storeu_ps(acc[q0 + q].as_mut_ptr(), pairwise(&part[q]));
+                    _mm256_storeu_ps(wsum[q0 + q].as_mut_ptr(), pairwise(&wpart[q]));
+                }
+            }
+        }
+    }
+
+    #[inline(always)]
     fn gram_block<const P: usize>(d: &[&[f32; P]], e: &[[f32; P]], a0: usize, b0: usize) -> [[f32; 8]; 4] {
         use std::arch::x86_64::*;
         assert!(a0 + 4 <= P && b0 + 8 <= P);
@@ -246,6 +377,51 @@ mod tests {
         let mut tt = t.to_vec();
         Avx2::exp_neg_in_place(&mut tt);
         (Avx2::exp_weighted(t, d, 0.7), tt)
+    }
+
+    #[target_feature(enable = "avx2")]
+    fn avx_iduw(planes: [&[f32]; 4], c0: usize, n0: usize, offsets: &[usize], gammas: &[f32]) -> (Vec<[f32; 8]>, Vec<[f32; 8]>) {
+        let (mut acc, mut ws) = (vec![[0.0; 8]; gammas.len()], vec![[0.0; 8]; gammas.len()]);
+        Avx2::iduw_sums8(planes, c0, n0, offsets, 0.75, gammas, &mut acc, &mut ws);
+        (acc, ws)
+    }
+
+    /// The eight-centre IDUW kernel against [`Simd::exp_weighted`] of each centre's window,
+    /// bit for bit, in both builds; with more γ values than the kernel keeps at once.
+    #[test]
+    fn iduw_window_sums_match_the_per_centre_sums() {
+        if !std::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let (w, h, r) = (40usize, 20usize, 7usize);
+        let u = |a: u64, b: u64| uniform(hash4(11, a, b, 0)) as f32;
+        let planes: Vec<Vec<f32>> = (0..4).map(|p| (0..w * h).map(|i| u(p, i as u64) * 2.0).collect()).collect();
+        let [ph, pg, px, py] = [&planes[0][..], &planes[1][..], &planes[2][..], &planes[3][..]];
+        let side = 2 * r + 1;
+        let offsets: Vec<usize> = (0..side).flat_map(|row| (0..side).map(move |col| (row + 2) * w + col)).collect();
+        let gammas: Vec<f32> = (0..13).map(|i| 0.05 + 0.3 * i as f32).collect();
+        let (x0, y) = (9usize, 9usize);
+        let (c0, n0) = (y * w + x0, x0 - r);
+        // SAFETY: AVX2 detected above.
+        let (acc, ws) = unsafe { avx_iduw([ph, pg, px, py], c0, n0, &offsets, &gammas) };
+        let (mut pacc, mut pws) = (vec![[0.0; 8]; gammas.len()], vec![[0.0; 8]; gammas.len()]);
+        Portable::iduw_sums8([ph, pg, px, py], c0, n0, &offsets, 0.75, &gammas, &mut pacc, &mut pws);
+        for l in 0..8 {
+            let c = c0 + l;
+            let (t, d): (Vec<f32>, Vec<f32>) = offsets
+                .iter()
+                .map(|&o| {
+                    let j = n0 + o + l;
+                    let v = (px[c] - px[j]) - (py[c] - py[j]);
+                    (0.75 * v * v, (pg[c] - pg[j]) - (ph[c] - ph[j]))
+                })
+                .unzip();
+            for (q, &gamma) in gammas.iter().enumerate() {
+                let (a, s) = Portable::exp_weighted(&t, &d, gamma);
+                assert_eq!((acc[q][l].to_bits(), ws[q][l].to_bits()), (a.to_bits(), s.to_bits()), "AVX2, centre {l}, γ {gamma}");
+                assert_eq!((pacc[q][l].to_bits(), pws[q][l].to_bits()), (a.to_bits(), s.to_bits()), "portable, centre {l}, γ {gamma}");
+            }
+        }
     }
 
     #[test]

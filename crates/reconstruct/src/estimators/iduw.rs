@@ -226,12 +226,54 @@ struct Scratch {
     d: Vec<f32>,
     t2: Vec<f32>,
     d2: Vec<f32>,
+    /// Window element offsets of the current image row (see [`row_offsets`]).
+    offsets: Vec<usize>,
+    /// Per half and γ, the eight centres' `Σ w·d`; per γ their `Σ w`.
+    acc: [Vec<[f32; 8]>; 2],
+    wt: Vec<[f32; 8]>,
 }
 
 impl Scratch {
-    fn new(n: usize) -> Self {
-        Scratch { t: vec![0.0; n], d: vec![0.0; n], t2: vec![0.0; n], d2: vec![0.0; n] }
+    fn new(n: usize, gammas: usize) -> Self {
+        Scratch {
+            t: vec![0.0; n],
+            d: vec![0.0; n],
+            t2: vec![0.0; n],
+            d2: vec![0.0; n],
+            offsets: Vec::with_capacity(n),
+            acc: [vec![[0.0; 8]; gammas], vec![[0.0; 8]; gammas]],
+            wt: vec![[0.0; 8]; gammas],
+        }
     }
+}
+
+/// The window elements of the centres of image row `y`, in window order, as offsets from
+/// the pixel index of the window's left column (`y·w + cx − r` minus the row part): the
+/// rows are mirrored at the top and bottom borders, the columns are not, so they serve
+/// every centre whose window lies inside the image horizontally.
+fn row_offsets(y: usize, geo: Geometry, out: &mut Vec<usize>) {
+    out.clear();
+    let side = 2 * geo.r + 1;
+    for dy in -(geo.r as isize)..=geo.r as isize {
+        let base = mirror(y as isize + dy, geo.h) * geo.w;
+        out.extend(base..base + side);
+    }
+}
+
+/// Whether the eight centres `x..x + 8` have horizontally unmirrored windows.
+#[inline(always)]
+fn interior8(x: usize, geo: Geometry) -> bool {
+    x >= geo.r && x + 7 + geo.r < geo.w
+}
+
+/// [`window_mean`] for a centre with an unmirrored window: the same sum in the same order.
+#[inline(always)]
+fn window_mean_interior(p: &[f32], left: usize, offsets: &[usize]) -> f32 {
+    let mut s = 0.0f32;
+    for &o in offsets {
+        s += p[left + o];
+    }
+    s / offsets.len() as f32
 }
 
 /// Geometry shared by the passes.
@@ -245,15 +287,30 @@ struct Geometry {
 }
 
 /// The final output of one channel for one image row; returns Σ of the normalised weights.
+/// Centres whose windows lie inside the image horizontally go eight at a time.
 #[inline(always)]
 fn final_row<S: Simd>(pass: &Pass, geo: Geometry, gamma: f32, y: usize, out: &mut [[f32; 3]], ch: usize, sc: &mut Scratch) -> f64 {
     let n = (2 * geo.r + 1).pow(2);
+    row_offsets(y, geo, &mut sc.offsets);
+    let planes = [pass.h, pass.g, pass.x, pass.y];
     let mut wsum = 0.0f64;
-    for (x, px) in out.iter_mut().enumerate() {
+    let mut x = 0;
+    while x < geo.w {
+        let c = y * geo.w + x;
+        if interior8(x, geo) {
+            S::iduw_sums8(planes, c, x - geo.r, &sc.offsets, pass.m, &[gamma], &mut sc.acc[0], &mut sc.wt);
+            for l in 0..8 {
+                out[x + l][ch] = pass.h[c + l] + sc.acc[0][0][l] * geo.norm;
+                wsum += ((sc.wt[0][l] - 1.0) * geo.norm) as f64;
+            }
+            x += 8;
+            continue;
+        }
         pass.window(x, y, geo.w, geo.h, geo.r, &mut sc.t[..n], &mut sc.d[..n]);
         let (acc, wt) = S::exp_weighted(&sc.t[..n], &sc.d[..n], gamma);
-        px[ch] = pass.h[y * geo.w + x] + acc * geo.norm;
+        out[x][ch] = pass.h[c] + acc * geo.norm;
         wsum += ((wt - 1.0) * geo.norm) as f64;
+        x += 1;
     }
     wsum
 }
@@ -265,6 +322,7 @@ unsafe fn final_row_avx2(pass: &Pass, geo: Geometry, gamma: f32, y: usize, out: 
 }
 
 /// The γ criterion of one channel over the lattice pixels `xs` of row `y`, added to `crit`.
+/// Runs of eight adjacent lattice pixels (stride 1) with unmirrored windows go at once.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn criterion_row<S: Simd>(
@@ -278,8 +336,27 @@ fn criterion_row<S: Simd>(
     sc: &mut Scratch,
 ) {
     let n = (2 * geo.r + 1).pow(2);
-    for &x in xs {
+    row_offsets(y, geo, &mut sc.offsets);
+    let mut k = 0;
+    while k < xs.len() {
+        let x = xs[k];
         let c = y * geo.w + x;
+        if k + 8 <= xs.len() && xs[k + 7] == x + 7 && interior8(x, geo) {
+            for (half, acc) in halves.iter().zip(&mut sc.acc) {
+                S::iduw_sums8([half.h, half.g, half.x, half.y], c, x - geo.r, &sc.offsets, half.m, gammas, acc, &mut sc.wt);
+            }
+            for l in 0..8 {
+                let pbar = window_mean_interior(pt, x + l - geo.r, &sc.offsets);
+                let denom = (pbar * pbar) as f64 + 0.01;
+                for (gi, cr) in crit.iter_mut().enumerate() {
+                    let oa = halves[0].h[c + l] + sc.acc[0][gi][l] * geo.norm;
+                    let ob = halves[1].h[c + l] + sc.acc[1][gi][l] * geo.norm;
+                    *cr += ((oa - ob) as f64).powi(2) / denom;
+                }
+            }
+            k += 8;
+            continue;
+        }
         let pbar = window_mean(pt, x, y, geo.w, geo.h, geo.r);
         let denom = (pbar * pbar) as f64 + 0.01;
         halves[0].window(x, y, geo.w, geo.h, geo.r, &mut sc.t[..n], &mut sc.d[..n]);
@@ -289,6 +366,7 @@ fn criterion_row<S: Simd>(
             let ob = halves[1].h[c] + S::exp_weighted(&sc.t2[..n], &sc.d2[..n], gamma).0 * geo.norm;
             crit[gi] += ((oa - ob) as f64).powi(2) / denom;
         }
+        k += 1;
     }
 }
 
@@ -362,7 +440,7 @@ impl Iduw {
             let rows: Vec<Vec<f64>> = ys
                 .par_iter()
                 .map_init(
-                    || Scratch::new(n),
+                    || Scratch::new(n, gammas.len()),
                     |sc, &y| {
                         let mut crit = vec![0.0f64; gammas.len()];
                         #[cfg(target_arch = "x86_64")]
@@ -412,7 +490,7 @@ impl Estimator for Iduw {
             let pl = p.planes(set, ch);
             let full = Pass { h: &pl.pt, g: &pl.crn, x: &pl.crn_halves[0], y: &pl.crn_halves[1], m: p.spp / 2.0 };
             image.pixels.par_chunks_mut(w).zip(wsum.par_iter_mut()).enumerate().for_each_init(
-                || Scratch::new(n),
+                || Scratch::new(n, 1),
                 |sc, (y, (row, ws))| {
                     #[cfg(target_arch = "x86_64")]
                     if crate::simd::use_avx2() {
