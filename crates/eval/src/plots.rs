@@ -276,6 +276,22 @@ mod tests {
     }
 
     #[test]
+    fn every_decade_in_range_is_labelled() {
+        // relMSE from 2e-4 to 0.3 over 16 to 4096 spp: the y axis spans three decades and more,
+        // and each of them must carry a label, as must the x axis' 100 and 1000.
+        let points: Vec<ConvergencePoint> = [(16u32, 0.3), (64, 0.05), (256, 0.01), (1024, 0.002), (4096, 2e-4)]
+            .iter()
+            .map(|&(spp, r)| ConvergencePoint { method: "pt".into(), spp_total: spp, relmse: r, relmse_se: None, seconds: None })
+            .collect();
+        let svg = convergence_svg(&points, "t", &|k, _| (k.to_string(), [0; 3])).unwrap();
+        let labels: Vec<&str> =
+            svg.split("<text").filter_map(|t| t.split('>').nth(1)).map(|t| t.split('<').next().unwrap_or("").trim()).collect();
+        for want in ["0.001", "0.01", "0.1", "100", "1000"] {
+            assert!(labels.contains(&want), "no axis label {want}; labels {labels:?}");
+        }
+    }
+
+    #[test]
     fn invalid_points_are_rejected_not_drawn() {
         let bad = vec![ConvergencePoint { method: "pt".into(), spp_total: 0, relmse: 1.0, relmse_se: None, seconds: None }];
         assert!(convergence_svg(&bad, "t", &|k, _| (k.to_string(), [0; 3])).is_err());
