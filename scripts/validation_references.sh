@@ -5,15 +5,15 @@
 # FRACTION divides each sidecar's reference_spp (4: the quarter references of the plan in
 # validation/README.md; 1: the full ones, reached from a quarter one with --extend).
 # Scenes go cheapest first (the speed table in validation/README.md), so that finished references
-# accumulate early.
+# accumulate early; SCENES="a b" renders only those.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 fraction=${1:-4}
 cvtrace=${2:-target/release/cvtrace}
 # The seed of the bundled references (scripts/study_scenes.sh): far from the study seeds 0, 1, ...
 seed=${REF_SEED:-1000003}
-scenes="bunny-glass city-etoile city-san-francisco city-munich bounce-interior pbr-grid caustics
-        armadillo-room thin-blinds small-emitters"
+scenes=${SCENES:-"bunny-glass city-etoile city-san-francisco city-munich bounce-interior pbr-grid
+        caustics armadillo-room thin-blinds small-emitters"}
 for s in $scenes; do
     dir=validation/$s
     full=$(sed -n 's/^reference_spp *= *\([0-9]*\).*/\1/p' "$dir/scene.cvtrace.toml")
