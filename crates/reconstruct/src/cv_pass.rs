@@ -38,6 +38,8 @@ pub struct CvPass<'a> {
     pub folds: Folds,
     /// Also return each pixel's predicted variance (Eq. 7 at the chosen β).
     pub variance: bool,
+    /// How the predicted variance's CRN part allows for β having been fitted to the same batches.
+    pub dof: Dof,
 }
 
 /// What a pass returns: the image, its predicted variance when asked for, and the statistics.
@@ -59,6 +61,31 @@ crate::named::named_enum! {
         /// the two results averaged (needs an even batch count ≥ 4): the coefficients never
         /// see the values they weight.
         Halves => "halves",
+    }
+}
+
+crate::named::named_enum! {
+    /// The in-sample residual of the CRN batches underestimates the variance of `ḡ` at the fitted
+    /// β, by the degrees of freedom `df = tr(H)` the fit spent of the `n` the batches have.
+    pub enum Dof: "variance-dof" {
+        /// The in-sample residual as it is.
+        None => "none",
+        /// Generalised cross-validation: `RSS / (1 − df/n)²`.
+        Gcv => "gcv",
+        /// Mallows' Cp: `RSS·(n + df)/(n − df)`.
+        Mallows => "mallows",
+    }
+}
+
+impl Dof {
+    /// The factor on the residual for `df` of `n`.
+    fn factor(self, df: f64, n: f64) -> f64 {
+        let df = df.clamp(0.0, n - 0.5);
+        match self {
+            Dof::None => 1.0,
+            Dof::Gcv => 1.0 / (1.0 - df / n).powi(2),
+            Dof::Mallows => (n + df) / (n - df),
+        }
     }
 }
 
@@ -263,7 +290,7 @@ impl CvPass<'_> {
     /// from the fold's deviations (so it includes the floor's column) and the PT part from
     /// the unpenalised error estimates.
     #[inline(always)]
-    fn predicted_variance(&self, cube: &BatchCube, c: usize, idx: &[u32], beta: &[f64], ch: usize, s: f64) -> f64 {
+    fn predicted_variance(&self, cube: &BatchCube, c: usize, idx: &[u32], beta: &[f64], ch: usize, s: f64) -> (f64, f64) {
         let mut residual = [0.0f64; MAX_BATCHES];
         let r = &mut residual[..cube.batches];
         for (dst, v) in r.iter_mut().zip(cube.row(c, ch)) {
@@ -278,7 +305,7 @@ impl CvPass<'_> {
                 pt += b * b * e[i as usize][ch] as f64;
             }
         }
-        s * r.iter().map(|x| x * x).sum::<f64>() + pt
+        (s * r.iter().map(|x| x * x).sum::<f64>(), pt)
     }
 
     /// `W` for control variate `i` of centre `c` in channel `ch` (summed over channels when shared).
@@ -358,7 +385,11 @@ impl CvPass<'_> {
                         }
                     }
                 }
+                p.want_trace = self.variance && self.dof != Dof::None;
                 let outcomes = p.solve::<S>(&rows, n, s, self.ridge);
+                // Observations per channel: B − 1 deviations, and the common floor's column.
+                let common = self.floor.is_some_and(|f| f.mode == FloorMode::Common);
+                let n_obs = (b - 1 + usize::from(common)) as f64;
                 for ch in 0..3 {
                     if matches!(outcomes[ch], Outcome::Solved | Outcome::Regularised) {
                         let winv = p.centre_winv(ch);
@@ -368,7 +399,10 @@ impl CvPass<'_> {
                     st.record(outcomes[ch], beta, self.include_centre);
                     acc[ch] += combine(target[c][ch] as f64, &sc.gs3[ch][..n], &sc.hs3[ch][..n], beta);
                     if self.variance {
-                        var[ch] += self.predicted_variance(cube, c, idx, beta, ch, s);
+                        let solved = matches!(outcomes[ch], Outcome::Solved | Outcome::Regularised);
+                        let factor = if solved { self.dof.factor(P as f64 - p.trace_inv[ch], n_obs) } else { 1.0 };
+                        let (crn, pt) = self.predicted_variance(cube, c, idx, beta, ch, s);
+                        var[ch] += factor * crn + pt;
                     }
                 }
             }
@@ -404,7 +438,12 @@ impl CvPass<'_> {
                 for (dst, v) in ws.dc[..m].iter_mut().zip(source(c)) {
                     *dst = *v as f64;
                 }
+                ws.want_df = self.variance && self.dof != Dof::None;
                 let outcome = ws.solve(n, m, s, self.ridge, Form::Auto);
+                let solved = matches!(outcome, Outcome::Solved | Outcome::Regularised);
+                let common = self.floor.is_some_and(|f| f.mode == FloorMode::Common);
+                let n_obs = (m / b * (b - 1 + usize::from(common))) as f64;
+                let factor = if solved && ws.want_df { self.dof.factor(ws.df, n_obs) } else { 1.0 };
                 if matches!(outcome, Outcome::Solved | Outcome::Regularised) {
                     blend_towards_centre(&mut ws.beta[..n], delta_c, 1.0 / (ws.w[0] + ws.lambda));
                 }
@@ -418,7 +457,8 @@ impl CvPass<'_> {
                     }
                     acc[oc] += combine(target[c][oc] as f64, &sc.gs[..n], &sc.hs[..n], beta);
                     if self.variance {
-                        var[oc] += self.predicted_variance(cube, c, idx, beta, oc, s);
+                        let (crn, pt) = self.predicted_variance(cube, c, idx, beta, oc, s);
+                        var[oc] += factor * crn + pt;
                     }
                 }
             }
