@@ -378,22 +378,26 @@ impl CvPass<'_> {
     #[inline(always)]
     fn weight(&self, penalty: Penalty, i: usize, c: usize, ch: usize) -> f64 {
         let Some(e) = self.errors else { return 0.0 };
-        let (g, hm) = (&self.set.crn.mean.pixels, &self.set.pt.mean.pixels);
-        let one = |ch: usize| {
-            let (ei, ec) = (e[i][ch] as f64, e[c][ch] as f64);
-            if i == c {
-                ei
-            } else if penalty == Penalty::Residual {
-                let r = (hm[i][ch] - hm[c][ch]) as f64 - (g[i][ch] - g[c][ch]) as f64;
-                penalty.apply(ei, ec, r)
-            } else {
-                penalty.apply(ei, ec, 0.0)
-            }
-        };
         if self.shared {
-            one(0) + one(1) + one(2)
+            self.channel_weight(e, penalty, i, c, 0) + self.channel_weight(e, penalty, i, c, 1) + self.channel_weight(e, penalty, i, c, 2)
         } else {
-            one(ch)
+            self.channel_weight(e, penalty, i, c, ch)
+        }
+    }
+
+    /// One channel's `W`; a method rather than a closure so that `inline(always)` applies and
+    /// the gathering loop does not make a call per neighbour and channel.
+    #[inline(always)]
+    fn channel_weight(&self, e: &[[f32; 3]], penalty: Penalty, i: usize, c: usize, ch: usize) -> f64 {
+        let (ei, ec) = (e[i][ch] as f64, e[c][ch] as f64);
+        if i == c {
+            ei
+        } else if penalty == Penalty::Residual {
+            let (g, hm) = (&self.set.crn.mean.pixels, &self.set.pt.mean.pixels);
+            let r = (hm[i][ch] - hm[c][ch]) as f64 - (g[i][ch] - g[c][ch]) as f64;
+            penalty.apply(ei, ec, r)
+        } else {
+            penalty.apply(ei, ec, 0.0)
         }
     }
 
