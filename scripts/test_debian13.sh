@@ -31,7 +31,7 @@ cp /etc/resolv.conf "$root/etc/resolv.conf"
 mounted=()
 cleanup() {
     local i
-    for (( i = ${#mounted[@]} - 1; i >= 0; i-- )); do umount "${mounted[i]}" || true; done
+    for (( i = ${#mounted[@]} - 1; i >= 0; i-- )); do umount -R "${mounted[i]}" || true; done
     rm -rf "$root/root/cvtrace"   # the clone and its build, about 5 GB
 }
 trap cleanup EXIT
@@ -39,6 +39,9 @@ bind() { mkdir -p "$root$2"; mount --bind "$1" "$root$2"; mounted+=("$root$2"); 
 bind "$HOME/.cargo" /root/.cargo
 bind "$HOME/.rustup" /root/.rustup
 mkdir -p "$root/proc"; mount -t proc proc "$root/proc"; mounted+=("$root/proc")
+# Debian 13's slurmd (24.11) initialises its cgroup plugin whatever the config says, and fails
+# without /sys/fs/cgroup.
+mkdir -p "$root/sys"; mount --rbind /sys "$root/sys"; mount --make-rslave "$root/sys"; mounted+=("$root/sys")
 
 rm -rf "$root/root/cvtrace"
 git clone -q "$repo" "$root/root/cvtrace"

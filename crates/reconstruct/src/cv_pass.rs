@@ -45,6 +45,8 @@ pub struct CvPass<'a> {
     pub folds: Folds,
     /// Also return each pixel's predicted variance (Eq. 7 at the chosen β).
     pub variance: bool,
+    /// How the predicted variance's CRN part allows for β having been fitted to the same batches.
+    pub dof: Dof,
     /// A second solve per pixel on the selection minus the centre (see [`CentreFree`]).
     pub centre_free: Option<CentreFree>,
 }
@@ -59,6 +61,8 @@ pub struct CvPass<'a> {
 pub struct CentreFree {
     pub penalty: Penalty,
     pub ridge: f64,
+    /// The degrees-of-freedom allowance of its predicted variance.
+    pub dof: Dof,
 }
 
 /// What a pass returns: the image, its predicted variance when asked for, and the statistics.
@@ -89,6 +93,31 @@ crate::named::named_enum! {
         /// the two results averaged (needs an even batch count ≥ 4): the coefficients never
         /// see the values they weight.
         Halves => "halves",
+    }
+}
+
+crate::named::named_enum! {
+    /// The in-sample residual of the CRN batches underestimates the variance of `ḡ` at the fitted
+    /// β, by the degrees of freedom `df = tr(H)` the fit spent of the `n` the batches have.
+    pub enum Dof: "variance-dof" {
+        /// The in-sample residual as it is.
+        None => "none",
+        /// Generalised cross-validation: `RSS / (1 − df/n)²`.
+        Gcv => "gcv",
+        /// Mallows' Cp: `RSS·(n + df)/(n − df)`.
+        Mallows => "mallows",
+    }
+}
+
+impl Dof {
+    /// The factor on the residual for `df` of `n`.
+    fn factor(self, df: f64, n: f64) -> f64 {
+        let df = df.clamp(0.0, n - 0.5);
+        match self {
+            Dof::None => 1.0,
+            Dof::Gcv => 1.0 / (1.0 - df / n).powi(2),
+            Dof::Mallows => (n + df) / (n - df),
+        }
     }
 }
 
@@ -204,6 +233,7 @@ struct Stage<'f> {
     floor: Option<Floor<'f>>,
     include_centre: bool,
     variance: bool,
+    dof: Dof,
 }
 
 /// One image row of the outputs: the joint estimate and the centre-free one.
@@ -349,14 +379,21 @@ impl CvPass<'_> {
 
     /// The joint solve's settings.
     fn joint(&self) -> Stage<'_> {
-        Stage { penalty: self.penalty, ridge: self.ridge, floor: self.floor, include_centre: self.include_centre, variance: self.variance }
+        Stage {
+            penalty: self.penalty,
+            ridge: self.ridge,
+            floor: self.floor,
+            include_centre: self.include_centre,
+            variance: self.variance,
+            dof: self.dof,
+        }
     }
 
     /// Eq. 7 at `beta` for channel `ch`: `s·‖d_c − Σ β_j d_j‖² + Σ β_j² e_j`, the CRN part
     /// from the fold's deviations (so it includes the floor's column) and the PT part from
     /// the unpenalised error estimates.
     #[inline(always)]
-    fn predicted_variance(&self, cube: &BatchCube, c: usize, idx: &[u32], beta: &[f64], ch: usize, s: f64) -> f64 {
+    fn predicted_variance(&self, cube: &BatchCube, c: usize, idx: &[u32], beta: &[f64], ch: usize, s: f64) -> (f64, f64) {
         let mut residual = [0.0f64; MAX_BATCHES];
         let r = &mut residual[..cube.batches];
         for (dst, v) in r.iter_mut().zip(cube.row(c, ch)) {
@@ -371,7 +408,7 @@ impl CvPass<'_> {
                 pt += b * b * e[i as usize][ch] as f64;
             }
         }
-        s * r.iter().map(|x| x * x).sum::<f64>() + pt
+        (s * r.iter().map(|x| x * x).sum::<f64>(), pt)
     }
 
     /// `W` for control variate `i` of centre `c` in channel `ch` (summed over channels when shared).
@@ -419,8 +456,14 @@ impl CvPass<'_> {
         let s = scale(self.set.batch_count(), b);
         let crn_only = (self.set.crn.mean.pixels[c], [0.0; 3]);
         // The centre-free solve's control variates are the joint ones after the centre.
-        let free =
-            self.centre_free.map(|f| Stage { penalty: f.penalty, ridge: f.ridge, floor: None, include_centre: false, variance: true });
+        let free = self.centre_free.map(|f| Stage {
+            penalty: f.penalty,
+            ridge: f.ridge,
+            floor: None,
+            include_centre: false,
+            variance: true,
+            dof: f.dof,
+        });
         st[0].pixels += 1;
         st[0].set_size += n as u64;
         if free.is_some() {
@@ -482,7 +525,11 @@ impl CvPass<'_> {
                         }
                     }
                 }
+                p.want_trace = self.variance && self.dof != Dof::None;
                 let outcomes = p.solve::<S>(&rows, n, s, self.ridge);
+                // Observations per channel: B − 1 deviations, and the common floor's column.
+                let common = self.floor.is_some_and(|f| f.mode == FloorMode::Common);
+                let n_obs = (b - 1 + usize::from(common)) as f64;
                 for ch in 0..3 {
                     if matches!(outcomes[ch], Outcome::Solved | Outcome::Regularised) {
                         let winv = p.centre_winv(ch);
@@ -492,18 +539,27 @@ impl CvPass<'_> {
                     st[0].record(outcomes[ch], beta, self.include_centre);
                     acc[ch] += combine(target[c][ch] as f64, &sc.gs3[ch][..n], &sc.hs3[ch][..n], beta);
                     if self.variance {
-                        var[ch] += self.predicted_variance(cube, c, idx, beta, ch, s);
+                        let solved = matches!(outcomes[ch], Outcome::Solved | Outcome::Regularised);
+                        let factor = if solved { self.dof.factor(P as f64 - p.trace_inv[ch], n_obs) } else { 1.0 };
+                        let (crn, pt) = self.predicted_variance(cube, c, idx, beta, ch, s);
+                        var[ch] += factor * crn + pt;
                     }
                 }
                 if let (Some(f), Some(q), Some(fr)) = (free, q, free_rows.as_ref()) {
                     // Without a floor there is nothing to blend towards the centre (and no centre).
                     let m = n - 1;
+                    q.want_trace = f.dof != Dof::None;
                     let outcomes = q.solve::<S>(fr, m, s, f.ridge);
+                    // No floor column: B − 1 observations per channel.
+                    let n_obs = (b - 1) as f64;
                     for ch in 0..3 {
+                        let solved = matches!(outcomes[ch], Outcome::Solved | Outcome::Regularised);
+                        let factor = if solved { f.dof.factor(P as f64 - q.trace_inv[ch], n_obs) } else { 1.0 };
                         let beta = &mut q.beta[ch][..m];
                         st[1].record(outcomes[ch], beta, false);
                         free_acc[ch] += combine(target[c][ch] as f64, &sc.gs3[ch][1..n], &sc.hs3[ch][1..n], beta);
-                        free_var[ch] += self.predicted_variance(plain, c, &idx[1..], beta, ch, s);
+                        let (crn, pt) = self.predicted_variance(plain, c, &idx[1..], beta, ch, s);
+                        free_var[ch] += factor * crn + pt;
                     }
                 }
             }
@@ -570,7 +626,12 @@ impl CvPass<'_> {
             for (dst, v) in ws.dc[..m].iter_mut().zip(source(c)) {
                 *dst = *v as f64;
             }
+            ws.want_df = stage.variance && stage.dof != Dof::None;
             let outcome = ws.solve(n, m, s, stage.ridge, Form::Auto);
+            let solved = matches!(outcome, Outcome::Solved | Outcome::Regularised);
+            let common = stage.floor.is_some_and(|f| f.mode == FloorMode::Common);
+            let n_obs = (m / b * (b - 1 + usize::from(common))) as f64;
+            let factor = if solved && ws.want_df { stage.dof.factor(ws.df, n_obs) } else { 1.0 };
             if matches!(outcome, Outcome::Solved | Outcome::Regularised) {
                 blend_towards_centre(&mut ws.beta[..n], delta_c, 1.0 / (ws.w[0] + ws.lambda));
             }
@@ -584,7 +645,8 @@ impl CvPass<'_> {
                 }
                 acc[oc] += combine(target[c][oc] as f64, &gs[..n], &hs[..n], beta);
                 if stage.variance {
-                    var[oc] += self.predicted_variance(cube, c, idx, beta, oc, s);
+                    let (crn, pt) = self.predicted_variance(cube, c, idx, beta, oc, s);
+                    var[oc] += factor * crn + pt;
                 }
             }
         }

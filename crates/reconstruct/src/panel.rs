@@ -39,6 +39,11 @@ pub(crate) struct Panel<const P: usize> {
     inv_diag: [[f32; P]; 3],
     winv: [[f64; MAX_K]; 3],
     c32: [[f32; MAX_K]; 3],
+    /// Whether a solve also computes `trace_inv`.
+    pub want_trace: bool,
+    /// Per channel, `tr(G⁻¹)` of the last successful solve, when `want_trace`: the hat matrix
+    /// in batch space is `I − G⁻¹`, so `P − tr(G⁻¹)` is the degrees of freedom the fit spent.
+    pub trace_inv: [f64; 3],
 }
 
 impl<const P: usize> Panel<P> {
@@ -52,6 +57,8 @@ impl<const P: usize> Panel<P> {
             inv_diag: [[0.0f32; P]; 3],
             winv: [[0.0; MAX_K]; 3],
             c32: [[0.0; MAX_K]; 3],
+            want_trace: false,
+            trace_inv: [0.0; 3],
         })
     }
 
@@ -184,6 +191,28 @@ impl<const P: usize> Panel<P> {
                 }
             }
         }
+        if self.want_trace {
+            // tr(G⁻¹) = ‖L⁻¹‖²_F, column by column: x = L⁻¹·e_j is zero above j.
+            for ch in 0..3 {
+                if !ok[ch] {
+                    continue;
+                }
+                let (l, inv) = (&self.g[ch], &self.inv_diag[ch]);
+                let mut tr = 0.0f64;
+                for j in 0..P {
+                    let mut x = [0.0f32; P];
+                    x[j] = inv[j];
+                    let mut ss = f64::from(x[j]) * f64::from(x[j]);
+                    for i in j + 1..P {
+                        let v = -S::dot32(&l[i], &x) * inv[i];
+                        x[i] = v;
+                        ss += f64::from(v) * f64::from(v);
+                    }
+                    tr += ss;
+                }
+                self.trace_inv[ch] = tr;
+            }
+        }
         // L·y = d_c, then Lᵀ·z = y (row-oriented, so both run over full rows).
         let mut y = [[0.0f32; P]; 3];
         for i in 0..P {
@@ -241,6 +270,8 @@ mod tests {
         data: Vec<[[f32; P]; MAX_K]>,
         w: [[f64; MAX_K]; 3],
         want: Vec<(Outcome, Vec<f64>)>,
+        /// Per channel, the f64 solver's degrees of freedom.
+        df: Vec<f64>,
     }
 
     impl<const P: usize> Case<P> {
@@ -250,8 +281,10 @@ mod tests {
             let mut data = vec![[[0.0f32; P]; MAX_K]; 3];
             let mut w = [[0.0; MAX_K]; 3];
             let mut want = vec![];
+            let mut df = vec![];
             for ch in 0..3 {
                 let mut ws = Workspace::boxed();
+                ws.want_df = true;
                 for j in 0..k {
                     for c in 0..b {
                         let v = (uniform(hash4(1 + ch as u64, j as u64, c as u64, 0)) - 0.5) as f32;
@@ -266,8 +299,9 @@ mod tests {
                 }
                 let o = ws.solve(k, b, s, ridge, Form::Woodbury);
                 want.push((o, ws.beta[..k].to_vec()));
+                df.push(ws.df);
             }
-            Case { k, s, ridge, data, w, want }
+            Case { k, s, ridge, data, w, want, df }
         }
 
         /// A panel loaded with the case's weights and row norms.
@@ -297,9 +331,15 @@ mod tests {
         for case in CASES.iter().filter(|c| c.1 <= P) {
             let c = Case::<P>::new(*case);
             let mut p = c.panel();
+            p.want_trace = true;
             let got = p.solve::<Portable>(&c.rows(), c.k, c.s, c.ridge);
             for ch in 0..3 {
                 assert_eq!(got[ch], c.want[ch].0, "P={P} {case:?} ch={ch}");
+                if matches!(got[ch], Outcome::Solved | Outcome::Regularised) {
+                    // Padded columns add 1 each to tr(G⁻¹) and nothing to df.
+                    let df = P as f64 - p.trace_inv[ch];
+                    assert!((df - c.df[ch]).abs() < 1e-4 * (1.0 + c.df[ch]), "P={P} {case:?} ch={ch}: df {df} against {}", c.df[ch]);
+                }
                 for j in 0..c.k {
                     let d = (p.beta[ch][j] - c.want[ch].1[j]).abs();
                     assert!(d < 1e-6, "P={P} {case:?} ch={ch} j={j}: |Δβ| {d:.2e}");

@@ -19,6 +19,8 @@ pub const MAX_K: usize = 64;
 /// Largest number of batches per stream.
 pub const MAX_BATCHES: usize = 64;
 const MAX_COLS: usize = 3 * MAX_BATCHES;
+/// The larger side of the matrices a solve factorises.
+const MAX_SIDE: usize = if MAX_COLS > MAX_K { MAX_COLS } else { MAX_K };
 const MAX_ATTEMPTS: usize = 8;
 
 /// How a solve ended.
@@ -57,6 +59,11 @@ pub struct Workspace {
     pub beta: [f64; MAX_K],
     /// The absolute ridge the last successful solve used (added to every `w`).
     pub lambda: f64,
+    /// Whether a solve also computes `df`.
+    pub want_df: bool,
+    /// The degrees of freedom `tr(H)` of the last successful solve, when `want_df`: `H` is the
+    /// hat matrix in batch space, `s·Dᵀ·(s·D·Dᵀ + W + λ)⁻¹·D`.
+    pub df: f64,
     mat: [f64; MAX_K * MAX_K],
     vec: [f64; MAX_COLS],
     winv: [f64; MAX_K],
@@ -71,6 +78,8 @@ impl Workspace {
             w: [0.0; MAX_K],
             beta: [0.0; MAX_K],
             lambda: 0.0,
+            want_df: false,
+            df: 0.0,
             mat: [0.0; MAX_K * MAX_K],
             vec: [0.0; MAX_COLS],
             winv: [0.0; MAX_K],
@@ -103,6 +112,21 @@ impl Workspace {
             };
             if ok {
                 self.lambda = lambda;
+                if self.want_df {
+                    let mut diag = [0.0; MAX_SIDE];
+                    self.df = match form {
+                        // tr(H) = m − tr(G⁻¹)
+                        Form::Woodbury => {
+                            inverse_diagonal(&self.mat[..m * m], m, &mut diag[..m]);
+                            m as f64 - diag[..m].iter().sum::<f64>()
+                        }
+                        // tr(H) = tr(A⁻¹·(A − W − λ)) = k − Σ_j (w_j + λ)·(A⁻¹)_jj
+                        _ => {
+                            inverse_diagonal(&self.mat[..k * k], k, &mut diag[..k]);
+                            k as f64 - (0..k).map(|j| (self.w[j] + lambda) * diag[j]).sum::<f64>()
+                        }
+                    };
+                }
                 return if attempt == 0 { Outcome::Solved } else { Outcome::Regularised };
             }
             lambda = (lambda * 10.0).max(1e-7 * scale);
@@ -203,6 +227,21 @@ pub(crate) fn cholesky(a: &mut [f64], n: usize) -> bool {
     true
 }
 
+/// The diagonal of `(L·Lᵀ)⁻¹`, `L` from [`cholesky`]: `‖L⁻¹·e_j‖²` per column `j`.
+pub(crate) fn inverse_diagonal(l: &[f64], n: usize, out: &mut [f64]) {
+    let mut x = [0.0f64; MAX_SIDE];
+    for j in 0..n {
+        x[j] = 1.0 / l[j * n + j];
+        let mut ss = x[j] * x[j];
+        for i in j + 1..n {
+            let v = -dot(&l[i * n + j..i * n + i], &x[j..i]) / l[i * n + i];
+            x[i] = v;
+            ss += v * v;
+        }
+        out[j] = ss;
+    }
+}
+
 /// Solves `L·Lᵀ·x = b` in place, `L` from [`cholesky`].
 pub(crate) fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
     for i in 0..n {
@@ -264,6 +303,31 @@ mod tests {
             assert!(residual(&b, k, m, s, 0.0) < 1e-12, "woodbury residual k={k} m={m}");
             for j in 0..k {
                 assert!((a.beta[j] - b.beta[j]).abs() < 1e-9 * (1.0 + a.beta[j].abs()), "k={k} m={m} j={j}");
+            }
+        }
+    }
+
+    #[test]
+    fn df_is_the_trace_of_the_hat_matrix_in_both_forms() {
+        for (k, m) in [(25, 16), (25, 48), (10, 3), (7, 7)] {
+            let s = 1.0 / (m * (m - 1).max(1)) as f64;
+            // Column b of H is the fit to the unit vector e_b: Σ_j β_j(e_b)·d_j.
+            let mut trace = 0.0;
+            for b in 0..m {
+                let mut ws = Workspace::boxed();
+                fill(&mut ws, k, m, 11, 0.01);
+                ws.dc[..m].fill(0.0);
+                ws.dc[b] = 1.0;
+                assert_eq!(ws.solve(k, m, s, 0.0, Form::Direct), Outcome::Solved);
+                trace += (0..k).map(|j| ws.beta[j] * ws.d[j * m + b]).sum::<f64>();
+            }
+            for form in [Form::Direct, Form::Woodbury] {
+                let mut ws = Workspace::boxed();
+                fill(&mut ws, k, m, 11, 0.01);
+                ws.want_df = true;
+                assert_eq!(ws.solve(k, m, s, 0.0, form), Outcome::Solved);
+                assert!((ws.df - trace).abs() < 1e-9 * (1.0 + trace), "{form:?} k={k} m={m}: df {} against {trace}", ws.df);
+                assert!(ws.df > 0.0 && ws.df <= k.min(m) as f64 + 1e-9, "{form:?} k={k} m={m}: df {}", ws.df);
             }
         }
     }

@@ -14,7 +14,7 @@
 //! guards against the PT noise it copies in, and with fewer batches than control variates `V_g`
 //! is singular, so the ridge is essential. See docs/estimators.md for both, measured.
 use super::ours::check_selection;
-use crate::cv_pass::{CentreFree, CvPass, Folds, PassStats};
+use crate::cv_pass::{CentreFree, CvPass, Dof, Folds, PassStats};
 use crate::input::BatchNeed;
 use crate::low_pass::restore_low_frequencies;
 use crate::penalty::Penalty;
@@ -212,11 +212,11 @@ impl Estimator for ClassicCv {
         let selector = Selector::new(o.select, o.neighbours, o.search_window, false, o.seed, set);
         let (image, stats) = match (o.centre, errors.as_deref()) {
             (Centre::InverseVariance, Some(e)) => {
-                let (two, stats) = two_stage(set, selector, o.neighbours, e, o.ridge, o.shared_coefficients);
+                let (two, stats) = two_stage(set, selector, o.neighbours, e, o.ridge, o.shared_coefficients, Dof::None);
                 (two.image, stats)
             }
             _ => {
-                let out = cv_pass(set, selector, o.neighbours, errors.as_deref(), o.ridge, o.shared_coefficients, false).run();
+                let out = cv_pass(set, selector, o.neighbours, errors.as_deref(), o.ridge, o.shared_coefficients, None).run();
                 (out.image, out.stats)
             }
         };
@@ -229,7 +229,8 @@ impl Estimator for ClassicCv {
 }
 
 /// The control-variate pass of `cv`: the centre left out, the PT noise modelled when `errors`
-/// are given (with the `avg` penalty).
+/// are given (with the `avg` penalty); `variance` asks for the predicted variance with that
+/// degrees-of-freedom allowance.
 fn cv_pass<'a>(
     set: &'a StreamSet,
     selector: Selector<'a>,
@@ -237,7 +238,7 @@ fn cv_pass<'a>(
     errors: Option<&'a [[f32; 3]]>,
     ridge: f64,
     shared: bool,
-    variance: bool,
+    variance: Option<Dof>,
 ) -> CvPass<'a> {
     CvPass {
         set,
@@ -250,15 +251,16 @@ fn cv_pass<'a>(
         include_centre: false,
         floor: None,
         folds: Folds::All,
-        variance,
+        variance: variance.is_some(),
+        dof: variance.unwrap_or(Dof::None),
         centre_free: None,
     }
 }
 
 /// The control-variate solve of [`two_stage`] as the centre-free part of a joint pass with the
 /// same selection (PT errors modelled, so the `avg` penalty of [`cv_pass`]).
-pub(crate) fn centre_free(ridge: f64) -> CentreFree {
-    CentreFree { penalty: Penalty::Avg, ridge }
+pub(crate) fn centre_free(ridge: f64, dof: Dof) -> CentreFree {
+    CentreFree { penalty: Penalty::Avg, ridge, dof }
 }
 
 /// An estimate and its predicted variance per pixel and channel.
@@ -269,7 +271,8 @@ pub(crate) struct Estimate {
 
 /// The two-stage estimate: control variates without the centre (`selector` must leave it out),
 /// then combined with the centre's PT mean by inverse variance. `errors` are the PT error
-/// estimates (variances of the PT means).
+/// estimates (variances of the PT means); `dof` is the allowance of the first stage's variance,
+/// which weights the two.
 pub(crate) fn two_stage(
     set: &StreamSet,
     selector: Selector<'_>,
@@ -277,8 +280,9 @@ pub(crate) fn two_stage(
     errors: &[[f32; 3]],
     ridge: f64,
     shared: bool,
+    dof: Dof,
 ) -> (Estimate, PassStats) {
-    let out = cv_pass(set, selector, neighbours, Some(errors), ridge, shared, true).run();
+    let out = cv_pass(set, selector, neighbours, Some(errors), ridge, shared, Some(dof)).run();
     let v_f = out.variance.expect("asked for the variance");
     (combine_with_centre(&out.image, &v_f, &set.pt.mean, errors), out.stats)
 }

@@ -11,7 +11,7 @@
 //! docs/estimators.md for the defaults and their measurements.
 use super::cv::{centre_free, combine_with_centre, two_stage, ClassicCvOptions, Estimate};
 use crate::batch_stats::variance_of_mean;
-use crate::cv_pass::{CvPass, Folds};
+use crate::cv_pass::{CvPass, Dof, Folds};
 use crate::floor::{Floor, FloorMode, FloorSource};
 use crate::input::BatchNeed;
 use crate::low_pass::{low_pass_variance, restore_low_frequencies};
@@ -53,6 +53,7 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
         param("crn_floor_source", ParamKind::Choice(FloorSource::NAMES), "pt", "The floor's variance: pt (the PT error estimates) or crn (filtered CRN variance).", Some("crn-floor-source")),
         param("low_pass_sigma", ParamKind::Float(Bounds::at_least(0.0)), "8", "σ in pixels of the Gaussian below which the output's frequencies are taken from the PT mean, which removes the estimator's bias at coarser scales (0 = off).", Some("low-pass-sigma")),
         param("two_stage_weight", ParamKind::Float(Bounds::between(0.0, 1.0)), "0.5", "Weight of the two-stage estimate (cv without the centre, then the centre's PT mean by inverse variance) averaged into the joint one (0 = the joint solve alone; needs k ≥ 2).", Some("two-stage-weight")),
+        param("variance_dof", ParamKind::Choice(Dof::NAMES), "mallows", "How the predicted variance allows for β fitted to the batches it is judged on: none, gcv (RSS/(1 − df/n)²) or mallows (RSS·(n + df)/(n − df)), df the trace of the hat matrix; weights the two-stage estimate and fills the variance layer.", Some("variance-dof")),
         param("folds", ParamKind::Choice(Folds::NAMES), "all", "Which CRN batches β is estimated from and applied to: all, or halves (each half's β applied to the other half's mean; even batch count ≥ 4).", Some("folds")),
     ],
     needs: |p| needs(&ImperfectCvOptions::from_params(p)),
@@ -103,6 +104,8 @@ pub struct ImperfectCvOptions {
     pub low_pass_sigma: f64,
     /// Weight of the two-stage estimate in the output (0 = the joint solve alone).
     pub two_stage_weight: f64,
+    /// The degrees-of-freedom allowance of the variance layer's CRN part.
+    pub variance_dof: Dof,
 }
 
 impl Default for ImperfectCvOptions {
@@ -136,6 +139,7 @@ impl ImperfectCvOptions {
             folds: p.choice("folds"),
             low_pass_sigma: p.float("low_pass_sigma"),
             two_stage_weight: p.float("two_stage_weight"),
+            variance_dof: p.choice("variance_dof"),
         }
     }
 }
@@ -267,7 +271,8 @@ impl ImperfectCv {
             floor,
             folds: o.folds,
             variance: true,
-            centre_free: (o.two_stage_weight > 0.0).then(|| centre_free(two_stage_ridge)),
+            dof: o.variance_dof,
+            centre_free: (o.two_stage_weight > 0.0).then(|| centre_free(two_stage_ridge, o.variance_dof)),
         };
         if how == Pass::Separate || !pass.fuses() {
             pass.centre_free = None;
@@ -280,7 +285,7 @@ impl ImperfectCv {
                 Some(f) => combine_with_centre(&f.image, &f.variance, &set.pt.mean, &errors),
                 None => {
                     let neighbours = Selector::new(o.select, o.k - 1, o.search_window, false, o.seed, set);
-                    two_stage(set, neighbours, o.k - 1, &errors, two_stage_ridge, o.shared_coefficients).0
+                    two_stage(set, neighbours, o.k - 1, &errors, two_stage_ridge, o.shared_coefficients, o.variance_dof).0
                 }
             };
             estimate = mix(&estimate, &two, o.two_stage_weight);
@@ -356,6 +361,9 @@ mod tests {
             (40, 33, 16, 16, ImperfectCvOptions { select: Selection::Gbuffer, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { two_stage_weight: 0.3, low_pass_sigma: 0.0, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { folds: Folds::Halves, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { variance_dof: Dof::None, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { variance_dof: Dof::Gcv, shared_coefficients: true, ..d() }),
+            (40, 33, 32, 32, ImperfectCvOptions { variance_dof: Dof::Gcv, ..d() }),
             (3, 2, 16, 16, d()),
             (5, 1, 16, 16, d()),
         ];
