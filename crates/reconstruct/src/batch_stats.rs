@@ -11,6 +11,7 @@ use rayon::prelude::*;
 /// laid out `[(pixel·3 + channel)·stride + batch]` so that one pixel's data is contiguous.
 /// A `stride` above `B` pads every row with zeros, so that fixed-width kernels can copy
 /// whole rows.
+#[derive(Clone)]
 pub struct BatchCube {
     pub batches: usize,
     pub stride: usize,

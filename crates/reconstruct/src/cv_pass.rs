@@ -2,6 +2,13 @@
 //! variates, gather their CRN batch deviations, solve for β (per channel or shared) and
 //! combine `F̂_c = f̄_c − Σ β_i (ḡ_i − h̄_i)`.
 //!
+//! With [`CentreFree`] set, the same pass also solves the centre-free system of the two-stage
+//! estimate of `ours` on the pixel's selection minus the centre: a `Selector` asked for
+//! `k − 1` pixels without the centre returns exactly the `k − 1` neighbours a `k`-pixel
+//! selection with the centre returns, in the same order (it sorts the same unique keys with
+//! the same `select_nth_unstable`), so selecting and gathering once gives both solves the
+//! rows they would have gathered on their own, and the same bits.
+//!
 //! Rows run in parallel; each task owns its buffers, so nothing is allocated per pixel, and
 //! every pixel's arithmetic is independent of the others, so the image is bit-identical for
 //! any thread count. Statistics are kept per row and summed in row order for the same reason.
@@ -40,6 +47,22 @@ pub struct CvPass<'a> {
     pub variance: bool,
     /// How the predicted variance's CRN part allows for β having been fitted to the same batches.
     pub dof: Dof,
+    /// A second solve per pixel on the selection minus the centre (see [`CentreFree`]).
+    pub centre_free: Option<CentreFree>,
+}
+
+/// The centre-free solve that [`CvPass`] can run next to its joint one: the control variates of
+/// `cv` (`F̂_c = ḡ_c − Σ_{i≠c} β_i (ḡ_i − h̄_i)`) over the joint selection without the centre,
+/// from the CRN batches without the floor, always with its predicted variance. It gives what a
+/// separate pass with `include_centre = false`, `k − 1`, no floor and [`Folds::All`] gives.
+/// Needs the centre first in the set, PT error estimates, [`Folds::All`] and the same solver as
+/// the joint system (see [`CvPass::fuses`]).
+#[derive(Clone, Copy, Debug)]
+pub struct CentreFree {
+    pub penalty: Penalty,
+    pub ridge: f64,
+    /// The degrees-of-freedom allowance of its predicted variance.
+    pub dof: Dof,
 }
 
 /// What a pass returns: the image, its predicted variance when asked for, and the statistics.
@@ -49,6 +72,15 @@ pub struct PassOutput {
     /// (with the floor, where one is set) and the PT error estimates `e` before the penalty,
     /// at the coefficients the pass used; averaged over the folds.
     pub variance: Option<Image>,
+    pub stats: PassStats,
+    /// The centre-free estimate, when [`CvPass::centre_free`] is set.
+    pub centre_free: Option<CentreFreeOutput>,
+}
+
+/// The centre-free estimate of a pass: its image, predicted variance and statistics.
+pub struct CentreFreeOutput {
+    pub image: Image,
+    pub variance: Image,
     pub stats: PassStats,
 }
 
@@ -156,11 +188,13 @@ struct Scratch<const P: usize> {
     gs3: [[f64; MAX_K]; 3],
     hs3: [[f64; MAX_K]; 3],
     panel: Option<Box<Panel<P>>>,
+    /// The centre-free solve's panel (its weights and norms are gathered with the joint ones).
+    panel_free: Option<Box<Panel<P>>>,
     ws: Option<Box<Workspace>>,
 }
 
 impl<const P: usize> Scratch<P> {
-    fn new() -> Self {
+    fn new(centre_free: bool) -> Self {
         Scratch {
             select: SelectScratch::new(),
             idx: [0; MAX_K],
@@ -169,6 +203,7 @@ impl<const P: usize> Scratch<P> {
             gs3: [[0.0; MAX_K]; 3],
             hs3: [[0.0; MAX_K]; 3],
             panel: (P > 0).then(Panel::<P>::boxed),
+            panel_free: (P > 0 && centre_free).then(Panel::<P>::boxed),
             ws: (P == 0).then(Workspace::boxed),
         }
     }
@@ -179,7 +214,38 @@ impl<const P: usize> Scratch<P> {
 struct Half<'a> {
     cube: BatchCube,
     mean: &'a [[f32; 3]],
+    /// The deviations without the floor, for the centre-free solve, when `cube` has a
+    /// `common` floor.
+    plain: Option<BatchCube>,
 }
+
+impl Half<'_> {
+    fn plain(&self) -> &BatchCube {
+        self.plain.as_ref().unwrap_or(&self.cube)
+    }
+}
+
+/// What the joint and the centre-free solves of a pixel do differently.
+#[derive(Clone, Copy)]
+struct Stage<'f> {
+    penalty: Penalty,
+    ridge: f64,
+    floor: Option<Floor<'f>>,
+    include_centre: bool,
+    variance: bool,
+    dof: Dof,
+}
+
+/// One image row of the outputs: the joint estimate and the centre-free one.
+struct RowOut<'r> {
+    image: &'r mut [[f32; 3]],
+    variance: &'r mut [[f32; 3]],
+    free_image: &'r mut [[f32; 3]],
+    free_variance: &'r mut [[f32; 3]],
+}
+
+/// A pixel's joint and centre-free estimates, each (value, predicted variance).
+type PixelOut = [([f32; 3], [f32; 3]); 2];
 
 /// `s` of `V = s·Σ d·dᵀ`: the covariance of the full mean of `batches` batches estimated from
 /// the deviations of `m` of them (a single batch's covariance is `Σ d·dᵀ/(m − 1)`).
@@ -188,9 +254,23 @@ fn scale(batches: usize, m: usize) -> f64 {
 }
 
 impl CvPass<'_> {
+    /// Whether [`CvPass::centre_free`] can share this pass: the centre first, PT error
+    /// estimates, all batches, and the same solver as a separate centre-free pass would pick
+    /// (the panel kernel needs fewer batches than control variates, so with `B = k − 1`
+    /// the joint system takes the panel and the centre-free one the general solver).
+    pub fn fuses(&self) -> bool {
+        let b = self.set.batch_count();
+        self.include_centre
+            && self.errors.is_some()
+            && self.folds == Folds::All
+            && self.k >= 2
+            && (self.shared || b >= self.k) == (self.shared || b >= self.k - 1)
+    }
+
     pub fn run(&self) -> PassOutput {
         let b = self.set.batch_count();
         debug_assert!((2..=MAX_BATCHES).contains(&b));
+        assert!(self.centre_free.is_none() || self.fuses(), "the centre-free solve cannot share this pass (see CvPass::fuses)");
         let crn = &self.set.crn;
         // (coefficient batches, the values they are applied to)
         let coefficient_streams: Vec<Stream>;
@@ -213,10 +293,14 @@ impl CvPass<'_> {
                 .iter()
                 .map(|(st, mean)| {
                     let mut cube = BatchCube::deviations(st, stride);
+                    let mut plain = None;
                     if let Some(f) = self.floor.filter(|f| f.mode == FloorMode::Common) {
+                        if self.centre_free.is_some() {
+                            plain = Some(cube.clone());
+                        }
                         cube.rotate_and_floor(f.values, f.tau, s);
                     }
-                    Half { cube, mean }
+                    Half { cube, mean, plain }
                 })
                 .collect()
         };
@@ -235,54 +319,73 @@ impl CvPass<'_> {
         let (w, h) = (self.set.width, self.set.height);
         let mut image = Image::new(w, h);
         let mut variance = Image::new(w, h);
-        let mut rows = vec![PassStats::default(); h];
-        image.pixels.par_chunks_mut(w).zip(variance.pixels.par_chunks_mut(w)).zip(rows.par_iter_mut()).enumerate().for_each_init(
-            Scratch::<P>::new,
-            |sc, (y, ((row, var), st))| {
-                #[cfg(target_arch = "x86_64")]
-                if crate::simd::use_avx2() {
-                    // SAFETY: the CPU supports AVX2 (checked just above).
-                    unsafe { self.row_avx2::<P>(halves, y, row, var, sc, st) };
-                    return;
-                }
-                self.row::<P, Portable>(halves, y, row, var, sc, st);
-            },
-        );
-        let mut stats = PassStats::default();
-        for r in &rows {
+        // Zeroed lazily by the allocator, so untouched (and free) without the centre-free solve.
+        let mut free_image = Image::new(w, h);
+        let mut free_variance = Image::new(w, h);
+        let mut rows = vec![[PassStats::default(); 2]; h];
+        let fused = self.centre_free.is_some();
+        image
+            .pixels
+            .par_chunks_mut(w)
+            .zip(variance.pixels.par_chunks_mut(w))
+            .zip(free_image.pixels.par_chunks_mut(w).zip(free_variance.pixels.par_chunks_mut(w)))
+            .zip(rows.par_iter_mut())
+            .enumerate()
+            .for_each_init(
+                || Scratch::<P>::new(fused),
+                |sc, (y, (((image, variance), (free_image, free_variance)), st))| {
+                    let out = RowOut { image, variance, free_image, free_variance };
+                    #[cfg(target_arch = "x86_64")]
+                    if crate::simd::use_avx2() {
+                        // SAFETY: the CPU supports AVX2 (checked just above).
+                        unsafe { self.row_avx2::<P>(halves, y, out, sc, st) };
+                        return;
+                    }
+                    self.row::<P, Portable>(halves, y, out, sc, st);
+                },
+            );
+        let (mut stats, mut free_stats) = (PassStats::default(), PassStats::default());
+        for [r, f] in &rows {
             stats.add(r);
+            free_stats.add(f);
         }
-        PassOutput { image, variance: self.variance.then_some(variance), stats }
+        PassOutput {
+            image,
+            variance: self.variance.then_some(variance),
+            stats,
+            centre_free: fused.then_some(CentreFreeOutput { image: free_image, variance: free_variance, stats: free_stats }),
+        }
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn row_avx2<const P: usize>(
-        &self,
-        halves: &[Half],
-        y: usize,
-        row: &mut [[f32; 3]],
-        var: &mut [[f32; 3]],
-        sc: &mut Scratch<P>,
-        st: &mut PassStats,
-    ) {
-        self.row::<P, crate::simd::Avx2>(halves, y, row, var, sc, st);
+    unsafe fn row_avx2<const P: usize>(&self, halves: &[Half], y: usize, out: RowOut, sc: &mut Scratch<P>, st: &mut [PassStats; 2]) {
+        self.row::<P, crate::simd::Avx2>(halves, y, out, sc, st);
     }
 
     #[inline(always)]
-    fn row<const P: usize, S: Simd>(
-        &self,
-        halves: &[Half],
-        y: usize,
-        row: &mut [[f32; 3]],
-        var: &mut [[f32; 3]],
-        sc: &mut Scratch<P>,
-        st: &mut PassStats,
-    ) {
-        for (x, (px, v)) in row.iter_mut().zip(var.iter_mut()).enumerate() {
-            let (value, variance) = self.pixel::<P, S>(halves, x, y, sc, st);
-            *px = value;
-            *v = variance;
+    fn row<const P: usize, S: Simd>(&self, halves: &[Half], y: usize, out: RowOut, sc: &mut Scratch<P>, st: &mut [PassStats; 2]) {
+        let fused = self.centre_free.is_some();
+        for x in 0..out.image.len() {
+            let [(value, variance), (free_value, free_variance)] = self.pixel::<P, S>(halves, x, y, sc, st);
+            out.image[x] = value;
+            out.variance[x] = variance;
+            if fused {
+                out.free_image[x] = free_value;
+                out.free_variance[x] = free_variance;
+            }
+        }
+    }
+
+    /// The joint solve's settings.
+    fn joint(&self) -> Stage<'_> {
+        Stage {
+            penalty: self.penalty,
+            ridge: self.ridge,
+            floor: self.floor,
+            include_centre: self.include_centre,
+            variance: self.variance,
+            dof: self.dof,
         }
     }
 
@@ -310,24 +413,28 @@ impl CvPass<'_> {
 
     /// `W` for control variate `i` of centre `c` in channel `ch` (summed over channels when shared).
     #[inline(always)]
-    fn weight(&self, i: usize, c: usize, ch: usize) -> f64 {
+    fn weight(&self, penalty: Penalty, i: usize, c: usize, ch: usize) -> f64 {
         let Some(e) = self.errors else { return 0.0 };
-        let (g, hm) = (&self.set.crn.mean.pixels, &self.set.pt.mean.pixels);
-        let one = |ch: usize| {
-            let (ei, ec) = (e[i][ch] as f64, e[c][ch] as f64);
-            if i == c {
-                ei
-            } else if self.penalty == Penalty::Residual {
-                let r = (hm[i][ch] - hm[c][ch]) as f64 - (g[i][ch] - g[c][ch]) as f64;
-                self.penalty.apply(ei, ec, r)
-            } else {
-                self.penalty.apply(ei, ec, 0.0)
-            }
-        };
         if self.shared {
-            one(0) + one(1) + one(2)
+            self.channel_weight(e, penalty, i, c, 0) + self.channel_weight(e, penalty, i, c, 1) + self.channel_weight(e, penalty, i, c, 2)
         } else {
-            one(ch)
+            self.channel_weight(e, penalty, i, c, ch)
+        }
+    }
+
+    /// One channel's `W`; a method rather than a closure so that `inline(always)` applies and
+    /// the gathering loop does not make a call per neighbour and channel.
+    #[inline(always)]
+    fn channel_weight(&self, e: &[[f32; 3]], penalty: Penalty, i: usize, c: usize, ch: usize) -> f64 {
+        let (ei, ec) = (e[i][ch] as f64, e[c][ch] as f64);
+        if i == c {
+            ei
+        } else if penalty == Penalty::Residual {
+            let (g, hm) = (&self.set.crn.mean.pixels, &self.set.pt.mean.pixels);
+            let r = (hm[i][ch] - hm[c][ch]) as f64 - (g[i][ch] - g[c][ch]) as f64;
+            penalty.apply(ei, ec, r)
+        } else {
+            penalty.apply(ei, ec, 0.0)
         }
     }
 
@@ -338,8 +445,8 @@ impl CvPass<'_> {
         x: usize,
         y: usize,
         sc: &mut Scratch<P>,
-        st: &mut PassStats,
-    ) -> ([f32; 3], [f32; 3]) {
+        st: &mut [PassStats; 2],
+    ) -> PixelOut {
         let c = y * self.set.width + x;
         let n = self.selector.select(x, y, &mut sc.select, &mut sc.idx);
         let idx = &sc.idx[..n];
@@ -347,24 +454,48 @@ impl CvPass<'_> {
         let nh = halves.len();
         let b = halves[0].cube.batches;
         let s = scale(self.set.batch_count(), b);
-        st.pixels += 1;
-        st.set_size += n as u64;
+        let crn_only = (self.set.crn.mean.pixels[c], [0.0; 3]);
+        // The centre-free solve's control variates are the joint ones after the centre.
+        let free = self.centre_free.map(|f| Stage {
+            penalty: f.penalty,
+            ridge: f.ridge,
+            floor: None,
+            include_centre: false,
+            variance: true,
+            dof: f.dof,
+        });
+        st[0].pixels += 1;
+        st[0].set_size += n as u64;
+        if free.is_some() {
+            st[1].pixels += 1;
+            st[1].set_size += n.saturating_sub(1) as u64;
+        }
         if n == 0 {
-            return (self.set.crn.mean.pixels[c], [0.0; 3]);
+            return [crn_only; 2];
         }
         debug_assert!(self.floor.is_none() || (self.include_centre && idx[0] as usize == c));
+        debug_assert!(free.is_none() || (nh == 1 && idx[0] as usize == c));
+        let free = free.filter(|_| n >= 2);
         let mut acc = [0.0f64; 3];
         let mut var = [0.0f64; 3];
-        let finish = |acc: [f64; 3], var: [f64; 3]| (acc.map(|v| (v / nh as f64) as f32), var.map(|v| (v / nh as f64) as f32));
+        let mut free_acc = [0.0f64; 3];
+        let mut free_var = [0.0f64; 3];
+        let finish = |acc: [f64; 3], var: [f64; 3], nh: usize| (acc.map(|v| (v / nh as f64) as f32), var.map(|v| (v / nh as f64) as f32));
         if let Some(p) = sc.panel.as_deref_mut() {
             for half in halves {
                 let cube = &half.cube;
+                let plain = half.plain();
                 let target = half.mean;
                 let mut delta_c = [0.0f64; 3];
                 let centre: [&[f32; P]; 3] = std::array::from_fn(|ch| cube.row_padded::<P>(c, ch));
                 let mut rows = Rows { d: centre.map(|r| [r; MAX_K]), dc: centre };
-                // One pass over the set gathers everything: rows, norms, weights and the values
-                // the combination needs.
+                let mut free_rows = free.map(|_| {
+                    let centre: [&[f32; P]; 3] = std::array::from_fn(|ch| plain.row_padded::<P>(c, ch));
+                    Rows { d: centre.map(|r| [r; MAX_K]), dc: centre }
+                });
+                let mut q = sc.panel_free.as_deref_mut().filter(|_| free.is_some());
+                // One pass over the set gathers everything for both solves: rows, norms,
+                // weights and the values the combination needs.
                 for (j, &i) in idx.iter().enumerate() {
                     let i = i as usize;
                     let (gi, hi) = (target[i], hm[i]);
@@ -374,7 +505,16 @@ impl CvPass<'_> {
                         sc.gs3[ch][j] = gi[ch] as f64;
                         sc.hs3[ch][j] = hi[ch] as f64;
                     }
-                    p.w.iter_mut().enumerate().for_each(|(ch, w)| w[j] = self.weight(i, c, ch));
+                    p.w.iter_mut().enumerate().for_each(|(ch, w)| w[j] = self.weight(self.penalty, i, c, ch));
+                    if let (Some(f), Some(q), Some(fr)) = (free, q.as_deref_mut(), free_rows.as_mut()) {
+                        if j > 0 {
+                            for ch in 0..3 {
+                                fr.d[ch][j - 1] = plain.row_padded::<P>(i, ch);
+                                q.sq[ch][j - 1] = plain.sq[i][ch];
+                                q.w[ch][j - 1] = if f.penalty == self.penalty { p.w[ch][j] } else { self.weight(f.penalty, i, c, ch) };
+                            }
+                        }
+                    }
                     if let Some(f) = self.floor.filter(|f| f.mode == FloorMode::Independent) {
                         for ch in 0..3 {
                             let d = f.delta(f.values[i][ch] as f64, s * p.sq[ch][j] as f64);
@@ -396,7 +536,7 @@ impl CvPass<'_> {
                         blend_towards_centre(&mut p.beta[ch][..n], delta_c[ch], winv);
                     }
                     let beta = &mut p.beta[ch][..n];
-                    st.record(outcomes[ch], beta, self.include_centre);
+                    st[0].record(outcomes[ch], beta, self.include_centre);
                     acc[ch] += combine(target[c][ch] as f64, &sc.gs3[ch][..n], &sc.hs3[ch][..n], beta);
                     if self.variance {
                         let solved = matches!(outcomes[ch], Outcome::Solved | Outcome::Regularised);
@@ -405,64 +545,110 @@ impl CvPass<'_> {
                         var[ch] += factor * crn + pt;
                     }
                 }
+                if let (Some(f), Some(q), Some(fr)) = (free, q, free_rows.as_ref()) {
+                    // Without a floor there is nothing to blend towards the centre (and no centre).
+                    let m = n - 1;
+                    q.want_trace = f.dof != Dof::None;
+                    let outcomes = q.solve::<S>(fr, m, s, f.ridge);
+                    // No floor column: B − 1 observations per channel.
+                    let n_obs = (b - 1) as f64;
+                    for ch in 0..3 {
+                        let solved = matches!(outcomes[ch], Outcome::Solved | Outcome::Regularised);
+                        let factor = if solved { f.dof.factor(P as f64 - q.trace_inv[ch], n_obs) } else { 1.0 };
+                        let beta = &mut q.beta[ch][..m];
+                        st[1].record(outcomes[ch], beta, false);
+                        free_acc[ch] += combine(target[c][ch] as f64, &sc.gs3[ch][1..n], &sc.hs3[ch][1..n], beta);
+                        let (crn, pt) = self.predicted_variance(plain, c, &idx[1..], beta, ch, s);
+                        free_var[ch] += factor * crn + pt;
+                    }
+                }
             }
-            return finish(acc, var);
+        } else {
+            let ws = sc.ws.as_deref_mut().expect("general workspace");
+            let joint = self.joint();
+            for half in halves {
+                self.general(&joint, &half.cube, half.mean, idx, c, ws, (&mut sc.gs, &mut sc.hs), &mut st[0], (&mut acc, &mut var));
+            }
+            if let Some(f) = free {
+                let half = &halves[0];
+                let out = (&mut free_acc, &mut free_var);
+                self.general(&f, half.plain(), half.mean, &idx[1..], c, ws, (&mut sc.gs, &mut sc.hs), &mut st[1], out);
+            }
         }
-        let ws = sc.ws.as_deref_mut().expect("general workspace");
+        let free_out = if free.is_some() { finish(free_acc, free_var, 1) } else { crn_only };
+        [finish(acc, var, nh), free_out]
+    }
+
+    /// One fold's solve in the general f64 workspace (shared coefficients, or at least as many
+    /// batches as control variates): gathers the rows of `idx` from `cube`, solves with the
+    /// `stage`'s settings and adds the combination and its variance to `out`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn general(
+        &self,
+        stage: &Stage,
+        cube: &BatchCube,
+        target: &[[f32; 3]],
+        idx: &[u32],
+        c: usize,
+        ws: &mut Workspace,
+        (gs, hs): (&mut [f64; MAX_K], &mut [f64; MAX_K]),
+        st: &mut PassStats,
+        (acc, var): (&mut [f64; 3], &mut [f64; 3]),
+    ) {
+        let n = idx.len();
+        let b = cube.batches;
+        let s = scale(self.set.batch_count(), b);
+        let hm = &self.set.pt.mean.pixels;
         let channels: &[usize] = if self.shared { &[0] } else { &[0, 1, 2] };
-        for half in halves {
-            let cube = &half.cube;
-            let target = half.mean;
-            for &ch in channels {
-                let m = if self.shared { 3 * b } else { b };
-                let source = |i: usize| if self.shared { cube.pixel(i) } else { cube.row(i, ch) };
-                for (j, &i) in idx.iter().enumerate() {
-                    for (dst, v) in ws.d[j * m..(j + 1) * m].iter_mut().zip(source(i as usize)) {
-                        *dst = *v as f64;
-                    }
-                    ws.w[j] = self.weight(i as usize, c, ch);
-                }
-                let mut delta_c = 0.0;
-                if let Some(f) = self.floor.filter(|f| f.mode == FloorMode::Independent) {
-                    for (j, &i) in idx.iter().enumerate() {
-                        let v = f.values[i as usize];
-                        let v = if self.shared { v.iter().map(|x| *x as f64).sum() } else { v[ch] as f64 };
-                        let row = &ws.d[j * m..(j + 1) * m];
-                        let d = f.delta(v, s * crate::solve::dot(row, row));
-                        ws.w[j] += d;
-                        if j == 0 {
-                            delta_c = d;
-                        }
-                    }
-                }
-                for (dst, v) in ws.dc[..m].iter_mut().zip(source(c)) {
+        for &ch in channels {
+            let m = if self.shared { 3 * b } else { b };
+            let source = |i: usize| if self.shared { cube.pixel(i) } else { cube.row(i, ch) };
+            for (j, &i) in idx.iter().enumerate() {
+                for (dst, v) in ws.d[j * m..(j + 1) * m].iter_mut().zip(source(i as usize)) {
                     *dst = *v as f64;
                 }
-                ws.want_df = self.variance && self.dof != Dof::None;
-                let outcome = ws.solve(n, m, s, self.ridge, Form::Auto);
-                let solved = matches!(outcome, Outcome::Solved | Outcome::Regularised);
-                let common = self.floor.is_some_and(|f| f.mode == FloorMode::Common);
-                let n_obs = (m / b * (b - 1 + usize::from(common))) as f64;
-                let factor = if solved && ws.want_df { self.dof.factor(ws.df, n_obs) } else { 1.0 };
-                if matches!(outcome, Outcome::Solved | Outcome::Regularised) {
-                    blend_towards_centre(&mut ws.beta[..n], delta_c, 1.0 / (ws.w[0] + ws.lambda));
-                }
-                let beta = &mut ws.beta[..n];
-                st.record(outcome, beta, self.include_centre);
-                let out_channels: &[usize] = if self.shared { &[0, 1, 2] } else { std::slice::from_ref(&ch) };
-                for &oc in out_channels {
-                    for (j, &i) in idx.iter().enumerate() {
-                        sc.gs[j] = target[i as usize][oc] as f64;
-                        sc.hs[j] = hm[i as usize][oc] as f64;
-                    }
-                    acc[oc] += combine(target[c][oc] as f64, &sc.gs[..n], &sc.hs[..n], beta);
-                    if self.variance {
-                        let (crn, pt) = self.predicted_variance(cube, c, idx, beta, oc, s);
-                        var[oc] += factor * crn + pt;
+                ws.w[j] = self.weight(stage.penalty, i as usize, c, ch);
+            }
+            let mut delta_c = 0.0;
+            if let Some(f) = stage.floor.filter(|f| f.mode == FloorMode::Independent) {
+                for (j, &i) in idx.iter().enumerate() {
+                    let v = f.values[i as usize];
+                    let v = if self.shared { v.iter().map(|x| *x as f64).sum() } else { v[ch] as f64 };
+                    let row = &ws.d[j * m..(j + 1) * m];
+                    let d = f.delta(v, s * crate::solve::dot(row, row));
+                    ws.w[j] += d;
+                    if j == 0 {
+                        delta_c = d;
                     }
                 }
             }
+            for (dst, v) in ws.dc[..m].iter_mut().zip(source(c)) {
+                *dst = *v as f64;
+            }
+            ws.want_df = stage.variance && stage.dof != Dof::None;
+            let outcome = ws.solve(n, m, s, stage.ridge, Form::Auto);
+            let solved = matches!(outcome, Outcome::Solved | Outcome::Regularised);
+            let common = stage.floor.is_some_and(|f| f.mode == FloorMode::Common);
+            let n_obs = (m / b * (b - 1 + usize::from(common))) as f64;
+            let factor = if solved && ws.want_df { stage.dof.factor(ws.df, n_obs) } else { 1.0 };
+            if matches!(outcome, Outcome::Solved | Outcome::Regularised) {
+                blend_towards_centre(&mut ws.beta[..n], delta_c, 1.0 / (ws.w[0] + ws.lambda));
+            }
+            let beta = &mut ws.beta[..n];
+            st.record(outcome, beta, stage.include_centre);
+            let out_channels: &[usize] = if self.shared { &[0, 1, 2] } else { std::slice::from_ref(&ch) };
+            for &oc in out_channels {
+                for (j, &i) in idx.iter().enumerate() {
+                    gs[j] = target[i as usize][oc] as f64;
+                    hs[j] = hm[i as usize][oc] as f64;
+                }
+                acc[oc] += combine(target[c][oc] as f64, &gs[..n], &hs[..n], beta);
+                if stage.variance {
+                    let (crn, pt) = self.predicted_variance(cube, c, idx, beta, oc, s);
+                    var[oc] += factor * crn + pt;
+                }
+            }
         }
-        finish(acc, var)
     }
 }

@@ -103,7 +103,7 @@ pub use spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples, Val
 ///   [`PassStats`](blocks::PassStats) report the shares of regularised and degenerate solves.
 pub mod blocks {
     pub use crate::batch_stats::{group_means, variance_of_mean, BatchCube};
-    pub use crate::cv_pass::{CvPass, Folds, PassOutput, PassStats};
+    pub use crate::cv_pass::{CentreFree, CentreFreeOutput, CvPass, Folds, PassOutput, PassStats};
     pub use crate::floor::{Floor, FloorMode, FloorSource};
     pub use crate::low_pass::{low_pass_variance, restore_low_frequencies};
     pub use crate::penalty::Penalty;

@@ -208,4 +208,38 @@ mod tests {
         let sel = Selector::new(Selection::Knn, 25, 11, true, 0, &set);
         assert_eq!(chosen(&sel, 1, 1).len(), 4);
     }
+
+    /// The centre-free pass of `ours`' two-stage estimate reuses the joint selection minus the
+    /// centre: a `k − 1` selection without the centre must be exactly that, in the same order,
+    /// also where primary keys tie (a flat image, `window`, and quantised colours).
+    #[test]
+    fn centre_free_selection_is_the_joint_one_after_the_centre() {
+        use crate::synthetic::{RenderSpec, SoftShadowScene};
+        let scene = SoftShadowScene::default().render(&RenderSpec { width: 37, height: 29, spp: 16, batches: 16, seed: 2 }).unwrap();
+        let mut quantised = scene.clone();
+        quantised.crn.mean.pixels.iter_mut().for_each(|p| *p = p.map(|v| (v * 4.0).round() / 4.0));
+        let mut flat = scene.clone();
+        flat.crn.mean.pixels.fill([0.5; 3]);
+        let (mut compared, mut tied) = (0, 0);
+        for set in [&scene, &quantised, &flat] {
+            for kind in [Selection::Knn, Selection::Window, Selection::Random, Selection::Gbuffer] {
+                for (k, search) in [(25, 11), (2, 3), (9, 3), (25, 5), (40, 7), (64, 31)] {
+                    let joint = Selector::new(kind, k, search, true, 9, set);
+                    let free = Selector::new(kind, k - 1, search, false, 9, set);
+                    for y in 0..set.height {
+                        for x in 0..set.width {
+                            let a = chosen(&joint, x, y);
+                            let b = chosen(&free, x, y);
+                            assert_eq!(&a[1..], &b[..], "{kind:?} k={k} search={search} at ({x}, {y})");
+                            compared += 1;
+                            let c = set.crn.mean.pixels[y * set.width + x];
+                            let d: Vec<u32> = a[1..].iter().map(|&i| dist2(&c, &set.crn.mean.pixels[i as usize]).to_bits()).collect();
+                            tied += usize::from((1..d.len()).any(|j| d[..j].contains(&d[j])));
+                        }
+                    }
+                }
+            }
+        }
+        assert!(tied > compared / 4, "the case should include many ties: {tied} of {compared}");
+    }
 }

@@ -14,7 +14,7 @@
 //! guards against the PT noise it copies in, and with fewer batches than control variates `V_g`
 //! is singular, so the ridge is essential. See docs/estimators.md for both, measured.
 use super::ours::check_selection;
-use crate::cv_pass::{CvPass, Dof, Folds, PassStats};
+use crate::cv_pass::{CentreFree, CvPass, Dof, Folds, PassStats};
 use crate::input::BatchNeed;
 use crate::low_pass::restore_low_frequencies;
 use crate::penalty::Penalty;
@@ -253,7 +253,14 @@ fn cv_pass<'a>(
         folds: Folds::All,
         variance: variance.is_some(),
         dof: variance.unwrap_or(Dof::None),
+        centre_free: None,
     }
+}
+
+/// The control-variate solve of [`two_stage`] as the centre-free part of a joint pass with the
+/// same selection (PT errors modelled, so the `avg` penalty of [`cv_pass`]).
+pub(crate) fn centre_free(ridge: f64, dof: Dof) -> CentreFree {
+    CentreFree { penalty: Penalty::Avg, ridge, dof }
 }
 
 /// An estimate and its predicted variance per pixel and channel.
@@ -284,7 +291,7 @@ pub(crate) fn two_stage(
 /// centre's PT mean `h` (error estimate `e`), per pixel and channel, and its variance
 /// `e·v_f / (e + v_f)`. Where both variances are 0 (a black, noiseless pixel) the two agree and
 /// `f` is kept.
-fn combine_with_centre(f: &Image, v_f: &Image, h: &Image, e: &[[f32; 3]]) -> Estimate {
+pub(crate) fn combine_with_centre(f: &Image, v_f: &Image, h: &Image, e: &[[f32; 3]]) -> Estimate {
     let (mut image, mut variance) = (f.clone(), v_f.clone());
     for ((((o, v), vf), hc), ec) in image.pixels.iter_mut().zip(&mut variance.pixels).zip(&v_f.pixels).zip(&h.pixels).zip(e) {
         for ch in 0..3 {

@@ -9,7 +9,7 @@
 //! inverse variance): the two weight the centre differently, their errors are not the same, and
 //! their average measured lower relMSE on the bundled scenes than either. See
 //! docs/estimators.md for the defaults and their measurements.
-use super::cv::{two_stage, ClassicCvOptions, Estimate};
+use super::cv::{centre_free, combine_with_centre, two_stage, ClassicCvOptions, Estimate};
 use crate::batch_stats::variance_of_mean;
 use crate::cv_pass::{CvPass, Dof, Folds};
 use crate::floor::{Floor, FloorMode, FloorSource};
@@ -218,6 +218,24 @@ impl ImperfectCv {
 
 impl Estimator for ImperfectCv {
     fn reconstruct(&self, input: &Input) -> Result<Output, ReconError> {
+        self.reconstruct_with(input, Pass::Shared)
+    }
+}
+
+/// How the two-stage estimate gets its control variates.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Pass {
+    /// In the joint pass, from the same selection and gathered rows, wherever
+    /// [`CvPass::fuses`] allows it.
+    Shared,
+    /// In a second pass of its own, as `cv-two-stage` computes it; kept to test that sharing
+    /// changes no bit.
+    #[cfg_attr(not(test), allow(dead_code))]
+    Separate,
+}
+
+impl ImperfectCv {
+    fn reconstruct_with(&self, input: &Input, how: Pass) -> Result<Output, ReconError> {
         let start = Instant::now();
         let o = &self.options;
         let set = input.streams;
@@ -240,7 +258,8 @@ impl Estimator for ImperfectCv {
             values: crn_variance.as_deref().unwrap_or(&errors),
         });
         let t_prepare = start.elapsed().as_secs_f64();
-        let pass = CvPass {
+        let two_stage_ridge = ClassicCvOptions::default().ridge;
+        let mut pass = CvPass {
             set,
             selector: Selector::new(o.select, o.k, o.search_window, true, o.seed, set),
             k: o.k,
@@ -253,14 +272,22 @@ impl Estimator for ImperfectCv {
             folds: o.folds,
             variance: true,
             dof: o.variance_dof,
+            centre_free: (o.two_stage_weight > 0.0).then(|| centre_free(two_stage_ridge, o.variance_dof)),
         };
+        if how == Pass::Separate || !pass.fuses() {
+            pass.centre_free = None;
+        }
         let out = pass.run();
         let st = out.stats;
         let mut estimate = Estimate { image: out.image, variance: out.variance.expect("asked for the variance") };
         if o.two_stage_weight > 0.0 {
-            let neighbours = Selector::new(o.select, o.k - 1, o.search_window, false, o.seed, set);
-            let (two, _) =
-                two_stage(set, neighbours, o.k - 1, &errors, ClassicCvOptions::default().ridge, o.shared_coefficients, o.variance_dof);
+            let two = match out.centre_free {
+                Some(f) => combine_with_centre(&f.image, &f.variance, &set.pt.mean, &errors),
+                None => {
+                    let neighbours = Selector::new(o.select, o.k - 1, o.search_window, false, o.seed, set);
+                    two_stage(set, neighbours, o.k - 1, &errors, two_stage_ridge, o.shared_coefficients, o.variance_dof).0
+                }
+            };
             estimate = mix(&estimate, &two, o.two_stage_weight);
         }
         let image = restore_low_frequencies(&estimate.image, &set.pt.mean, o.low_pass_sigma);
@@ -293,4 +320,65 @@ fn mix(a: &Estimate, b: &Estimate, w: f64) -> Estimate {
         }
     }
     Estimate { image, variance }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synthetic::{RenderSpec, SoftShadowScene};
+
+    fn bits(im: &cvtrace_streams::Image) -> Vec<[u32; 3]> {
+        im.pixels.iter().map(|p| p.map(f32::to_bits)).collect()
+    }
+
+    /// Sharing the joint pass with the two-stage estimate's solve changes no bit of the image,
+    /// the variance or the diagnostics, on every solver path: the panel at each width, the
+    /// general solver (shared coefficients, B ≥ k), both floors and none, a penalty that
+    /// differs from the two-stage one, every selection, and images smaller than the set.
+    #[test]
+    fn sharing_the_pass_changes_no_bit() {
+        let d = ImperfectCvOptions::default;
+        let cases: Vec<(usize, usize, u32, usize, ImperfectCvOptions)> = vec![
+            (40, 33, 16, 16, d()),
+            (40, 33, 16, 8, d()),
+            (40, 33, 8, 4, d()),
+            (40, 33, 32, 32, d()),
+            (24, 20, 64, 64, d()),
+            (40, 33, 24, 24, d()),
+            (40, 33, 16, 16, ImperfectCvOptions { k: 17, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { k: 18, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { k: 2, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { k: 40, search_window: 9, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { shared_coefficients: true, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { crn_floor_mode: FloorMode::Independent, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { crn_floor: 0.0, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { crn_floor_source: FloorSource::Crn, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { penalty: Penalty::None, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { penalty: Penalty::Residual, shared_coefficients: true, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { errors: ErrorEstimate::Variance, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { select: Selection::Random, seed: 5, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { select: Selection::Window, search_window: 5, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { select: Selection::Gbuffer, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { two_stage_weight: 0.3, low_pass_sigma: 0.0, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { folds: Folds::Halves, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { variance_dof: Dof::None, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { variance_dof: Dof::Gcv, shared_coefficients: true, ..d() }),
+            (40, 33, 32, 32, ImperfectCvOptions { variance_dof: Dof::Gcv, ..d() }),
+            (3, 2, 16, 16, d()),
+            (5, 1, 16, 16, d()),
+        ];
+        for (w, h, spp, batches, o) in cases {
+            let set = SoftShadowScene::default().render(&RenderSpec { width: w, height: h, spp, batches, seed: 7 }).unwrap();
+            let input = Input::new(&set);
+            let est = ImperfectCv::new(o.clone()).unwrap();
+            let shared = est.reconstruct_with(&input, Pass::Shared).unwrap();
+            let separate = est.reconstruct_with(&input, Pass::Separate).unwrap();
+            let case = format!("{w}x{h} B={batches} {o:?}");
+            assert_eq!(bits(&shared.image), bits(&separate.image), "image of {case}");
+            assert_eq!(bits(&shared.aovs[0].1), bits(&separate.aovs[0].1), "variance of {case}");
+            let diag =
+                |out: &Output| out.diagnostics.entries.iter().filter(|(n, _)| !n.starts_with("seconds")).cloned().collect::<Vec<_>>();
+            assert_eq!(diag(&shared), diag(&separate), "diagnostics of {case}");
+        }
+    }
 }
