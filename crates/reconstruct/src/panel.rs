@@ -41,6 +41,8 @@ pub(crate) struct Panel<const P: usize> {
     c32: [[f32; MAX_K]; 3],
     /// Whether a solve also computes `trace_inv`.
     pub want_trace: bool,
+    /// Per channel, the rows of `L⁻¹` (scratch of the trace).
+    inv_rows: [[[f32; P]; P]; 3],
     /// Per channel, `tr(G⁻¹)` of the last successful solve, when `want_trace`: the hat matrix
     /// in batch space is `I − G⁻¹`, so `P − tr(G⁻¹)` is the degrees of freedom the fit spent.
     pub trace_inv: [f64; 3],
@@ -58,6 +60,7 @@ impl<const P: usize> Panel<P> {
             winv: [[0.0; MAX_K]; 3],
             c32: [[0.0; MAX_K]; 3],
             want_trace: false,
+            inv_rows: [[[0.0f32; P]; P]; 3],
             trace_inv: [0.0; 3],
         })
     }
@@ -192,25 +195,34 @@ impl<const P: usize> Panel<P> {
             }
         }
         if self.want_trace {
-            // tr(G⁻¹) = ‖L⁻¹‖²_F, column by column: x = L⁻¹·e_j is zero above j.
-            for ch in 0..3 {
-                if !ok[ch] {
-                    continue;
+            // tr(G⁻¹) = ‖L⁻¹‖²_F. Row i of X = L⁻¹ is (e_i − Σ_{t<i} L_it·X_t) / L_ii: whole-row
+            // updates without horizontal sums, the three channels' chains interleaved.
+            let mut tr = [0.0f64; 3];
+            for i in 0..P {
+                let mut row = [[0.0f32; P]; 3];
+                for r in &mut row {
+                    r[i] = 1.0;
                 }
-                let (l, inv) = (&self.g[ch], &self.inv_diag[ch]);
-                let mut tr = 0.0f64;
-                for j in 0..P {
-                    let mut x = [0.0f32; P];
-                    x[j] = inv[j];
-                    let mut ss = f64::from(x[j]) * f64::from(x[j]);
-                    for i in j + 1..P {
-                        let v = -S::dot32(&l[i], &x) * inv[i];
-                        x[i] = v;
-                        ss += f64::from(v) * f64::from(v);
+                for t in 0..i {
+                    for ch in 0..3 {
+                        if ok[ch] {
+                            S::axpy32(&mut row[ch], -self.g[ch][i][t], &self.inv_rows[ch][t]);
+                        }
                     }
-                    tr += ss;
                 }
-                self.trace_inv[ch] = tr;
+                for ch in 0..3 {
+                    if ok[ch] {
+                        let inv = self.inv_diag[ch][i];
+                        row[ch].iter_mut().for_each(|v| *v *= inv);
+                        tr[ch] += row[ch].iter().map(|v| f64::from(*v) * f64::from(*v)).sum::<f64>();
+                        self.inv_rows[ch][i] = row[ch];
+                    }
+                }
+            }
+            for ch in 0..3 {
+                if ok[ch] {
+                    self.trace_inv[ch] = tr[ch];
+                }
             }
         }
         // L·y = d_c, then Lᵀ·z = y (row-oriented, so both run over full rows).
