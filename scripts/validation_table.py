@@ -27,7 +27,7 @@ def main():
             noise = sc["reference"].get("noise", {}).get("relmse") or 0.0
             best = min(m[k]["relmse_mean"] for k in ("iduw", "cv", "ours", "pt2n"))
             oi, oc, op, cp = ratio(m["ours"], m["iduw"]), ratio(m["ours"], m["cv"]), ratio(m["ours"], m["pt2n"]), ratio(m["cv"], m["pt2n"])
-            # When the reference's own noise reaches the best method's relMSE, the subtraction has
+            # When the reference's own noise reaches ours' relMSE, the subtraction has
             # nothing left to measure: the cell says so and the scene stays out of that mean.
             opc = None
             if noise < m["ours"]["relmse_mean"]:
