@@ -20,7 +20,7 @@ use crate::pt_error::{cross_bilateral, pt_errors, CbfOptions, ErrorEstimate, MAX
 use crate::selection::{Selection, Selector, MAX_SEARCH_WINDOW};
 use crate::solve::{MAX_BATCHES, MAX_K};
 use crate::spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples, Variant};
-use crate::{Diagnostics, Estimator, Input, Needs, Output, ReconError};
+use crate::{Diagnostics, Estimator, Input, Needs, Output, ReconError, StreamSet};
 use std::time::Instant;
 
 const fn param(name: &'static str, kind: ParamKind, default: &'static str, doc: &'static str, alias: Option<&'static str>) -> ParamSpec {
@@ -54,6 +54,7 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
         param("low_pass_sigma", ParamKind::Float(Bounds::at_least(0.0)), "8", "σ in pixels of the Gaussian below which the output's frequencies are taken from the PT mean, which removes the estimator's bias at coarser scales (0 = off).", Some("low-pass-sigma")),
         param("two_stage_weight", ParamKind::Float(Bounds::between(0.0, 1.0)), "0.5", "Weight of the two-stage estimate (cv without the centre, then the centre's PT mean by inverse variance) averaged into the joint one (0 = the joint solve alone; needs k ≥ 2).", Some("two-stage-weight")),
         param("variance_dof", ParamKind::Choice(Dof::NAMES), "mallows", "How the predicted variance allows for β fitted to the batches it is judged on: none, gcv (RSS/(1 − df/n)²) or mallows (RSS·(n + df)/(n − df)), df the trace of the hat matrix; weights the two-stage estimate and fills the variance layer.", Some("variance-dof")),
+        param("mix_correlation", ParamKind::Choice(MixCorrelation::NAMES), "bound", "The correlation of the joint and two-stage estimates in the variance layer of their mix: bound (1, the largest variance) or local (estimated from their squared differences, smoothed by the PT error filter). The image does not depend on it.", Some("mix-correlation")),
         param("folds", ParamKind::Choice(Folds::NAMES), "all", "Which CRN batches β is estimated from and applied to: all, or halves (each half's β applied to the other half's mean; even batch count ≥ 4).", Some("folds")),
     ],
     needs: |p| needs(&ImperfectCvOptions::from_params(p)),
@@ -106,6 +107,20 @@ pub struct ImperfectCvOptions {
     pub two_stage_weight: f64,
     /// The degrees-of-freedom allowance of the variance layer's CRN part.
     pub variance_dof: Dof,
+    /// The correlation of the two mixed estimates that the variance layer assumes.
+    pub mix_correlation: MixCorrelation,
+}
+
+crate::named::named_enum! {
+    /// The joint and the two-stage estimates share their samples, so the variance of their mix
+    /// depends on a correlation nothing in the solve measures.
+    pub enum MixCorrelation: "mix-correlation" {
+        /// Correlation 1: `((1 − w)·σ_a + w·σ_b)²`, the largest the mix can have.
+        Bound => "bound",
+        /// From `E(a − b)² = σ_a² + σ_b² − 2ρσ_aσ_b`: the squared difference of the two estimates,
+        /// relative to `σ_a² + σ_b²`, smoothed by the PT error filter.
+        Local => "local",
+    }
 }
 
 impl Default for ImperfectCvOptions {
@@ -140,6 +155,7 @@ impl ImperfectCvOptions {
             low_pass_sigma: p.float("low_pass_sigma"),
             two_stage_weight: p.float("two_stage_weight"),
             variance_dof: p.choice("variance_dof"),
+            mix_correlation: p.choice("mix_correlation"),
         }
     }
 }
@@ -288,7 +304,10 @@ impl ImperfectCv {
                     two_stage(set, neighbours, o.k - 1, &errors, two_stage_ridge, o.shared_coefficients, o.variance_dof).0
                 }
             };
-            estimate = mix(&estimate, &two, o.two_stage_weight);
+            estimate = match o.mix_correlation {
+                MixCorrelation::Bound => mix(&estimate, &two, o.two_stage_weight),
+                MixCorrelation::Local => mix_local(&estimate, &two, o.two_stage_weight, set, &o.cbf),
+            };
         }
         let image = restore_low_frequencies(&estimate.image, &set.pt.mean, o.low_pass_sigma);
         let mut variance = estimate.variance;
@@ -320,6 +339,46 @@ fn mix(a: &Estimate, b: &Estimate, w: f64) -> Estimate {
         }
     }
     Estimate { image, variance }
+}
+
+/// `(1 − w)·a + w·b` with the variance at a local estimate of the correlation:
+/// `Var = (1 − w)·σ_a² + w·σ_b² − w(1 − w)·E(a − b)²`, where `E(a − b)²` is the filtered ratio
+/// `(a − b)² / (σ_a² + σ_b²)` times the pixel's own `σ_a² + σ_b²`, kept between the values of
+/// correlation 1 and −1. The ratio is smoothed rather than the squared difference itself so that
+/// a pixel with large variances does not lend them to its neighbours. Both estimates are treated
+/// as having the same mean; where they do not, the difference of their biases enters as variance
+/// and lowers the prediction.
+/// Caps one pixel's ratio before smoothing, so that one outlier does not set its neighbours'
+/// correlation. With correlation 0 the ratio is about χ²₁, which exceeds 16 with probability 6·10⁻⁵.
+const RATIO_CAP: f64 = 16.0;
+
+fn mix_local(a: &Estimate, b: &Estimate, w: f64, set: &StreamSet, cbf: &CbfOptions) -> Estimate {
+    let n = a.image.pixels.len();
+    let sum = |i: usize, c: usize| f64::from(a.variance.pixels[i][c].max(0.0)) + f64::from(b.variance.pixels[i][c].max(0.0));
+    let ratio: Vec<[f32; 3]> = (0..n)
+        .map(|i| {
+            std::array::from_fn(|c| {
+                let d = f64::from(a.image.pixels[i][c]) - f64::from(b.image.pixels[i][c]);
+                let s = sum(i, c);
+                if s > 0.0 {
+                    (d * d / s).min(RATIO_CAP) as f32
+                } else {
+                    0.0
+                }
+            })
+        })
+        .collect();
+    let ratio = cross_bilateral(&ratio, set, cbf);
+    let mut out = mix(a, b, w);
+    for (i, v) in out.variance.pixels.iter_mut().enumerate() {
+        for c in 0..3 {
+            let (va, vb) = (f64::from(a.variance.pixels[i][c].max(0.0)), f64::from(b.variance.pixels[i][c].max(0.0)));
+            let (sa, sb) = (va.sqrt(), vb.sqrt());
+            let diff = (f64::from(ratio[i][c]) * (va + vb)).clamp((sa - sb).powi(2), (sa + sb).powi(2));
+            v[c] = ((1.0 - w) * va + w * vb - w * (1.0 - w) * diff).max(0.0) as f32;
+        }
+    }
+    out
 }
 
 #[cfg(test)]
@@ -379,6 +438,49 @@ mod tests {
             let diag =
                 |out: &Output| out.diagnostics.entries.iter().filter(|(n, _)| !n.starts_with("seconds")).cloned().collect::<Vec<_>>();
             assert_eq!(diag(&shared), diag(&separate), "diagnostics of {case}");
+        }
+    }
+
+    /// Two estimates with known per-pixel σ and correlation ρ: the local estimate's variance
+    /// averaged over the image matches `(1 − w)²σ_a² + w²σ_b² + 2w(1 − w)ρσ_aσ_b` for every ρ,
+    /// where the bound at correlation 1 is up to 1.9× too high. The tolerance: the mean over
+    /// 3 072 pixels of a smoothed χ²₁-like ratio has a relative sd of about √(2/3072) ≈ 2.6%, and
+    /// the ratio carries at most a quarter of the variance (w(1 − w) ≤ ¼), so 3% is > 4 sd.
+    #[test]
+    fn local_mix_correlation_recovers_the_variance_of_the_mix() {
+        use crate::rng::{hash4, uniform};
+        let (w, h) = (64, 48);
+        let set = SoftShadowScene::default().render(&RenderSpec { width: w, height: h, spp: 16, batches: 16, seed: 3 }).unwrap();
+        let normal = |i: usize, c: usize, k: u64| {
+            let (u1, u2) = (uniform(hash4(11, i as u64, c as u64, 2 * k)), uniform(hash4(11, i as u64, c as u64, 2 * k + 1)));
+            (-2.0 * (1.0 - u1).ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        };
+        let weight = 0.5;
+        for rho in [0.0, 0.5, 0.9, 1.0] {
+            let image = |f: &dyn Fn(usize, usize) -> f64| cvtrace_streams::Image {
+                width: w,
+                height: h,
+                pixels: (0..w * h).map(|i| std::array::from_fn(|c| f(i, c) as f32)).collect(),
+            };
+            let sigma = |i: usize| 0.05 + 0.2 * ((i % w) as f64 / w as f64) + 0.1 * ((i / w) as f64 / h as f64);
+            let a = Estimate { image: image(&|i, c| 1.0 + sigma(i) * normal(i, c, 0)), variance: image(&|i, _| sigma(i).powi(2)) };
+            let b = Estimate {
+                image: image(&|i, c| 1.0 + 1.5 * sigma(i) * (rho * normal(i, c, 0) + (1.0 - rho * rho).sqrt() * normal(i, c, 1))),
+                variance: image(&|i, _| (1.5 * sigma(i)).powi(2)),
+            };
+            let truth: f64 = (0..w * h)
+                .map(|i| {
+                    let (sa, sb) = (sigma(i), 1.5 * sigma(i));
+                    (1.0 - weight) * (1.0 - weight) * sa * sa + weight * weight * sb * sb + 2.0 * weight * (1.0 - weight) * rho * sa * sb
+                })
+                .sum();
+            let total = |e: &Estimate| e.variance.pixels.iter().map(|p| p.iter().map(|v| f64::from(*v)).sum::<f64>() / 3.0).sum::<f64>();
+            let local = total(&mix_local(&a, &b, weight, &set, &CbfOptions::default())) / truth;
+            let bound = total(&mix(&a, &b, weight)) / truth;
+            assert!((local - 1.0).abs() < 0.03, "ρ = {rho}: local estimate {local:.4} of the true variance (bound {bound:.4})");
+            if rho == 0.0 {
+                assert!(bound > 1.8, "the bound should overstate an uncorrelated mix: {bound:.4}");
+            }
         }
     }
 }
