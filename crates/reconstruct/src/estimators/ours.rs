@@ -326,20 +326,28 @@ impl ImperfectCv {
     }
 }
 
-/// `(1 − w)·a + w·b` and a bound on its variance: both estimates come from the same samples, so
-/// their correlation is unknown but at most 1, where the variance is `((1 − w)·σ_a + w·σ_b)²`.
-fn mix(a: &Estimate, b: &Estimate, w: f64) -> Estimate {
+/// `(1 − w)·a + w·b` per pixel and channel, with the variance `var(i, c, σ_a², σ_b²)`.
+fn blend(a: &Estimate, b: &Estimate, w: f64, var: impl Fn(usize, usize, f64, f64) -> f64) -> Estimate {
     let (mut image, mut variance) = (a.image.clone(), a.variance.clone());
     let pairs = image.pixels.iter_mut().zip(&mut variance.pixels).zip(&b.image.pixels).zip(&b.variance.pixels);
-    for (((x, v), xb), vb) in pairs {
-        for ch in 0..3 {
-            x[ch] = ((1.0 - w) * f64::from(x[ch]) + w * f64::from(xb[ch])) as f32;
-            let s = (1.0 - w) * f64::from(v[ch].max(0.0)).sqrt() + w * f64::from(vb[ch].max(0.0)).sqrt();
-            v[ch] = (s * s) as f32;
+    for (i, (((x, v), xb), vb)) in pairs.enumerate() {
+        for c in 0..3 {
+            x[c] = ((1.0 - w) * f64::from(x[c]) + w * f64::from(xb[c])) as f32;
+            v[c] = var(i, c, f64::from(v[c].max(0.0)), f64::from(vb[c].max(0.0))).max(0.0) as f32;
         }
     }
     Estimate { image, variance }
 }
+
+/// `(1 − w)·a + w·b` and a bound on its variance: both estimates come from the same samples, so
+/// their correlation is unknown but at most 1, where the variance is `((1 − w)·σ_a + w·σ_b)²`.
+fn mix(a: &Estimate, b: &Estimate, w: f64) -> Estimate {
+    blend(a, b, w, |_, _, va, vb| ((1.0 - w) * va.sqrt() + w * vb.sqrt()).powi(2))
+}
+
+/// Caps one pixel's ratio before smoothing, so that one outlier does not set its neighbours'
+/// correlation. With correlation 0 the ratio is about χ²₁, which exceeds 16 with probability 6·10⁻⁵.
+const RATIO_CAP: f64 = 16.0;
 
 /// `(1 − w)·a + w·b` with the variance at a local estimate of the correlation:
 /// `Var = (1 − w)·σ_a² + w·σ_b² − w(1 − w)·E(a − b)²`, where `E(a − b)²` is the filtered ratio
@@ -348,18 +356,13 @@ fn mix(a: &Estimate, b: &Estimate, w: f64) -> Estimate {
 /// a pixel with large variances does not lend them to its neighbours. Both estimates are treated
 /// as having the same mean; where they do not, the difference of their biases enters as variance
 /// and lowers the prediction.
-/// Caps one pixel's ratio before smoothing, so that one outlier does not set its neighbours'
-/// correlation. With correlation 0 the ratio is about χ²₁, which exceeds 16 with probability 6·10⁻⁵.
-const RATIO_CAP: f64 = 16.0;
-
 fn mix_local(a: &Estimate, b: &Estimate, w: f64, set: &StreamSet, cbf: &CbfOptions) -> Estimate {
     let n = a.image.pixels.len();
-    let sum = |i: usize, c: usize| f64::from(a.variance.pixels[i][c].max(0.0)) + f64::from(b.variance.pixels[i][c].max(0.0));
     let ratio: Vec<[f32; 3]> = (0..n)
         .map(|i| {
             std::array::from_fn(|c| {
                 let d = f64::from(a.image.pixels[i][c]) - f64::from(b.image.pixels[i][c]);
-                let s = sum(i, c);
+                let s = f64::from(a.variance.pixels[i][c].max(0.0)) + f64::from(b.variance.pixels[i][c].max(0.0));
                 if s > 0.0 {
                     (d * d / s).min(RATIO_CAP) as f32
                 } else {
@@ -369,16 +372,11 @@ fn mix_local(a: &Estimate, b: &Estimate, w: f64, set: &StreamSet, cbf: &CbfOptio
         })
         .collect();
     let ratio = cross_bilateral(&ratio, set, cbf);
-    let mut out = mix(a, b, w);
-    for (i, v) in out.variance.pixels.iter_mut().enumerate() {
-        for c in 0..3 {
-            let (va, vb) = (f64::from(a.variance.pixels[i][c].max(0.0)), f64::from(b.variance.pixels[i][c].max(0.0)));
-            let (sa, sb) = (va.sqrt(), vb.sqrt());
-            let diff = (f64::from(ratio[i][c]) * (va + vb)).clamp((sa - sb).powi(2), (sa + sb).powi(2));
-            v[c] = ((1.0 - w) * va + w * vb - w * (1.0 - w) * diff).max(0.0) as f32;
-        }
-    }
-    out
+    blend(a, b, w, |i, c, va, vb| {
+        let (sa, sb) = (va.sqrt(), vb.sqrt());
+        let diff = (f64::from(ratio[i][c]) * (va + vb)).clamp((sa - sb).powi(2), (sa + sb).powi(2));
+        (1.0 - w) * va + w * vb - w * (1.0 - w) * diff
+    })
 }
 
 #[cfg(test)]
