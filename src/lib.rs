@@ -9,6 +9,7 @@ pub mod embree;
 pub mod session;
 pub mod study_source;
 pub mod throughput;
+pub mod traversal_check;
 
 use cvtrace_reconstruct::Registry;
 use std::sync::OnceLock;
