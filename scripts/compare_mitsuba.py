@@ -14,6 +14,9 @@ For each, every renderer (cvtrace with its default robust traversal and with
 `--traversal fast`, then the Mitsuba variants) renders the same spp in turn, `--repeats` times, and the script
 prints samples per CPU-second (process CPU time: user + system over all threads) and the
 image means, which must agree to Monte Carlo noise if both render the same thing.
+On cvtrace-cbox, Embree's own `pathtracer` tutorial (Debian's embree-tools) renders the box it
+was made from (its cornell_box.ecs, a point light) in the same loop: its rate is spp - 1 samples
+per pixel over the CPU time beyond a 1-spp run, which carries the loading.
 """
 import argparse
 import json
@@ -192,6 +195,22 @@ def run_cvtrace(binary, gltf, spp, threads, out, traversal):
     return children_cpu() - c0
 
 
+EMBREE_TUTORIAL = '/usr/bin/pathtracer'
+EMBREE_CBOX = '/usr/share/doc/embree3/models/cornell_box.ecs'
+
+
+def run_embree_tutorial(spp, threads, work):
+    """CPU seconds of spp - 1 samples per pixel of Embree's pathtracer on its Cornell box."""
+    def cpu(n):
+        # --max-path-length 7 is max depth 8 in Mitsuba's convention (1 = primary + shadow).
+        cmd = [EMBREE_TUTORIAL, '-c', EMBREE_CBOX, '--size', str(SIDE), str(SIDE), '--spp', str(n),
+               '--max-path-length', str(MAX_DEPTH - 1), '--threads', str(threads), '-o', os.path.join(work, 'embree.ppm')]
+        c0 = children_cpu()
+        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        return children_cpu() - c0
+    return cpu(spp) - cpu(1)
+
+
 def run_mitsuba(variant, scene_dict, spp, threads, seed):
     import drjit as dr
     mi.set_variant(variant)
@@ -230,9 +249,15 @@ def main():
             scene_dict = gltf_to_mitsuba(gltf, work)
             rates = {'cvtrace': [], 'cvtrace-fast': []}
             rates.update({v: [] for v in args.variants.split(',')})
+            tutorial = name == 'cvtrace-cbox' and os.path.exists(EMBREE_TUTORIAL) and os.path.exists(EMBREE_CBOX)
+            if tutorial:
+                rates['embree-tutorial'] = []
             means = {}
             for rep in range(args.repeats):
                 for renderer in rates:
+                    if renderer == 'embree-tutorial':
+                        rates[renderer].append(SIDE * SIDE * (args.spp - 1) / run_embree_tutorial(args.spp, args.threads, work) / 1e6)
+                        continue
                     if renderer.startswith('cvtrace'):
                         out = os.path.join(work, f"{name}.exr")
                         traversal = 'fast' if renderer == 'cvtrace-fast' else 'robust'
@@ -245,9 +270,11 @@ def main():
             print(f"\n{name}:")
             base = statistics.median(rates['cvtrace'])
             for renderer, r in rates.items():
-                m = [statistics.fmean(c) for c in zip(*means[renderer])]
-                print(f"  {renderer:12s} {statistics.median(r):5.2f} [{min(r):.2f}, {max(r):.2f}]  "
-                      f"x{statistics.median(r) / base:4.2f} of cvtrace   mean {m[0]:.5f} {m[1]:.5f} {m[2]:.5f}")
+                # The tutorial renders another light, so its mean is not comparable.
+                m = [statistics.fmean(c) for c in zip(*means[renderer])] if renderer in means else None
+                mean = f"mean {m[0]:.5f} {m[1]:.5f} {m[2]:.5f}" if m else "(its own box, point light)"
+                print(f"  {renderer:15s} {statistics.median(r):5.2f} [{min(r):.2f}, {max(r):.2f}]  "
+                      f"x{statistics.median(r) / base:4.2f} of cvtrace   {mean}")
 
 
 if __name__ == '__main__':
