@@ -40,8 +40,9 @@ for s in $SCENES; do
     file=$(scene_file "$s")
     ref="scenes/$s/scene.ref.exr"
     if [ ! -f "$ref" ]; then
-        # spp from the scene's sidecar (`reference_spp`); resumable through the checkpoint.
-        "$BIN" "${threads[@]}" render "$file" --reference --seed "$REF_SEED" -o "$ref"
+        # spp from the scene's sidecar (`reference_spp`); resumable through the checkpoint;
+        # traced robustly (watertight), as the committed references were.
+        "$BIN" "${threads[@]}" render "$file" --reference --traversal robust --seed "$REF_SEED" -o "$ref"
     fi
     main="$OUT/$largest/$s"
     "$BIN" "${threads[@]}" --log warn study "$file" --spp "$SPP_LIST" --seeds "$SEEDS" --batches "$BATCHES" \

@@ -5,7 +5,8 @@
 # FRACTION divides each sidecar's reference_spp (4: the quarter references of the plan in
 # validation/README.md; 1: the full ones, reached from a quarter one with --extend).
 # Scenes go cheapest first (the speed table in validation/README.md), so that finished references
-# accumulate early; SCENES="a b" renders only those.
+# accumulate early; SCENES="a b" renders only those. References are traced robustly (watertight),
+# as the committed ones were, so that --extend continues them.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 fraction=${1:-4}
@@ -26,9 +27,9 @@ for s in $scenes; do
             continue
         fi
         echo "$s: extending the reference from ${have:-?} to $spp spp"
-        "$cvtrace" render "$dir/scene.gltf" --reference --seed "$seed" --spp "$spp" --extend -o "$out"
+        "$cvtrace" render "$dir/scene.gltf" --reference --traversal robust --seed "$seed" --spp "$spp" --extend -o "$out"
     else
         echo "$s: rendering a reference of $spp spp"
-        "$cvtrace" render "$dir/scene.gltf" --reference --seed "$seed" --spp "$spp" -o "$out"
+        "$cvtrace" render "$dir/scene.gltf" --reference --traversal robust --seed "$seed" --spp "$spp" -o "$out"
     fi
 done

@@ -227,7 +227,7 @@ fn study_resumes_and_report_builds_the_viewer() {
         study.iter().zip(std::iter::once(&"").chain(&study)).map(|(a, prev)| if *prev == "--max-depth" { "3" } else { a }).collect();
     // Settings that change the image itself make the reference another image's: that comes first.
     let cases: [(Vec<&str>, [&str; 2]); 4] = [
-        ([&study[..], &["--traversal", "fast"]].concat(), ["seed-000", "traversal robust (in the file) vs fast (now)"]),
+        ([&study[..], &["--traversal", "robust"]].concat(), ["seed-000", "traversal fast (in the file) vs robust (now)"]),
         ([&study[..], &["--rr-depth", "3"]].concat(), ["seed-000", "rr depth 5 (in the file) vs 3 (now)"]),
         (deeper, ["ref.exr: not a reference of this study's image", "max depth 6 (in the file) vs 3 (now)"]),
         ([&study[..], &["--camera", "278,273,-700:278,273,0:37"]].concat(), ["ref.exr: not a reference of this study's image", "camera"]),

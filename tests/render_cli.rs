@@ -315,11 +315,11 @@ fn traversal_is_recorded_and_guards_extension() {
     let stream = |out: &str, extra: &[&str]| {
         cvtrace(d, &[&["--log", "warn", "render", sp, "--spp", "4", "--batches", "2", "--seed", "5", "-o", out][..], SMALL, extra].concat())
     };
-    ok(&stream("robust.streams.exr", &[]));
-    ok(&stream("fast.streams.exr", &["--traversal", "fast"]));
+    ok(&stream("robust.streams.exr", &["--traversal", "robust"]));
+    ok(&stream("fast.streams.exr", &[]));
     let traversal = |f: &str| StreamSet::read(&d.join(f)).unwrap().meta.settings.get("traversal").cloned();
-    assert_eq!(traversal("robust.streams.exr").as_deref(), Some("robust"), "robust is the default");
-    assert_eq!(traversal("fast.streams.exr").as_deref(), Some("fast"));
+    assert_eq!(traversal("robust.streams.exr").as_deref(), Some("robust"));
+    assert_eq!(traversal("fast.streams.exr").as_deref(), Some("fast"), "fast is the default");
     // Both trace the same scene: the images agree to Monte Carlo noise (same seed).
     let (a, b) = (StreamSet::read(&d.join("robust.streams.exr")).unwrap(), StreamSet::read(&d.join("fast.streams.exr")).unwrap());
     let mean = |im: &cvtrace_streams::Image| im.pixels.iter().map(|p| (p[0] + p[1] + p[2]) as f64).sum::<f64>() / im.len() as f64;
@@ -337,14 +337,17 @@ fn traversal_is_recorded_and_guards_extension() {
         )
     };
     ok(&reference("4", &[]));
-    assert_eq!(ExrChannels::read(&d.join("r.ref.exr")).unwrap().attr("cvtrace.traversal"), Some(&AttrValue::Text("robust".into())));
-    let e = reference("8", &["--extend", "--traversal", "fast"]);
-    assert!(!e.status.success() && stderr(&e).contains("traversal robust"), "{}", stderr(&e));
-    // A reference from before the traversal was recorded was traced robustly.
+    assert_eq!(ExrChannels::read(&d.join("r.ref.exr")).unwrap().attr("cvtrace.traversal"), Some(&AttrValue::Text("fast".into())));
+    let e = reference("8", &["--extend", "--traversal", "robust"]);
+    assert!(!e.status.success() && stderr(&e).contains("traversal fast"), "{}", stderr(&e));
+    // A reference from before the traversal was recorded was traced robustly: the default
+    // (fast) does not continue it, robust does.
     let mut old = ExrChannels::read(&d.join("r.ref.exr")).unwrap();
     old.attributes.remove("cvtrace.traversal");
     old.write(&d.join("r.ref.exr"), true).unwrap();
-    ok(&reference("8", &["--extend"]));
+    let e = reference("8", &["--extend"]);
+    assert!(!e.status.success() && stderr(&e).contains("traversal robust"), "{}", stderr(&e));
+    ok(&reference("8", &["--extend", "--traversal", "robust"]));
     let e = reference("12", &["--extend", "--traversal", "fast"]);
     assert!(!e.status.success() && stderr(&e).contains("traversal"), "{}", stderr(&e));
 }

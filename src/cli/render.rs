@@ -95,7 +95,7 @@ pub struct ViewArgs {
     /// Embree traversal: `robust` is watertight where triangles share an edge; `fast` (Embree's
     /// and Mitsuba 3's default) is quicker but lets rays that graze a shared edge through
     /// (docs/performance.md has both figures).
-    #[arg(long, value_enum, default_value_t = Traversal::Robust)]
+    #[arg(long, value_enum, default_value_t = Traversal::Fast)]
     pub traversal: Traversal,
     /// Override a setting of the scene's sidecar, as `mitsuba -D spp=64`; repeatable. Keys:
     /// width, height, spp, max_depth, rr_depth, reference_spp, environment.color (r,g,b),
