@@ -29,8 +29,21 @@ pub fn fixed(v: f32) -> i128 {
 /// [`fixed`] of a wider value (a sum rebuilt from a mean).
 #[inline]
 pub fn fixed_f64(v: f64) -> i128 {
-    (v.clamp(-MAX_SAMPLE, MAX_SAMPLE) * SCALE).round() as i128
+    let x = v.clamp(-MAX_SAMPLE, MAX_SAMPLE) * SCALE;
+    // Every sample of a render lands here, and on baseline x86-64 both `f64::round` and a
+    // conversion to i128 are library calls. Below 2⁶² the same rounding (half away from zero)
+    // is a hardware truncation to i64 and an exact comparison of the remainder.
+    if x.abs() < I64_RANGE {
+        let t = x as i64;
+        let rest = x - t as f64;
+        (t + i64::from(rest >= 0.5) - i64::from(rest <= -0.5)) as i128
+    } else {
+        x.round() as i128
+    }
 }
+
+/// Magnitude below which [`fixed_f64`] rounds through i64.
+const I64_RANGE: f64 = (1u64 << 62) as f64;
 
 /// The mean of `n` samples whose fixed-point sum is `sum` (0 for no samples).
 #[inline]
@@ -110,6 +123,27 @@ pub fn take_sums3(ch: &mut ExrChannels, path: &Path, prefix: &str, names: [&str;
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_fast_rounding_is_rounding_half_away_from_zero() {
+        let reference = |v: f64| (v.clamp(-MAX_SAMPLE, MAX_SAMPLE) * SCALE).round() as i128;
+        let ulp = 1.0 / SCALE;
+        let mut values = vec![0.0, -0.0, f64::NAN, f64::INFINITY, f64::NEG_INFINITY, MAX_SAMPLE, -MAX_SAMPLE, 1e300, -1e300];
+        for k in -60..60 {
+            let p = 2f64.powi(k);
+            for v in [p, p * 1.5, p * (1.0 - f64::EPSILON), p + ulp * 0.5, p - ulp * 0.5, p + ulp * 0.49999, p + ulp * 1.5] {
+                values.extend([v, -v]);
+            }
+        }
+        for i in 0..100_000u64 {
+            let bits = i.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+            values.push(f64::from(f32::from_bits((bits >> 32) as u32)));
+            values.push(f64::from_bits(bits));
+        }
+        for v in values {
+            assert_eq!(fixed_f64(v), reference(v), "{v:e}");
+        }
+    }
 
     #[test]
     fn sums_of_any_split_agree_and_round_trip_through_the_pieces() {
