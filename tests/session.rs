@@ -99,7 +99,8 @@ fn the_committed_references_are_accepted_by_the_study_and_by_extend() {
             (Some(AttrValue::Int(n)), Some(s)) => (*n, s.as_text()),
             other => panic!("{name}: {other:?}"),
         };
-        // Extending a copy by one sample per pixel checks its provenance against the scene.
+        // Extending a copy by one sample per pixel checks its provenance against the scene
+        // (the committed references were traced robustly, which --extend must continue).
         let copy = d.join(format!("{name}.ref.exr"));
         std::fs::copy(&committed, &copy).unwrap();
         let more = (spp + 1).to_string();
@@ -111,6 +112,8 @@ fn the_committed_references_are_accepted_by_the_study_and_by_extend() {
                 "render",
                 gltf.to_str().unwrap(),
                 "--reference",
+                "--traversal",
+                "robust",
                 "--spp",
                 &more,
                 "--seed",
