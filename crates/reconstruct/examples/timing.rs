@@ -1,5 +1,6 @@
 //! Times each estimator on one synthetic stream set (default 1280×720, B = 16):
-//! `cargo run --release -p cvtrace-reconstruct --example timing -- [width height batches methods]`.
+//! `cargo run --release -p cvtrace-reconstruct --example timing -- [width height batches methods]`
+//! (`TIMING_REPEATS=N` runs the methods N times in turn).
 use cvtrace_reconstruct::synthetic::{RenderSpec, SoftShadowScene};
 use cvtrace_reconstruct::{Input, Overrides, Registry};
 use std::time::Instant;
@@ -16,7 +17,9 @@ fn main() {
     if std::env::var_os("IDUW_SPLIT").is_some() {
         iduw_split(&set);
     }
-    for spec in methods {
+    // TIMING_REPEATS=N runs every method N times in turn on the same set.
+    let repeats: usize = std::env::var("TIMING_REPEATS").ok().and_then(|v| v.parse().ok()).unwrap_or(1);
+    for spec in (0..repeats).flat_map(|_| methods.iter()) {
         let e = registry.build(spec.name, &Overrides::default()).unwrap();
         let cpu0 = cpu_seconds();
         let out = e.run(&Input::new(&set)).unwrap();

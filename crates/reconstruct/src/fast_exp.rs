@@ -51,6 +51,43 @@ pub unsafe fn exp_neg8_avx2(x: std::arch::x86_64::__m256) -> std::arch::x86_64::
     }
 }
 
+/// `N` independent [`exp_neg8_avx2`]s computed step by step together, the same bits per lane.
+/// One exponential is a chain of about twenty dependent operations; a loop of them fills the
+/// core's floating-point scheduler with one chain at a time, so interleaving independent ones
+/// keeps more of them in flight.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub unsafe fn exp_neg8xn_avx2<const N: usize>(x: [std::arch::x86_64::__m256; N]) -> [std::arch::x86_64::__m256; N] {
+    use std::arch::x86_64::*;
+    // SAFETY: as for `exp_neg8_avx2`: the caller guarantees AVX2, and nothing touches memory.
+    unsafe {
+        const ROUND: f32 = 12_582_912.0;
+        let c = |v: f32| _mm256_set1_ps(v);
+        let x = x.map(|x| _mm256_max_ps(_mm256_min_ps(x, c(0.0)), c(-87.0)));
+        let kf = x.map(|x| _mm256_add_ps(_mm256_mul_ps(x, c(std::f32::consts::LOG2_E)), c(ROUND)));
+        let n = kf.map(|kf| _mm256_sub_ps(kf, c(ROUND)));
+        let r: [__m256; N] = std::array::from_fn(|i| {
+            _mm256_sub_ps(_mm256_sub_ps(x[i], _mm256_mul_ps(n[i], c(0.693_145_75))), _mm256_mul_ps(n[i], c(1.428_606_8e-6)))
+        });
+        let mut p = r.map(|r| _mm256_add_ps(c(0.008_333_452), _mm256_mul_ps(r, c(0.001_388_720_5))));
+        for k in [0.041_666_668, 0.166_666_67, 0.5, 1.0, 1.0] {
+            for i in 0..N {
+                p[i] = _mm256_add_ps(c(k), _mm256_mul_ps(r[i], p[i]));
+            }
+        }
+        std::array::from_fn(|i| {
+            let bits = _mm256_slli_epi32::<23>(_mm256_add_epi32(
+                _mm256_sub_epi32(_mm256_castps_si256(kf[i]), _mm256_set1_epi32(ROUND.to_bits() as i32)),
+                _mm256_set1_epi32(127),
+            ));
+            _mm256_mul_ps(p[i], _mm256_castsi256_ps(bits))
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -68,6 +105,18 @@ mod tests {
             // SAFETY: AVX2 detected above.
             unsafe { _mm256_storeu_ps(out.as_mut_ptr(), exp_neg8_avx2(_mm256_loadu_ps(x.as_ptr()))) };
             assert_eq!(out.map(f32::to_bits), x.map(|v| exp_neg(v).to_bits()), "{x:?}");
+            let mut four = [[0.0f32; 8]; 3];
+            // SAFETY: AVX2 detected above.
+            unsafe {
+                let v = _mm256_loadu_ps(x.as_ptr());
+                let got = exp_neg8xn_avx2([v, _mm256_mul_ps(v, _mm256_set1_ps(0.5)), _mm256_set1_ps(-0.0)]);
+                for (o, g) in four.iter_mut().zip(got) {
+                    _mm256_storeu_ps(o.as_mut_ptr(), g);
+                }
+            }
+            assert_eq!(four[0].map(f32::to_bits), out.map(f32::to_bits));
+            assert_eq!(four[1].map(f32::to_bits), x.map(|v| exp_neg(v * 0.5).to_bits()));
+            assert_eq!(four[2], [1.0; 8]);
         }
     }
 

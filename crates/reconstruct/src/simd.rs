@@ -6,7 +6,7 @@
 //! sums), so both produce bit-identical results and the output does not depend on the CPU.
 use crate::fast_exp::exp_neg;
 #[cfg(target_arch = "x86_64")]
-use crate::fast_exp::exp_neg8_avx2;
+use crate::fast_exp::{exp_neg8_avx2, exp_neg8xn_avx2};
 
 /// Whether the image passes run the AVX2 build: on CPUs that have it, unless a unit test has
 /// forced the portable build (see [`force_portable`]; outside `cfg(test)` this is just the CPU
@@ -54,6 +54,9 @@ pub(crate) trait Simd {
     /// `(Σ e^(−γ·t_i)·d_i, Σ e^(−γ·t_i))`: element `i` goes to lane `i mod 8` of chunk-wise
     /// partial sums (the tail of fewer than 8 to lanes 0…), combined pairwise.
     fn exp_weighted(t: &[f32], d: &[f32], gamma: f32) -> (f32, f32);
+    /// [`Simd::exp_weighted`] for each of `gammas` (`out[q]` for `gammas[q]`), the same bits;
+    /// the γ values' exponentials of an element are independent, so they run side by side.
+    fn exp_weighted_gammas(t: &[f32], d: &[f32], gammas: &[f32], out: &mut [(f32, f32)]);
     /// `t_i ← e^(−t_i)`.
     fn exp_neg_in_place(t: &mut [f32]);
     /// IDUW's window sums for eight horizontally adjacent centres at once: for centre
@@ -76,6 +79,28 @@ pub(crate) trait Simd {
         acc: &mut [[f32; 8]],
         wsum: &mut [[f32; 8]],
     );
+    /// IDUW's weights of one image row's pairs along one offset: for `p` in `p0..p0 + n`,
+    /// `out[p − p0] = e^(−γ·t)`, `t = (m·v)·v`, `v = (x_p − x_q) − (y_p − y_q)`, `q = p + off`:
+    /// exactly the weight [`Simd::iduw_sums8`] and [`Simd::exp_weighted`] give neighbour `q` of
+    /// centre `p`, and, because `v` only changes sign when the two swap, neighbour `p` of
+    /// centre `q` too.
+    #[allow(clippy::too_many_arguments)]
+    fn iduw_pair_weights(x: &[f32], y: &[f32], p0: usize, off: usize, n: usize, m: f32, gamma: f32, out: &mut [f32]);
+    /// [`Simd::iduw_sums8`] for one γ with the weights given: window element `i` of centre
+    /// `c0 + l` has neighbour `n0 + offsets[i] + l` and weight `weights[shift + src[i] + l]`. The same
+    /// partial sums in the same order, so the same bits when the weights are the ones
+    /// [`Simd::iduw_pair_weights`] computes.
+    #[allow(clippy::too_many_arguments)]
+    fn iduw_sums8_weighted(
+        h: &[f32],
+        g: &[f32],
+        c0: usize,
+        n0: usize,
+        offsets: &[usize],
+        weights: &[f32],
+        src: &[usize],
+        shift: usize,
+    ) -> ([f32; 8], [f32; 8]);
 }
 
 /// Most γ values [`Simd::iduw_sums8`] keeps partial sums for at once; longer lists run in
@@ -93,6 +118,25 @@ fn check_iduw_bounds(planes: &[&[f32]; 4], c0: usize, n0: usize, offsets: &[usiz
         offsets.len() <= IDUW_MAX_WINDOW && c0 + 8 <= len && n0 + far + 8 <= len && acc >= gammas && wsum >= gammas,
         "IDUW window outside the planes"
     );
+}
+
+/// Checks the contract of [`Simd::iduw_sums8_weighted`] that keeps its loads in bounds.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn check_weighted_bounds(h: &[f32], g: &[f32], c0: usize, n0: usize, offsets: &[usize], weights: &[f32], src: &[usize], shift: usize) {
+    let len = h.len().min(g.len());
+    let far = offsets.iter().copied().max().unwrap_or(0);
+    let far_w = src.iter().copied().max().unwrap_or(0);
+    assert!(
+        src.len() == offsets.len() && c0 + 8 <= len && n0 + far + 8 <= len && shift + far_w + 8 <= weights.len(),
+        "IDUW window or weights outside their planes"
+    );
+}
+
+/// Checks the contract of [`Simd::iduw_pair_weights`].
+#[inline(always)]
+fn check_pair_bounds(x: &[f32], y: &[f32], p0: usize, off: usize, n: usize, out: &[f32]) {
+    assert!(p0 + off + n <= x.len().min(y.len()) && n <= out.len(), "IDUW pair outside the planes");
 }
 
 #[inline(always)]
@@ -121,6 +165,13 @@ impl Simd for Portable {
             wacc[l] += w;
         }
         (lane_sum(acc), lane_sum(wacc))
+    }
+
+    #[inline(always)]
+    fn exp_weighted_gammas(t: &[f32], d: &[f32], gammas: &[f32], out: &mut [(f32, f32)]) {
+        for (o, &gamma) in out.iter_mut().zip(gammas) {
+            *o = Portable::exp_weighted(t, d, gamma);
+        }
     }
 
     #[inline(always)]
@@ -158,6 +209,44 @@ impl Simd for Portable {
                 (acc[q][l], wsum[q][l]) = Portable::exp_weighted(t, d, gamma);
             }
         }
+    }
+
+    #[inline(always)]
+    fn iduw_pair_weights(x: &[f32], y: &[f32], p0: usize, off: usize, n: usize, m: f32, gamma: f32, out: &mut [f32]) {
+        check_pair_bounds(x, y, p0, off, n, out);
+        for (k, o) in out[..n].iter_mut().enumerate() {
+            let (p, q) = (p0 + k, p0 + k + off);
+            let v = (x[p] - x[q]) - (y[p] - y[q]);
+            *o = exp_neg(-gamma * (m * v * v));
+        }
+    }
+
+    #[inline(always)]
+    fn iduw_sums8_weighted(
+        h: &[f32],
+        g: &[f32],
+        c0: usize,
+        n0: usize,
+        offsets: &[usize],
+        weights: &[f32],
+        src: &[usize],
+        shift: usize,
+    ) -> ([f32; 8], [f32; 8]) {
+        check_weighted_bounds(h, g, c0, n0, offsets, weights, src, shift);
+        let (mut acc, mut wsum) = ([0.0f32; 8], [0.0f32; 8]);
+        for l in 0..8 {
+            let c = c0 + l;
+            // Element i to partial sum i mod 8, as exp_weighted sums.
+            let (mut a, mut wa) = ([0.0f32; 8], [0.0f32; 8]);
+            for (i, (&o, &s)) in offsets.iter().zip(src).enumerate() {
+                let j = n0 + o + l;
+                let w = weights[shift + s + l];
+                a[i % 8] += w * ((g[c] - g[j]) - (h[c] - h[j]));
+                wa[i % 8] += w;
+            }
+            (acc[l], wsum[l]) = (lane_sum(a), lane_sum(wa));
+        }
+        (acc, wsum)
     }
 
     #[inline(always)]
@@ -224,6 +313,24 @@ impl Simd for Avx2 {
             wacc[l] += w;
         }
         (lane_sum(acc), lane_sum(wacc))
+    }
+
+    #[inline(always)]
+    fn exp_weighted_gammas(t: &[f32], d: &[f32], gammas: &[f32], out: &mut [(f32, f32)]) {
+        assert!(out.len() >= gammas.len(), "one output per γ");
+        // Three chains side by side keep the core busy without spilling registers (five spill).
+        let mut q = 0;
+        while q < gammas.len() {
+            let left = gammas.len() - q;
+            let take = if left == 4 { 2 } else { left.min(3) };
+            let (gs, o) = (&gammas[q..q + take], &mut out[q..q + take]);
+            match take {
+                1 => exp_weighted_n::<1>(t, d, gs, o),
+                2 => exp_weighted_n::<2>(t, d, gs, o),
+                _ => exp_weighted_n::<3>(t, d, gs, o),
+            }
+            q += take;
+        }
     }
 
     #[inline(always)]
@@ -308,6 +415,86 @@ impl Simd for Avx2 {
     }
 
     #[inline(always)]
+    fn iduw_pair_weights(x: &[f32], y: &[f32], p0: usize, off: usize, n: usize, m: f32, gamma: f32, out: &mut [f32]) {
+        use std::arch::x86_64::*;
+        check_pair_bounds(x, y, p0, off, n, out);
+        let full = n / 32 * 32;
+        // SAFETY: AVX2 is available (see the type's contract); loads read below
+        // `p0 + off + n ≤ len` and stores write below `n ≤ out.len()`, by the check above.
+        unsafe {
+            let (mv, neg) = (_mm256_set1_ps(m), _mm256_set1_ps(-gamma));
+            let ld = |p: &[f32], at: usize| _mm256_loadu_ps(p.as_ptr().add(at));
+            for k in (0..full).step_by(32) {
+                let arg: [__m256; 4] = std::array::from_fn(|u| {
+                    let (p, q) = (p0 + k + 8 * u, p0 + k + 8 * u + off);
+                    let v = _mm256_sub_ps(_mm256_sub_ps(ld(x, p), ld(x, q)), _mm256_sub_ps(ld(y, p), ld(y, q)));
+                    _mm256_mul_ps(neg, _mm256_mul_ps(_mm256_mul_ps(mv, v), v))
+                });
+                for (u, e) in exp_neg8xn_avx2(arg).into_iter().enumerate() {
+                    _mm256_storeu_ps(out.as_mut_ptr().add(k + 8 * u), e);
+                }
+            }
+            for k in (full..n / 8 * 8).step_by(8) {
+                let (p, q) = (p0 + k, p0 + k + off);
+                let v = _mm256_sub_ps(_mm256_sub_ps(ld(x, p), ld(x, q)), _mm256_sub_ps(ld(y, p), ld(y, q)));
+                let t = _mm256_mul_ps(_mm256_mul_ps(mv, v), v);
+                _mm256_storeu_ps(out.as_mut_ptr().add(k), exp_neg8_avx2(_mm256_mul_ps(neg, t)));
+            }
+        }
+        for k in n / 8 * 8..n {
+            let (p, q) = (p0 + k, p0 + k + off);
+            let v = (x[p] - x[q]) - (y[p] - y[q]);
+            out[k] = exp_neg(-gamma * (m * v * v));
+        }
+    }
+
+    #[inline(always)]
+    fn iduw_sums8_weighted(
+        h: &[f32],
+        g: &[f32],
+        c0: usize,
+        n0: usize,
+        offsets: &[usize],
+        weights: &[f32],
+        src: &[usize],
+        shift: usize,
+    ) -> ([f32; 8], [f32; 8]) {
+        use std::arch::x86_64::*;
+        check_weighted_bounds(h, g, c0, n0, offsets, weights, src, shift);
+        let n = offsets.len();
+        let (mut acc, mut wsum) = ([0.0f32; 8], [0.0f32; 8]);
+        // SAFETY: AVX2 is available (see the type's contract); every load reads 8 values
+        // starting at `c0`, `n0 + offsets[i]` or `shift + src[i]`, in bounds by the check above.
+        unsafe {
+            let zero = _mm256_setzero_ps();
+            let ld = |p: &[f32], at: usize| _mm256_loadu_ps(p.as_ptr().add(at));
+            let (hc, gc) = (ld(h, c0), ld(g, c0));
+            let (mut part, mut wpart) = ([zero; 8], [zero; 8]);
+            for a in 0..8 {
+                let (mut sa, mut wa) = (zero, zero);
+                for i in (a.min(n)..n).step_by(8) {
+                    let j = n0 + offsets[i];
+                    let w = ld(weights, shift + src[i]);
+                    let d = _mm256_sub_ps(_mm256_sub_ps(gc, ld(g, j)), _mm256_sub_ps(hc, ld(h, j)));
+                    sa = _mm256_add_ps(sa, _mm256_mul_ps(w, d));
+                    wa = _mm256_add_ps(wa, w);
+                }
+                part[a] = sa;
+                wpart[a] = wa;
+            }
+            let pairwise = |p: &[__m256; 8]| {
+                _mm256_add_ps(
+                    _mm256_add_ps(_mm256_add_ps(p[0], p[1]), _mm256_add_ps(p[2], p[3])),
+                    _mm256_add_ps(_mm256_add_ps(p[4], p[5]), _mm256_add_ps(p[6], p[7])),
+                )
+            };
+            _mm256_storeu_ps(acc.as_mut_ptr(), pairwise(&part));
+            _mm256_storeu_ps(wsum.as_mut_ptr(), pairwise(&wpart));
+        }
+        (acc, wsum)
+    }
+
+    #[inline(always)]
     fn gram_block<const P: usize>(d: &[&[f32; P]], e: &[[f32; P]], a0: usize, b0: usize) -> [[f32; 8]; 4] {
         use std::arch::x86_64::*;
         assert!(a0 + 4 <= P && b0 + 8 <= P);
@@ -360,6 +547,42 @@ impl Simd for Avx2 {
     }
 }
 
+/// [`Simd::exp_weighted`] for `N` γ values at once (`gammas.len() == N`).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn exp_weighted_n<const N: usize>(t: &[f32], d: &[f32], gammas: &[f32], out: &mut [(f32, f32)]) {
+    use std::arch::x86_64::*;
+    let n = t.len().min(d.len());
+    let full = n / 8 * 8;
+    let (mut acc, mut wacc) = ([[0.0f32; 8]; N], [[0.0f32; 8]; N]);
+    // SAFETY: only called from the AVX2 build (see `Avx2`'s contract); loads stay below
+    // `full ≤ len`.
+    unsafe {
+        let g: [__m256; N] = std::array::from_fn(|q| _mm256_set1_ps(-gammas[q]));
+        let (mut a, mut wa) = ([_mm256_setzero_ps(); N], [_mm256_setzero_ps(); N]);
+        for i in (0..full).step_by(8) {
+            let (tv, dv) = (_mm256_loadu_ps(t.as_ptr().add(i)), _mm256_loadu_ps(d.as_ptr().add(i)));
+            let w = exp_neg8xn_avx2(g.map(|g| _mm256_mul_ps(g, tv)));
+            for q in 0..N {
+                a[q] = _mm256_add_ps(a[q], _mm256_mul_ps(w[q], dv));
+                wa[q] = _mm256_add_ps(wa[q], w[q]);
+            }
+        }
+        for q in 0..N {
+            _mm256_storeu_ps(acc[q].as_mut_ptr(), a[q]);
+            _mm256_storeu_ps(wacc[q].as_mut_ptr(), wa[q]);
+        }
+    }
+    for (q, &gamma) in gammas.iter().enumerate() {
+        for (l, i) in (full..n).enumerate() {
+            let w = exp_neg(-gamma * t[i]);
+            acc[q][l] += w * d[i];
+            wacc[q][l] += w;
+        }
+        out[q] = (lane_sum(acc[q]), lane_sum(wacc[q]));
+    }
+}
+
 #[cfg(all(test, target_arch = "x86_64"))]
 mod tests {
     use super::*;
@@ -377,6 +600,11 @@ mod tests {
         let mut tt = t.to_vec();
         Avx2::exp_neg_in_place(&mut tt);
         (Avx2::exp_weighted(t, d, 0.7), tt)
+    }
+
+    #[target_feature(enable = "avx2")]
+    fn avx_exp_gammas(t: &[f32], d: &[f32], gammas: &[f32], out: &mut [(f32, f32)]) {
+        Avx2::exp_weighted_gammas(t, d, gammas, out);
     }
 
     #[target_feature(enable = "avx2")]
@@ -449,6 +677,21 @@ mod tests {
         Portable::exp_neg_in_place(&mut pt);
         let pw = Portable::exp_weighted(&t, &dd, 0.7);
         assert_eq!((ew.0.to_bits(), ew.1.to_bits()), (pw.0.to_bits(), pw.1.to_bits()));
+        // Several γ at once: each the one-γ sums, in both builds, for every chunking of the list.
+        let gammas: Vec<f32> = (0..10).map(|q| 0.01 + 0.27 * q as f32).collect();
+        for len in [229usize, 225, 7] {
+            for count in 1..=gammas.len() {
+                let (mut a, mut p) = (vec![(0.0, 0.0); count], vec![(0.0, 0.0); count]);
+                // SAFETY: AVX2 detected above.
+                unsafe { avx_exp_gammas(&t[..len], &dd[..len], &gammas[..count], &mut a) };
+                Portable::exp_weighted_gammas(&t[..len], &dd[..len], &gammas[..count], &mut p);
+                for q in 0..count {
+                    let one = Portable::exp_weighted(&t[..len], &dd[..len], gammas[q]);
+                    let bits = |v: (f32, f32)| (v.0.to_bits(), v.1.to_bits());
+                    assert_eq!((bits(a[q]), bits(p[q])), (bits(one), bits(one)), "{len} elements, {count} γ, γ #{q}");
+                }
+            }
+        }
         assert!(tt.iter_mut().zip(&pt).all(|(a, b)| a.to_bits() == b.to_bits()));
     }
 }

@@ -183,7 +183,9 @@ fn window_mean(p: &[f32], cx: usize, cy: usize, w: usize, h: usize, r: usize) ->
     s / ((2 * r + 1) * (2 * r + 1)) as f32
 }
 
-/// One channel of everything IDUW reads, as planes.
+/// One channel of everything IDUW reads, as planes. The buffers are refilled for each channel
+/// and pass: fresh ones of this size (80 MB at 1920×1080) would cost as much in page faults
+/// as the final pass's arithmetic.
 struct Planes {
     pt: Vec<f32>,
     crn: Vec<f32>,
@@ -192,12 +194,14 @@ struct Planes {
     crn_subs: [Vec<f32>; 4],
 }
 
-fn plane(im: &Image, ch: usize) -> Vec<f32> {
-    im.pixels.iter().map(|p| p[ch]).collect()
+fn fill_plane(dst: &mut Vec<f32>, im: &Image, ch: usize) {
+    dst.clear();
+    dst.extend(im.pixels.iter().map(|p| p[ch]));
 }
 
-fn half(a: &Image, b: &Image, ch: usize) -> Vec<f32> {
-    a.pixels.iter().zip(&b.pixels).map(|(p, q)| 0.5 * (p[ch] + q[ch])).collect()
+fn fill_half(dst: &mut Vec<f32>, a: &Image, b: &Image, ch: usize) {
+    dst.clear();
+    dst.extend(a.pixels.iter().zip(&b.pixels).map(|(p, q)| 0.5 * (p[ch] + q[ch])));
 }
 
 /// Sub-buffer images (means of consecutive quarters of the batches) of both streams.
@@ -207,16 +211,26 @@ struct Prepared {
     spp: f32,
 }
 
-impl Prepared {
-    fn planes(&self, set: &cvtrace_streams::StreamSet, ch: usize) -> Planes {
-        let (p, c) = (&self.pt_subs, &self.crn_subs);
-        Planes {
-            pt: plane(&set.pt.mean, ch),
-            crn: plane(&set.crn.mean, ch),
-            pt_halves: [half(&p[0], &p[1], ch), half(&p[2], &p[3], ch)],
-            crn_halves: [half(&c[0], &c[1], ch), half(&c[2], &c[3], ch)],
-            crn_subs: std::array::from_fn(|i| plane(&c[i], ch)),
+impl Planes {
+    fn new() -> Self {
+        Planes { pt: vec![], crn: vec![], pt_halves: Default::default(), crn_halves: Default::default(), crn_subs: Default::default() }
+    }
+
+    /// Channel `ch` of the planes the γ criterion reads (`criterion`) or the final pass reads
+    /// (the full means and the two CRN halves).
+    fn fill(&mut self, p: &Prepared, set: &cvtrace_streams::StreamSet, ch: usize, criterion: bool) {
+        let (ps, cs) = (&p.pt_subs, &p.crn_subs);
+        fill_half(&mut self.crn_halves[0], &cs[0], &cs[1], ch);
+        fill_half(&mut self.crn_halves[1], &cs[2], &cs[3], ch);
+        if criterion {
+            fill_half(&mut self.pt_halves[0], &ps[0], &ps[1], ch);
+            fill_half(&mut self.pt_halves[1], &ps[2], &ps[3], ch);
+            for (dst, sub) in self.crn_subs.iter_mut().zip(cs) {
+                fill_plane(dst, sub, ch);
+            }
         }
+        fill_plane(&mut self.pt, &set.pt.mean, ch);
+        fill_plane(&mut self.crn, &set.crn.mean, ch);
     }
 }
 
@@ -231,6 +245,8 @@ struct Scratch {
     /// Per half and γ, the eight centres' `Σ w·d`; per γ their `Σ w`.
     acc: [Vec<[f32; 8]>; 2],
     wt: Vec<[f32; 8]>,
+    /// Per half and γ, one centre's `(Σ w·d, Σ w)`.
+    sums: [Vec<(f32, f32)>; 2],
 }
 
 impl Scratch {
@@ -243,6 +259,7 @@ impl Scratch {
             offsets: Vec::with_capacity(n),
             acc: [vec![[0.0; 8]; gammas], vec![[0.0; 8]; gammas]],
             wt: vec![[0.0; 8]; gammas],
+            sums: [vec![(0.0, 0.0); gammas], vec![(0.0, 0.0); gammas]],
         }
     }
 }
@@ -315,10 +332,217 @@ fn final_row<S: Simd>(pass: &Pass, geo: Geometry, gamma: f32, y: usize, out: &mu
     wsum
 }
 
+/// The final pass's weights of pairs of pixels, kept until both centres of a pair have used
+/// them. A pair's weight is symmetric (`v` only changes sign when centre and neighbour swap,
+/// and `t = (m·v)·v` does not), so it is computed once, at the pair's upper (or, in the same
+/// row, left) pixel `p` along its offset `o = q − p` (`o` in the lower half of the window), and
+/// read back by `q` as its neighbour at `−o`, up to `r` rows later. Per offset the ring holds
+/// the weights of `r + 1` image rows; an extra plane holds the centre's own weight.
+struct PairRing {
+    /// The lower half of the window, `(dy, dx)` with `dy > 0`, or `dy = 0` and `dx > 0`.
+    offsets: Vec<(usize, isize)>,
+    /// `[plane][row mod (r + 1)][x]`.
+    weights: Vec<f32>,
+    /// Per window element, its weight's index in `weights` for a centre in column `r` of the
+    /// current row.
+    src: Vec<usize>,
+    geo: Geometry,
+}
+
+impl PairRing {
+    fn new(geo: Geometry) -> Self {
+        let r = geo.r as isize;
+        let offsets: Vec<(usize, isize)> = (0..=r)
+            .flat_map(|dy| (-r..=r).map(move |dx| (dy, dx)))
+            .filter(|&(dy, dx)| dy > 0 || dx > 0)
+            .map(|(dy, dx)| (dy as usize, dx))
+            .collect();
+        let planes = offsets.len() + 1;
+        PairRing { weights: vec![0.0; planes * (geo.r + 1) * geo.w], src: Vec::with_capacity((2 * geo.r + 1).pow(2)), offsets, geo }
+    }
+
+    /// The plane of offset `(dy, dx)` of the lower half.
+    fn plane(&self, dy: usize, dx: isize) -> usize {
+        let r = self.geo.r;
+        if dy == 0 {
+            dx as usize - 1
+        } else {
+            r + (dy - 1) * (2 * r + 1) + (dx + r as isize) as usize
+        }
+    }
+
+    fn start(&self, plane: usize, y: usize) -> usize {
+        (plane * (self.geo.r + 1) + y % (self.geo.r + 1)) * self.geo.w
+    }
+
+    /// The centre's own weight (`v = 0`), computed by the same kernel as every other weight.
+    fn fill_centre<S: Simd>(&mut self, pass: &Pass, gamma: f32) {
+        let at = self.start(self.offsets.len(), 0);
+        let w = self.geo.w;
+        S::iduw_pair_weights(pass.x, pass.y, 0, 0, w, pass.m, gamma, &mut self.weights[at..at + w]);
+    }
+
+    /// The weights of every pair whose upper pixel lies in row `y` (which needs `y + r < h`).
+    fn fill_row<S: Simd>(&mut self, pass: &Pass, gamma: f32, y: usize) {
+        let w = self.geo.w;
+        for (k, &(dy, dx)) in self.offsets.iter().enumerate() {
+            // Every p whose partner q = p + (dy, dx) lies in the image.
+            let (lo, hi) = ((-dx).max(0) as usize, (w as isize - dx).min(w as isize) as usize);
+            let at = (k * (self.geo.r + 1) + y % (self.geo.r + 1)) * w + lo;
+            let off = (dy * w) as isize + dx;
+            S::iduw_pair_weights(pass.x, pass.y, y * w + lo, off as usize, hi - lo, pass.m, gamma, &mut self.weights[at..at + hi - lo]);
+        }
+    }
+
+    /// `src` for the centres of row `y`, in window order (rows, then columns).
+    fn sources(&mut self, y: usize) {
+        let r = self.geo.r as isize;
+        self.src.clear();
+        for ey in -r..=r {
+            for ex in -r..=r {
+                let (plane, row, col) = if ey == 0 && ex == 0 {
+                    (self.offsets.len(), 0, r)
+                } else if ey > 0 || (ey == 0 && ex > 0) {
+                    (self.plane(ey as usize, ex), y, r)
+                } else {
+                    (self.plane((-ey) as usize, -ex), (y as isize + ey) as usize, r + ex)
+                };
+                let s = self.start(plane, row) + col as usize;
+                self.src.push(s);
+            }
+        }
+    }
+}
+
+/// [`final_row`] for a row whose windows are not mirrored vertically, from the pair weights of
+/// `ring` (filled up to row `y`): the same outputs, bit for bit.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn paired_row<S: Simd>(
+    pass: &Pass,
+    geo: Geometry,
+    gamma: f32,
+    y: usize,
+    out: &mut [[f32; 3]],
+    ch: usize,
+    sc: &mut Scratch,
+    ring: &mut PairRing,
+) -> f64 {
+    let n = (2 * geo.r + 1).pow(2);
+    row_offsets(y, geo, &mut sc.offsets);
+    ring.sources(y);
+    let mut wsum = 0.0f64;
+    let mut x = 0;
+    while x < geo.w {
+        let c = y * geo.w + x;
+        if interior8(x, geo) {
+            let (acc, wt) = S::iduw_sums8_weighted(pass.h, pass.g, c, x - geo.r, &sc.offsets, &ring.weights, &ring.src, x - geo.r);
+            for l in 0..8 {
+                out[x + l][ch] = pass.h[c + l] + acc[l] * geo.norm;
+                wsum += ((wt[l] - 1.0) * geo.norm) as f64;
+            }
+            x += 8;
+            continue;
+        }
+        pass.window(x, y, geo.w, geo.h, geo.r, &mut sc.t[..n], &mut sc.d[..n]);
+        let (acc, wt) = S::exp_weighted(&sc.t[..n], &sc.d[..n], gamma);
+        out[x][ch] = pass.h[c] + acc * geo.norm;
+        wsum += ((wt - 1.0) * geo.norm) as f64;
+        x += 1;
+    }
+    wsum
+}
+
+/// The final output of one channel for the rows `y0..y0 + wsum.len()` (`out` holds them);
+/// adds each row's Σ of normalised weights to `wsum`. With `pairs`, rows whose windows are not
+/// mirrored vertically take their weights from a [`PairRing`] (the ring is warmed up on the
+/// `r` rows above the band), which halves the exponentials and changes no bit.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn final_band<S: Simd>(
+    pass: &Pass,
+    geo: Geometry,
+    gamma: f32,
+    y0: usize,
+    out: &mut [[f32; 3]],
+    wsum: &mut [f64],
+    ch: usize,
+    sc: &mut Scratch,
+    ring: &mut Option<PairRing>,
+    pairs: bool,
+) {
+    let (w, h, r) = (geo.w, geo.h, geo.r);
+    let rows = y0..y0 + wsum.len();
+    let paired = pairs && h > 2 * r && w >= 2 * r + 8;
+    let interior = rows.start.max(r)..rows.end.min(h.saturating_sub(r));
+    let mut ring = if paired && !interior.is_empty() {
+        let ring = ring.get_or_insert_with(|| PairRing::new(geo));
+        ring.fill_centre::<S>(pass, gamma);
+        Some(ring)
+    } else {
+        None
+    };
+    let mut next = interior.start.saturating_sub(r);
+    for (k, y) in rows.enumerate() {
+        let row = &mut out[k * w..(k + 1) * w];
+        match ring.as_deref_mut().filter(|_| interior.contains(&y)) {
+            Some(ring) => {
+                while next <= y {
+                    ring.fill_row::<S>(pass, gamma, next);
+                    next += 1;
+                }
+                wsum[k] += paired_row::<S>(pass, geo, gamma, y, row, ch, sc, ring);
+            }
+            None => wsum[k] += final_row::<S>(pass, geo, gamma, y, row, ch, sc),
+        }
+    }
+}
+
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn final_row_avx2(pass: &Pass, geo: Geometry, gamma: f32, y: usize, out: &mut [[f32; 3]], ch: usize, sc: &mut Scratch) -> f64 {
-    final_row::<Avx2>(pass, geo, gamma, y, out, ch, sc)
+#[allow(clippy::too_many_arguments)]
+unsafe fn final_band_avx2(
+    pass: &Pass,
+    geo: Geometry,
+    gamma: f32,
+    y0: usize,
+    out: &mut [[f32; 3]],
+    wsum: &mut [f64],
+    ch: usize,
+    sc: &mut Scratch,
+    ring: &mut Option<PairRing>,
+    pairs: bool,
+) {
+    final_band::<Avx2>(pass, geo, gamma, y0, out, wsum, ch, sc, ring, pairs)
+}
+
+/// The final output of channel `ch` into `image`, in bands of `band` rows run in parallel;
+/// `wsum` receives each row's Σ of normalised weights. The bits depend on neither `band`,
+/// `pairs` nor the thread count.
+#[allow(clippy::too_many_arguments)]
+fn final_pass(pass: &Pass, geo: Geometry, gamma: f32, image: &mut Image, ch: usize, wsum: &mut [f64], band: usize, pairs: bool) {
+    let n = (2 * geo.r + 1).pow(2);
+    let w = geo.w;
+    image.pixels.par_chunks_mut(w * band).zip(wsum.par_chunks_mut(band)).enumerate().for_each_init(
+        || (Scratch::new(n, 1), None),
+        |(sc, ring), (b, (out, ws))| {
+            let y0 = b * band;
+            #[cfg(target_arch = "x86_64")]
+            if crate::simd::use_avx2() {
+                // SAFETY: AVX2 support was just checked.
+                unsafe { final_band_avx2(pass, geo, gamma, y0, out, ws, ch, sc, ring, pairs) };
+                return;
+            }
+            final_band::<Portable>(pass, geo, gamma, y0, out, ws, ch, sc, ring, pairs);
+        },
+    );
+}
+
+/// Rows per band of the final pass: about four bands per thread, each at least `4r` rows so
+/// that the ring's warm-up (`r` rows of half the work) stays a small share.
+fn band_rows(h: usize, r: usize) -> usize {
+    let threads = rayon::current_num_threads().max(1);
+    h.div_ceil(4 * threads).max(4 * r).clamp(1, h.max(1))
 }
 
 /// The γ criterion of one channel over the lattice pixels `xs` of row `y`, added to `crit`.
@@ -361,10 +585,12 @@ fn criterion_row<S: Simd>(
         let denom = (pbar * pbar) as f64 + 0.01;
         halves[0].window(x, y, geo.w, geo.h, geo.r, &mut sc.t[..n], &mut sc.d[..n]);
         halves[1].window(x, y, geo.w, geo.h, geo.r, &mut sc.t2[..n], &mut sc.d2[..n]);
-        for (gi, &gamma) in gammas.iter().enumerate() {
-            let oa = halves[0].h[c] + S::exp_weighted(&sc.t[..n], &sc.d[..n], gamma).0 * geo.norm;
-            let ob = halves[1].h[c] + S::exp_weighted(&sc.t2[..n], &sc.d2[..n], gamma).0 * geo.norm;
-            crit[gi] += ((oa - ob) as f64).powi(2) / denom;
+        S::exp_weighted_gammas(&sc.t[..n], &sc.d[..n], gammas, &mut sc.sums[0]);
+        S::exp_weighted_gammas(&sc.t2[..n], &sc.d2[..n], gammas, &mut sc.sums[1]);
+        for (gi, cr) in crit.iter_mut().enumerate() {
+            let oa = halves[0].h[c] + sc.sums[0][gi].0 * geo.norm;
+            let ob = halves[1].h[c] + sc.sums[1][gi].0 * geo.norm;
+            *cr += ((oa - ob) as f64).powi(2) / denom;
         }
         k += 1;
     }
@@ -418,10 +644,10 @@ impl Iduw {
     pub fn gamma_criteria(&self, input: &Input) -> Result<(Vec<(f32, f64)>, usize), ReconError> {
         input.check(SPEC.name, &NEEDS)?;
         let p = self.prepare(input);
-        Ok(self.criteria(input, &p))
+        Ok(self.criteria(input, &p, &mut Planes::new()))
     }
 
-    fn criteria(&self, input: &Input, p: &Prepared) -> (Vec<(f32, f64)>, usize) {
+    fn criteria(&self, input: &Input, p: &Prepared, pl: &mut Planes) -> (Vec<(f32, f64)>, usize) {
         let set = input.streams;
         let (w, h) = (set.width, set.height);
         let geo = self.geometry(w, h);
@@ -431,7 +657,8 @@ impl Iduw {
         let n = (2 * geo.r + 1).pow(2);
         let mut total = vec![0.0f64; gammas.len()];
         for ch in 0..3 {
-            let pl = p.planes(set, ch);
+            pl.fill(p, set, ch, true);
+            let pl = &*pl;
             let s = &pl.crn_subs;
             let halves = [
                 Pass { h: &pl.pt_halves[0], g: &pl.crn_halves[0], x: &s[0], y: &s[1], m: p.spp / 4.0 },
@@ -471,10 +698,11 @@ impl Estimator for Iduw {
         let set = input.streams;
         let (w, h) = (set.width, set.height);
         let mut d = Diagnostics::default();
+        let mut planes = Planes::new();
         let gamma = match self.options.gamma {
             Some(g) => g,
             None => {
-                let (crit, count) = self.criteria(input, &p);
+                let (crit, count) = self.criteria(input, &p, &mut planes);
                 // First minimum, so ties resolve to the earlier grid value.
                 let (best, (g, value)) =
                     crit.iter().enumerate().fold((0, crit[0]), |acc, (i, c)| if c.1 < acc.1 .1 { (i, *c) } else { acc });
@@ -483,29 +711,62 @@ impl Estimator for Iduw {
             }
         };
         let geo = self.geometry(w, h);
-        let n = (2 * geo.r + 1).pow(2);
         let mut image = Image::new(w, h);
         let mut wsum = vec![0.0f64; h];
+        let band = band_rows(h, geo.r);
         for ch in 0..3 {
-            let pl = p.planes(set, ch);
+            planes.fill(&p, set, ch, false);
+            let pl = &planes;
             let full = Pass { h: &pl.pt, g: &pl.crn, x: &pl.crn_halves[0], y: &pl.crn_halves[1], m: p.spp / 2.0 };
-            image.pixels.par_chunks_mut(w).zip(wsum.par_iter_mut()).enumerate().for_each_init(
-                || Scratch::new(n, 1),
-                |sc, (y, (row, ws))| {
-                    #[cfg(target_arch = "x86_64")]
-                    if crate::simd::use_avx2() {
-                        // SAFETY: AVX2 support was just checked.
-                        *ws += unsafe { final_row_avx2(&full, geo, gamma, y, row, ch, sc) };
-                        return;
-                    }
-                    *ws += final_row::<Portable>(&full, geo, gamma, y, row, ch, sc);
-                },
-            );
+            final_pass(&full, geo, gamma, &mut image, ch, &mut wsum, band, true);
         }
         let win = self.options.window;
         d.float("gamma", gamma as f64)
             .float("neighbour_weight_mean", wsum.iter().sum::<f64>() / (3 * w * h) as f64)
             .int("window", win as i64);
         Ok(Output::new(image, d))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::{hash4, uniform};
+
+    /// The final pass with the pair ring against every centre computing its own weights, bit
+    /// for bit (image and weight sums), in both builds: images with and without unmirrored rows
+    /// and columns, bands of one row up to the whole image, γ = 0 and the grid's ends.
+    #[test]
+    fn sharing_pair_weights_changes_no_bit() {
+        let run = || {
+            let mut compared = 0;
+            for &(w, h) in &[(23usize, 19usize), (40, 30), (22, 15), (64, 41), (30, 14), (21, 20), (37, 16)] {
+                let u = |p: u64, i: usize| uniform(hash4(17, p, i as u64, (w * h) as u64)) as f32;
+                let planes: Vec<Vec<f32>> = (0..4).map(|p| (0..w * h).map(|i| u(p, i) * 3.0 - 1.0).collect()).collect();
+                let pass = Pass { h: &planes[0], g: &planes[1], x: &planes[2], y: &planes[3], m: 4.0 };
+                let geo = Geometry { w, h, r: 7, norm: 1.0 / 224.0 };
+                for &gamma in &[0.0f32, 0.01, 2.5] {
+                    let mut want = Image::new(w, h);
+                    let mut want_sum = vec![0.0f64; h];
+                    final_pass(&pass, geo, gamma, &mut want, 1, &mut want_sum, h, false);
+                    for band in [1, 3, 16, h] {
+                        let mut got = Image::new(w, h);
+                        let mut got_sum = vec![0.0f64; h];
+                        final_pass(&pass, geo, gamma, &mut got, 1, &mut got_sum, band, true);
+                        let differ = got.pixels.iter().zip(&want.pixels).filter(|(a, b)| a[1].to_bits() != b[1].to_bits()).count();
+                        assert_eq!(differ, 0, "{w}×{h}, γ {gamma}, band {band}: {differ} pixels differ");
+                        assert_eq!(
+                            got_sum.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                            want_sum.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+                        );
+                        assert!(want.pixels.iter().all(|p| p[0] == 0.0 && p[2] == 0.0 && p[1].is_finite()));
+                        compared += 1;
+                    }
+                }
+            }
+            compared
+        };
+        assert_eq!(run(), 84);
+        assert_eq!(crate::simd::force_portable(run), 84);
     }
 }
