@@ -25,7 +25,8 @@ fn main() {
         let out = e.run(&Input::new(&set)).unwrap();
         let s = out.diagnostics.seconds;
         let cpu = cpu_seconds().map(|c| c - cpu0.unwrap_or(0.0)).unwrap_or(f64::NAN);
-        let prep = out.diagnostics.get("seconds_prepare").map(|v| format!("  (prepare {v:.3} s)")).unwrap_or_default();
+        let phase = |key: &str, label: &str| out.diagnostics.get(key).map(|v| format!("  ({label} {v:.3} s)")).unwrap_or_default();
+        let prep = phase("seconds_prepare", "prepare") + &phase("seconds_gamma", "γ criterion");
         println!("{:<8} {:>7.3} s wall {:>7.3} s cpu  {:>7.2} Mpix/s{prep}", spec.name, s, cpu, (w * h) as f64 / s / 1e6);
     }
 }

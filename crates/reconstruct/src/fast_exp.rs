@@ -62,29 +62,36 @@ pub unsafe fn exp_neg8_avx2(x: std::arch::x86_64::__m256) -> std::arch::x86_64::
 #[inline(always)]
 pub unsafe fn exp_neg8xn_avx2<const N: usize>(x: [std::arch::x86_64::__m256; N]) -> [std::arch::x86_64::__m256; N] {
     use std::arch::x86_64::*;
+    // Plain loops, no closures: a closure does not inherit the caller's AVX2 and would call
+    // every intrinsic instead of inlining it.
     // SAFETY: as for `exp_neg8_avx2`: the caller guarantees AVX2, and nothing touches memory.
     unsafe {
         const ROUND: f32 = 12_582_912.0;
-        let c = |v: f32| _mm256_set1_ps(v);
-        let x = x.map(|x| _mm256_max_ps(_mm256_min_ps(x, c(0.0)), c(-87.0)));
-        let kf = x.map(|x| _mm256_add_ps(_mm256_mul_ps(x, c(std::f32::consts::LOG2_E)), c(ROUND)));
-        let n = kf.map(|kf| _mm256_sub_ps(kf, c(ROUND)));
-        let r: [__m256; N] = std::array::from_fn(|i| {
-            _mm256_sub_ps(_mm256_sub_ps(x[i], _mm256_mul_ps(n[i], c(0.693_145_75))), _mm256_mul_ps(n[i], c(1.428_606_8e-6)))
-        });
-        let mut p = r.map(|r| _mm256_add_ps(c(0.008_333_452), _mm256_mul_ps(r, c(0.001_388_720_5))));
+        let (lo, hi) = (_mm256_set1_ps(-87.0), _mm256_setzero_ps());
+        let (log2e, round) = (_mm256_set1_ps(std::f32::consts::LOG2_E), _mm256_set1_ps(ROUND));
+        let (ln2_hi, ln2_lo) = (_mm256_set1_ps(0.693_145_75), _mm256_set1_ps(1.428_606_8e-6));
+        let mut kf = x;
+        let mut r = x;
+        let mut p = x;
+        for i in 0..N {
+            let xi = _mm256_max_ps(_mm256_min_ps(x[i], hi), lo);
+            kf[i] = _mm256_add_ps(_mm256_mul_ps(xi, log2e), round);
+            let n = _mm256_sub_ps(kf[i], round);
+            r[i] = _mm256_sub_ps(_mm256_sub_ps(xi, _mm256_mul_ps(n, ln2_hi)), _mm256_mul_ps(n, ln2_lo));
+            p[i] = _mm256_add_ps(_mm256_set1_ps(0.008_333_452), _mm256_mul_ps(r[i], _mm256_set1_ps(0.001_388_720_5)));
+        }
         for k in [0.041_666_668, 0.166_666_67, 0.5, 1.0, 1.0] {
+            let kv = _mm256_set1_ps(k);
             for i in 0..N {
-                p[i] = _mm256_add_ps(c(k), _mm256_mul_ps(r[i], p[i]));
+                p[i] = _mm256_add_ps(kv, _mm256_mul_ps(r[i], p[i]));
             }
         }
-        std::array::from_fn(|i| {
-            let bits = _mm256_slli_epi32::<23>(_mm256_add_epi32(
-                _mm256_sub_epi32(_mm256_castps_si256(kf[i]), _mm256_set1_epi32(ROUND.to_bits() as i32)),
-                _mm256_set1_epi32(127),
-            ));
-            _mm256_mul_ps(p[i], _mm256_castsi256_ps(bits))
-        })
+        let (bias, one27) = (_mm256_set1_epi32(ROUND.to_bits() as i32), _mm256_set1_epi32(127));
+        for i in 0..N {
+            let bits = _mm256_slli_epi32::<23>(_mm256_add_epi32(_mm256_sub_epi32(_mm256_castps_si256(kf[i]), bias), one27));
+            p[i] = _mm256_mul_ps(p[i], _mm256_castsi256_ps(bits));
+        }
+        p
     }
 }
 

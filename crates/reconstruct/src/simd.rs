@@ -86,12 +86,16 @@ pub(crate) trait Simd {
     /// centre `q` too.
     #[allow(clippy::too_many_arguments)]
     fn iduw_pair_weights(x: &[f32], y: &[f32], p0: usize, off: usize, n: usize, m: f32, gamma: f32, out: &mut [f32]);
-    /// [`Simd::iduw_sums8`] for one γ with the weights given: window element `i` of centre
-    /// `c0 + l` has neighbour `n0 + offsets[i] + l` and weight `weights[shift + src[i] + l]`. The same
-    /// partial sums in the same order, so the same bits when the weights are the ones
-    /// [`Simd::iduw_pair_weights`] computes.
+    /// [`Simd::iduw_sums8`] for one γ with the weights given, for `blocks` runs of eight
+    /// centres along a row: lane `l` of block `b` is centre `c0 + 8b + l`, its window element
+    /// `i` is neighbour `n0 + 8b + offsets[i] + l` with weight `weights[8b + src[i] + l]`, and
+    /// `out[b]` receives `(Σ w·d, Σ w)` per lane (`blocks = out.len()`). The same partial sums
+    /// in the same order as [`Simd::exp_weighted`], so the same bits when the weights are the
+    /// ones [`Simd::iduw_pair_weights`] computes. Element by element across the blocks, so
+    /// that every load streams along a row; `part` (at least `blocks` long) holds the partial
+    /// sums.
     #[allow(clippy::too_many_arguments)]
-    fn iduw_sums8_weighted(
+    fn iduw_row_sums_weighted(
         h: &[f32],
         g: &[f32],
         c0: usize,
@@ -99,8 +103,9 @@ pub(crate) trait Simd {
         offsets: &[usize],
         weights: &[f32],
         src: &[usize],
-        shift: usize,
-    ) -> ([f32; 8], [f32; 8]);
+        part: &mut [[[f32; 8]; 16]],
+        out: &mut [([f32; 8], [f32; 8])],
+    );
 }
 
 /// Most γ values [`Simd::iduw_sums8`] keeps partial sums for at once; longer lists run in
@@ -120,17 +125,30 @@ fn check_iduw_bounds(planes: &[&[f32]; 4], c0: usize, n0: usize, offsets: &[usiz
     );
 }
 
-/// Checks the contract of [`Simd::iduw_sums8_weighted`] that keeps its loads in bounds.
+/// Checks the contract of [`Simd::iduw_row_sums_weighted`] that keeps its loads in bounds;
+/// returns the number of blocks.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn check_weighted_bounds(h: &[f32], g: &[f32], c0: usize, n0: usize, offsets: &[usize], weights: &[f32], src: &[usize], shift: usize) {
+fn check_row_bounds(
+    h: &[f32],
+    g: &[f32],
+    c0: usize,
+    n0: usize,
+    offsets: &[usize],
+    weights: &[f32],
+    src: &[usize],
+    part: usize,
+    out: usize,
+) -> usize {
     let len = h.len().min(g.len());
     let far = offsets.iter().copied().max().unwrap_or(0);
     let far_w = src.iter().copied().max().unwrap_or(0);
+    let span = 8 * out;
     assert!(
-        src.len() == offsets.len() && c0 + 8 <= len && n0 + far + 8 <= len && shift + far_w + 8 <= weights.len(),
+        src.len() == offsets.len() && part >= out && c0 + span <= len && n0 + far + span <= len && far_w + span <= weights.len(),
         "IDUW window or weights outside their planes"
     );
+    out
 }
 
 /// Checks the contract of [`Simd::iduw_pair_weights`].
@@ -222,7 +240,7 @@ impl Simd for Portable {
     }
 
     #[inline(always)]
-    fn iduw_sums8_weighted(
+    fn iduw_row_sums_weighted(
         h: &[f32],
         g: &[f32],
         c0: usize,
@@ -230,23 +248,29 @@ impl Simd for Portable {
         offsets: &[usize],
         weights: &[f32],
         src: &[usize],
-        shift: usize,
-    ) -> ([f32; 8], [f32; 8]) {
-        check_weighted_bounds(h, g, c0, n0, offsets, weights, src, shift);
-        let (mut acc, mut wsum) = ([0.0f32; 8], [0.0f32; 8]);
-        for l in 0..8 {
-            let c = c0 + l;
-            // Element i to partial sum i mod 8, as exp_weighted sums.
-            let (mut a, mut wa) = ([0.0f32; 8], [0.0f32; 8]);
-            for (i, (&o, &s)) in offsets.iter().zip(src).enumerate() {
-                let j = n0 + o + l;
-                let w = weights[shift + s + l];
-                a[i % 8] += w * ((g[c] - g[j]) - (h[c] - h[j]));
-                wa[i % 8] += w;
+        part: &mut [[[f32; 8]; 16]],
+        out: &mut [([f32; 8], [f32; 8])],
+    ) {
+        let blocks = check_row_bounds(h, g, c0, n0, offsets, weights, src, part.len(), out.len());
+        let part = &mut part[..blocks];
+        part.fill([[0.0; 8]; 16]);
+        for (i, (&o, &s)) in offsets.iter().zip(src).enumerate() {
+            let a = i % 8;
+            for (b, pb) in part.iter_mut().enumerate() {
+                for l in 0..8 {
+                    let (c, j) = (c0 + 8 * b + l, n0 + 8 * b + o + l);
+                    let w = weights[8 * b + s + l];
+                    pb[a][l] += w * ((g[c] - g[j]) - (h[c] - h[j]));
+                    pb[8 + a][l] += w;
+                }
             }
-            (acc[l], wsum[l]) = (lane_sum(a), lane_sum(wa));
         }
-        (acc, wsum)
+        for (o, pb) in out.iter_mut().zip(part.iter()) {
+            for l in 0..8 {
+                o.0[l] = lane_sum(std::array::from_fn(|a| pb[a][l]));
+                o.1[l] = lane_sum(std::array::from_fn(|a| pb[8 + a][l]));
+            }
+        }
     }
 
     #[inline(always)]
@@ -425,13 +449,16 @@ impl Simd for Avx2 {
             let (mv, neg) = (_mm256_set1_ps(m), _mm256_set1_ps(-gamma));
             let ld = |p: &[f32], at: usize| _mm256_loadu_ps(p.as_ptr().add(at));
             for k in (0..full).step_by(32) {
-                let arg: [__m256; 4] = std::array::from_fn(|u| {
+                // No closures over intrinsics here (they would not inherit AVX2).
+                let mut arg = [_mm256_setzero_ps(); 4];
+                for (u, a) in arg.iter_mut().enumerate() {
                     let (p, q) = (p0 + k + 8 * u, p0 + k + 8 * u + off);
                     let v = _mm256_sub_ps(_mm256_sub_ps(ld(x, p), ld(x, q)), _mm256_sub_ps(ld(y, p), ld(y, q)));
-                    _mm256_mul_ps(neg, _mm256_mul_ps(_mm256_mul_ps(mv, v), v))
-                });
-                for (u, e) in exp_neg8xn_avx2(arg).into_iter().enumerate() {
-                    _mm256_storeu_ps(out.as_mut_ptr().add(k + 8 * u), e);
+                    *a = _mm256_mul_ps(neg, _mm256_mul_ps(_mm256_mul_ps(mv, v), v));
+                }
+                let e = exp_neg8xn_avx2(arg);
+                for (u, e) in e.iter().enumerate() {
+                    _mm256_storeu_ps(out.as_mut_ptr().add(k + 8 * u), *e);
                 }
             }
             for k in (full..n / 8 * 8).step_by(8) {
@@ -449,7 +476,7 @@ impl Simd for Avx2 {
     }
 
     #[inline(always)]
-    fn iduw_sums8_weighted(
+    fn iduw_row_sums_weighted(
         h: &[f32],
         g: &[f32],
         c0: usize,
@@ -457,41 +484,55 @@ impl Simd for Avx2 {
         offsets: &[usize],
         weights: &[f32],
         src: &[usize],
-        shift: usize,
-    ) -> ([f32; 8], [f32; 8]) {
+        part: &mut [[[f32; 8]; 16]],
+        out: &mut [([f32; 8], [f32; 8])],
+    ) {
         use std::arch::x86_64::*;
-        check_weighted_bounds(h, g, c0, n0, offsets, weights, src, shift);
-        let n = offsets.len();
-        let (mut acc, mut wsum) = ([0.0f32; 8], [0.0f32; 8]);
-        // SAFETY: AVX2 is available (see the type's contract); every load reads 8 values
-        // starting at `c0`, `n0 + offsets[i]` or `shift + src[i]`, in bounds by the check above.
+        let blocks = check_row_bounds(h, g, c0, n0, offsets, weights, src, part.len(), out.len());
+        let part = &mut part[..blocks];
+        part.fill([[0.0; 8]; 16]);
+        // SAFETY: AVX2 is available (see the type's contract); the loads read 8 values at
+        // `c0 + 8b`, `n0 + 8b + offsets[i]` and `8b + src[i]` for b < blocks, in bounds by
+        // the check above, and the partial sums are whole `[f32; 8]`s of `part`. Plain loops
+        // (no closures over intrinsics: a closure would not inherit AVX2).
         unsafe {
-            let zero = _mm256_setzero_ps();
-            let ld = |p: &[f32], at: usize| _mm256_loadu_ps(p.as_ptr().add(at));
-            let (hc, gc) = (ld(h, c0), ld(g, c0));
-            let (mut part, mut wpart) = ([zero; 8], [zero; 8]);
-            for a in 0..8 {
-                let (mut sa, mut wa) = (zero, zero);
-                for i in (a.min(n)..n).step_by(8) {
-                    let j = n0 + offsets[i];
-                    let w = ld(weights, shift + src[i]);
-                    let d = _mm256_sub_ps(_mm256_sub_ps(gc, ld(g, j)), _mm256_sub_ps(hc, ld(h, j)));
-                    sa = _mm256_add_ps(sa, _mm256_mul_ps(w, d));
-                    wa = _mm256_add_ps(wa, w);
+            // Chunks of blocks whose partial sums stay in the L1 cache while the window's
+            // elements go past.
+            const CHUNK: usize = 16;
+            for (k, chunk) in part.chunks_mut(CHUNK).enumerate() {
+                let b0 = k * CHUNK;
+                for (i, (&o, &s)) in offsets.iter().zip(src).enumerate() {
+                    let a = i % 8;
+                    for (db, pb) in chunk.iter_mut().enumerate() {
+                        let b = b0 + db;
+                        let (c, j) = (c0 + 8 * b, n0 + 8 * b + o);
+                        let w = _mm256_loadu_ps(weights.as_ptr().add(8 * b + s));
+                        let gd = _mm256_sub_ps(_mm256_loadu_ps(g.as_ptr().add(c)), _mm256_loadu_ps(g.as_ptr().add(j)));
+                        let hd = _mm256_sub_ps(_mm256_loadu_ps(h.as_ptr().add(c)), _mm256_loadu_ps(h.as_ptr().add(j)));
+                        let d = _mm256_sub_ps(gd, hd);
+                        let (sa, wa) = (pb[a].as_mut_ptr(), pb[8 + a].as_mut_ptr());
+                        _mm256_storeu_ps(sa, _mm256_add_ps(_mm256_loadu_ps(sa), _mm256_mul_ps(w, d)));
+                        _mm256_storeu_ps(wa, _mm256_add_ps(_mm256_loadu_ps(wa), w));
+                    }
                 }
-                part[a] = sa;
-                wpart[a] = wa;
             }
-            let pairwise = |p: &[__m256; 8]| {
-                _mm256_add_ps(
+            for (o, pb) in out.iter_mut().zip(part.iter()) {
+                let mut p = [_mm256_setzero_ps(); 16];
+                for (v, src) in p.iter_mut().zip(pb) {
+                    *v = _mm256_loadu_ps(src.as_ptr());
+                }
+                let s = _mm256_add_ps(
                     _mm256_add_ps(_mm256_add_ps(p[0], p[1]), _mm256_add_ps(p[2], p[3])),
                     _mm256_add_ps(_mm256_add_ps(p[4], p[5]), _mm256_add_ps(p[6], p[7])),
-                )
-            };
-            _mm256_storeu_ps(acc.as_mut_ptr(), pairwise(&part));
-            _mm256_storeu_ps(wsum.as_mut_ptr(), pairwise(&wpart));
+                );
+                let w = _mm256_add_ps(
+                    _mm256_add_ps(_mm256_add_ps(p[8], p[9]), _mm256_add_ps(p[10], p[11])),
+                    _mm256_add_ps(_mm256_add_ps(p[12], p[13]), _mm256_add_ps(p[14], p[15])),
+                );
+                _mm256_storeu_ps(o.0.as_mut_ptr(), s);
+                _mm256_storeu_ps(o.1.as_mut_ptr(), w);
+            }
         }
-        (acc, wsum)
     }
 
     #[inline(always)]
@@ -558,11 +599,18 @@ fn exp_weighted_n<const N: usize>(t: &[f32], d: &[f32], gammas: &[f32], out: &mu
     // SAFETY: only called from the AVX2 build (see `Avx2`'s contract); loads stay below
     // `full ≤ len`.
     unsafe {
-        let g: [__m256; N] = std::array::from_fn(|q| _mm256_set1_ps(-gammas[q]));
+        let mut g = [_mm256_setzero_ps(); N];
+        for q in 0..N {
+            g[q] = _mm256_set1_ps(-gammas[q]);
+        }
         let (mut a, mut wa) = ([_mm256_setzero_ps(); N], [_mm256_setzero_ps(); N]);
         for i in (0..full).step_by(8) {
             let (tv, dv) = (_mm256_loadu_ps(t.as_ptr().add(i)), _mm256_loadu_ps(d.as_ptr().add(i)));
-            let w = exp_neg8xn_avx2(g.map(|g| _mm256_mul_ps(g, tv)));
+            let mut arg = g;
+            for q in 0..N {
+                arg[q] = _mm256_mul_ps(g[q], tv);
+            }
+            let w = exp_neg8xn_avx2(arg);
             for q in 0..N {
                 a[q] = _mm256_add_ps(a[q], _mm256_mul_ps(w[q], dv));
                 wa[q] = _mm256_add_ps(wa[q], w[q]);

@@ -346,6 +346,9 @@ struct PairRing {
     /// Per window element, its weight's index in `weights` for a centre in column `r` of the
     /// current row.
     src: Vec<usize>,
+    /// Per block of eight centres of a row, the partial sums and the sums.
+    part: Vec<[[f32; 8]; 16]>,
+    sums: Vec<([f32; 8], [f32; 8])>,
     geo: Geometry,
 }
 
@@ -358,7 +361,14 @@ impl PairRing {
             .map(|(dy, dx)| (dy as usize, dx))
             .collect();
         let planes = offsets.len() + 1;
-        PairRing { weights: vec![0.0; planes * (geo.r + 1) * geo.w], src: Vec::with_capacity((2 * geo.r + 1).pow(2)), offsets, geo }
+        PairRing {
+            weights: vec![0.0; planes * Self::plane_stride(geo)],
+            src: Vec::with_capacity((2 * geo.r + 1).pow(2)),
+            part: vec![],
+            sums: vec![],
+            offsets,
+            geo,
+        }
     }
 
     /// The plane of offset `(dy, dx)` of the lower half.
@@ -371,8 +381,15 @@ impl PairRing {
         }
     }
 
+    /// Floats per plane: `r + 1` rows and one cache line more, so that the planes' rows do
+    /// not all fall on the same cache sets (a multiple of 4 KiB apart, they would evict each
+    /// other while a centre reads its window's weights from all of them).
+    fn plane_stride(geo: Geometry) -> usize {
+        (geo.r + 1) * geo.w + 16
+    }
+
     fn start(&self, plane: usize, y: usize) -> usize {
-        (plane * (self.geo.r + 1) + y % (self.geo.r + 1)) * self.geo.w
+        plane * Self::plane_stride(self.geo) + (y % (self.geo.r + 1)) * self.geo.w
     }
 
     /// The centre's own weight (`v = 0`), computed by the same kernel as every other weight.
@@ -388,7 +405,7 @@ impl PairRing {
         for (k, &(dy, dx)) in self.offsets.iter().enumerate() {
             // Every p whose partner q = p + (dy, dx) lies in the image.
             let (lo, hi) = ((-dx).max(0) as usize, (w as isize - dx).min(w as isize) as usize);
-            let at = (k * (self.geo.r + 1) + y % (self.geo.r + 1)) * w + lo;
+            let at = self.start(k, y) + lo;
             let off = (dy * w) as isize + dx;
             S::iduw_pair_weights(pass.x, pass.y, y * w + lo, off as usize, hi - lo, pass.m, gamma, &mut self.weights[at..at + hi - lo]);
         }
@@ -431,12 +448,18 @@ fn paired_row<S: Simd>(
     let n = (2 * geo.r + 1).pow(2);
     row_offsets(y, geo, &mut sc.offsets);
     ring.sources(y);
+    // The blocks of eight centres from column r on whose windows are not mirrored (as
+    // `interior8` says of each), all at once.
+    let blocks = (geo.w - 2 * geo.r) / 8;
+    ring.sums.resize(blocks, ([0.0; 8], [0.0; 8]));
+    ring.part.resize(blocks, [[0.0; 8]; 16]);
+    S::iduw_row_sums_weighted(pass.h, pass.g, y * geo.w + geo.r, 0, &sc.offsets, &ring.weights, &ring.src, &mut ring.part, &mut ring.sums);
     let mut wsum = 0.0f64;
     let mut x = 0;
     while x < geo.w {
         let c = y * geo.w + x;
-        if interior8(x, geo) {
-            let (acc, wt) = S::iduw_sums8_weighted(pass.h, pass.g, c, x - geo.r, &sc.offsets, &ring.weights, &ring.src, x - geo.r);
+        if x >= geo.r && x < geo.r + 8 * blocks {
+            let (acc, wt) = ring.sums[(x - geo.r) / 8];
             for l in 0..8 {
                 out[x + l][ch] = pass.h[c + l] + acc[l] * geo.norm;
                 wsum += ((wt[l] - 1.0) * geo.norm) as f64;
@@ -581,7 +604,12 @@ fn criterion_row<S: Simd>(
             k += 8;
             continue;
         }
-        let pbar = window_mean(pt, x, y, geo.w, geo.h, geo.r);
+        // The same sum in the same order; the interior form skips a mirror per element.
+        let pbar = if x >= geo.r && x + geo.r < geo.w {
+            window_mean_interior(pt, x - geo.r, &sc.offsets)
+        } else {
+            window_mean(pt, x, y, geo.w, geo.h, geo.r)
+        };
         let denom = (pbar * pbar) as f64 + 0.01;
         halves[0].window(x, y, geo.w, geo.h, geo.r, &mut sc.t[..n], &mut sc.d[..n]);
         halves[1].window(x, y, geo.w, geo.h, geo.r, &mut sc.t2[..n], &mut sc.d2[..n]);
@@ -694,19 +722,25 @@ impl Iduw {
 
 impl Estimator for Iduw {
     fn reconstruct(&self, input: &Input) -> Result<Output, ReconError> {
+        let start = std::time::Instant::now();
         let p = self.prepare(input);
         let set = input.streams;
         let (w, h) = (set.width, set.height);
         let mut d = Diagnostics::default();
+        d.float("seconds_prepare", start.elapsed().as_secs_f64());
         let mut planes = Planes::new();
         let gamma = match self.options.gamma {
             Some(g) => g,
             None => {
+                let started = std::time::Instant::now();
                 let (crit, count) = self.criteria(input, &p, &mut planes);
                 // First minimum, so ties resolve to the earlier grid value.
                 let (best, (g, value)) =
                     crit.iter().enumerate().fold((0, crit[0]), |acc, (i, c)| if c.1 < acc.1 .1 { (i, *c) } else { acc });
-                d.int("gamma_index", best as i64).float("gamma_criterion", value).int("selection_pixels", count as i64);
+                d.int("gamma_index", best as i64)
+                    .float("gamma_criterion", value)
+                    .int("selection_pixels", count as i64)
+                    .float("seconds_gamma", started.elapsed().as_secs_f64());
                 g
             }
         };
