@@ -303,22 +303,47 @@ struct Geometry {
     norm: f32,
 }
 
-/// The final output of one channel for one image row; returns Σ of the normalised weights.
-/// Centres whose windows lie inside the image horizontally go eight at a time.
+/// Where a row's blocks of eight centres get their sums.
+enum Blocks<'a> {
+    /// [`Simd::iduw_sums8`] for every block whose windows are not mirrored horizontally.
+    Kernel,
+    /// Precomputed, for the blocks from column `first` on.
+    Given { first: usize, sums: &'a [([f32; 8], [f32; 8])] },
+}
+
+/// The final output of one channel for one image row; returns Σ of the normalised weights, added
+/// centre by centre in column order. Blocks of eight centres take their sums from `blocks`, the
+/// other centres the per-centre kernel.
 #[inline(always)]
-fn final_row<S: Simd>(pass: &Pass, geo: Geometry, gamma: f32, y: usize, out: &mut [[f32; 3]], ch: usize, sc: &mut Scratch) -> f64 {
+#[allow(clippy::too_many_arguments)]
+fn row_outputs<S: Simd>(
+    pass: &Pass,
+    geo: Geometry,
+    gamma: f32,
+    y: usize,
+    out: &mut [[f32; 3]],
+    ch: usize,
+    sc: &mut Scratch,
+    blocks: Blocks,
+) -> f64 {
     let n = (2 * geo.r + 1).pow(2);
-    row_offsets(y, geo, &mut sc.offsets);
     let planes = [pass.h, pass.g, pass.x, pass.y];
     let mut wsum = 0.0f64;
     let mut x = 0;
     while x < geo.w {
         let c = y * geo.w + x;
-        if interior8(x, geo) {
-            S::iduw_sums8(planes, c, x - geo.r, &sc.offsets, pass.m, &[gamma], &mut sc.acc[0], &mut sc.wt);
+        let sums = match blocks {
+            Blocks::Kernel if interior8(x, geo) => {
+                S::iduw_sums8(planes, c, x - geo.r, &sc.offsets, pass.m, &[gamma], &mut sc.acc[0], &mut sc.wt);
+                Some((sc.acc[0][0], sc.wt[0]))
+            }
+            Blocks::Given { first, sums } if x >= first && x < first + 8 * sums.len() => Some(sums[(x - first) / 8]),
+            _ => None,
+        };
+        if let Some((acc, wt)) = sums {
             for l in 0..8 {
-                out[x + l][ch] = pass.h[c + l] + sc.acc[0][0][l] * geo.norm;
-                wsum += ((sc.wt[0][l] - 1.0) * geo.norm) as f64;
+                out[x + l][ch] = pass.h[c + l] + acc[l] * geo.norm;
+                wsum += ((wt[l] - 1.0) * geo.norm) as f64;
             }
             x += 8;
             continue;
@@ -330,6 +355,14 @@ fn final_row<S: Simd>(pass: &Pass, geo: Geometry, gamma: f32, y: usize, out: &mu
         x += 1;
     }
     wsum
+}
+
+/// The final output of one channel for one image row, every centre computing its own weights;
+/// returns Σ of the normalised weights.
+#[inline(always)]
+fn final_row<S: Simd>(pass: &Pass, geo: Geometry, gamma: f32, y: usize, out: &mut [[f32; 3]], ch: usize, sc: &mut Scratch) -> f64 {
+    row_offsets(y, geo, &mut sc.offsets);
+    row_outputs::<S>(pass, geo, gamma, y, out, ch, sc, Blocks::Kernel)
 }
 
 /// The final pass's weights of pairs of pixels, kept until both centres of a pair have used
@@ -445,7 +478,6 @@ fn paired_row<S: Simd>(
     sc: &mut Scratch,
     ring: &mut PairRing,
 ) -> f64 {
-    let n = (2 * geo.r + 1).pow(2);
     row_offsets(y, geo, &mut sc.offsets);
     ring.sources(y);
     // The blocks of eight centres from column r on whose windows are not mirrored (as
@@ -454,26 +486,7 @@ fn paired_row<S: Simd>(
     ring.sums.resize(blocks, ([0.0; 8], [0.0; 8]));
     ring.part.resize(blocks, [[0.0; 8]; 16]);
     S::iduw_row_sums_weighted(pass.h, pass.g, y * geo.w + geo.r, 0, &sc.offsets, &ring.weights, &ring.src, &mut ring.part, &mut ring.sums);
-    let mut wsum = 0.0f64;
-    let mut x = 0;
-    while x < geo.w {
-        let c = y * geo.w + x;
-        if x >= geo.r && x < geo.r + 8 * blocks {
-            let (acc, wt) = ring.sums[(x - geo.r) / 8];
-            for l in 0..8 {
-                out[x + l][ch] = pass.h[c + l] + acc[l] * geo.norm;
-                wsum += ((wt[l] - 1.0) * geo.norm) as f64;
-            }
-            x += 8;
-            continue;
-        }
-        pass.window(x, y, geo.w, geo.h, geo.r, &mut sc.t[..n], &mut sc.d[..n]);
-        let (acc, wt) = S::exp_weighted(&sc.t[..n], &sc.d[..n], gamma);
-        out[x][ch] = pass.h[c] + acc * geo.norm;
-        wsum += ((wt - 1.0) * geo.norm) as f64;
-        x += 1;
-    }
-    wsum
+    row_outputs::<S>(pass, geo, gamma, y, out, ch, sc, Blocks::Given { first: geo.r, sums: &ring.sums })
 }
 
 /// The final output of one channel for the rows `y0..y0 + wsum.len()` (`out` holds them);
