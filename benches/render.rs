@@ -195,6 +195,21 @@ fn embree_rays(c: &mut Criterion) {
         g.bench_function(format!("intersect_random_incoherent_{name}"), |b| {
             b.iter(|| incoherent.iter().filter(|r| t.intersect(r).is_some()).count())
         });
+        if name == "high_fast" {
+            // The rest of what a `--traversal fast` (the default) render traces, for its ceiling.
+            g.bench_function("occluded_random_incoherent_high_fast", |b| b.iter(|| incoherent.iter().filter(|r| t.occluded(r)).count()));
+            g.bench_function("intersect_camera_16spp_batches_of_64_high_fast", |b| {
+                b.iter(|| {
+                    jittered
+                        .chunks(64)
+                        .map(|c| {
+                            t.intersect_coherent(c, &mut hits[..c.len()]);
+                            hits.iter().filter(|h| h.is_some()).count()
+                        })
+                        .sum::<usize>()
+                })
+            });
+        }
     }
     g.finish();
 }
