@@ -168,17 +168,7 @@ fn embree_rays(c: &mut Criterion) {
         .collect();
     let mut hits = vec![None; 64];
     g.bench_function("intersect_camera_16spp_one_by_one", |b| b.iter(|| jittered.iter().filter(|r| tracer.intersect(r).is_some()).count()));
-    g.bench_function("intersect_camera_16spp_batches_of_64", |b| {
-        b.iter(|| {
-            jittered
-                .chunks(64)
-                .map(|c| {
-                    tracer.intersect_coherent(c, &mut hits[..c.len()]);
-                    hits.iter().filter(|h| h.is_some()).count()
-                })
-                .sum::<usize>()
-        })
-    });
+    g.bench_function("intersect_camera_16spp_batches_of_64", |b| b.iter(|| hits_in_batches(&tracer, &jittered, &mut hits)));
     g.bench_function("intersect_random_incoherent", |b| b.iter(|| incoherent.iter().filter(|r| tracer.intersect(r).is_some()).count()));
     g.bench_function("occluded_random_incoherent", |b| b.iter(|| incoherent.iter().filter(|r| tracer.occluded(r)).count()));
     let triangles = device_triangles(&scene);
@@ -198,20 +188,20 @@ fn embree_rays(c: &mut Criterion) {
         if name == "high_fast" {
             // The rest of what a `--traversal fast` (the default) render traces, for its ceiling.
             g.bench_function("occluded_random_incoherent_high_fast", |b| b.iter(|| incoherent.iter().filter(|r| t.occluded(r)).count()));
-            g.bench_function("intersect_camera_16spp_batches_of_64_high_fast", |b| {
-                b.iter(|| {
-                    jittered
-                        .chunks(64)
-                        .map(|c| {
-                            t.intersect_coherent(c, &mut hits[..c.len()]);
-                            hits.iter().filter(|h| h.is_some()).count()
-                        })
-                        .sum::<usize>()
-                })
-            });
+            g.bench_function("intersect_camera_16spp_batches_of_64_high_fast", |b| b.iter(|| hits_in_batches(&t, &jittered, &mut hits)));
         }
     }
     g.finish();
+}
+
+/// Hits of `rays` traced in coherent batches of `hits.len()`, as the renderer traces camera rays.
+fn hits_in_batches(tracer: &EmbreeScene, rays: &[Ray], hits: &mut [Option<cvtrace_render::Hit>]) -> usize {
+    rays.chunks(hits.len())
+        .map(|c| {
+            tracer.intersect_coherent(c, &mut hits[..c.len()]);
+            hits[..c.len()].iter().filter(|h| h.is_some()).count()
+        })
+        .sum()
 }
 
 /// The Cornell box as plain Embree triangles (robust), to compare with the default quads.
