@@ -45,6 +45,13 @@ VARIANTS = [
     ("cv pt-noise ridge 0.01 low-pass 8", ["--method", "cv", "--cv-pt-noise", "--cv-ridge", "0.01", "--cv-low-pass-sigma", "8"]),
     ("cv centre out", ["--method", "cv", "--cv-centre", "out"]),
     ("cv classic", ["--method", "cv", "--cv-centre", "out", "--param", "cv.pt_noise=false", "--cv-low-pass-sigma", "0"]),
+    ("cv cross-fit", ["--method", "cv", "--cv-folds", "halves"]),
+    ("cv k 49", ["--method", "cv", "--k", "49", "--search-window", "15"]),
+    ("cv ridge 1 pt-noise", ["--method", "cv", "--cv-ridge", "1"]),
+    ("cv window 5", ["--method", "cv", "--select", "window", "--search-window", "5"]),
+    ("cv demodulate", ["--method", "cv", "--cv-demodulate"]),
+    # Illumination instead of radiance: both streams divided by the first-hit albedo.
+    ("demodulate", ["--demodulate"]),
 ]
 
 
@@ -79,7 +86,8 @@ def main():
     for s in scenes:
         d = os.path.join(study_root, s, f"spp{int(spp):05d}")
         seeds = sorted(f for f in os.listdir(d) if f.endswith(".streams.exr"))
-        ref = f"scenes/{s}/scene.ref.exr"
+        # A bundled scene, else one of the validation set (measured, never tuned on).
+        ref = next(f"{root}/{s}/scene.ref.exr" for root in ("scenes", "validation") if os.path.isdir(f"{root}/{s}"))
         print(f"{s:16} {len(seeds)} seeds", flush=True)
         for name, extra in variants:
             vals = [relmse(os.path.join(d, f), ref, extra, os.path.join(tmp, "x.exr")) for f in seeds]

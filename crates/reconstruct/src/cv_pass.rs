@@ -109,6 +109,31 @@ crate::named::named_enum! {
     }
 }
 
+impl Folds {
+    /// Cross-fitting splits the batches into two equal halves, so it needs an even count.
+    pub fn check(self, origin: &str, method: &'static str, batches: usize) -> Result<(), crate::ReconError> {
+        if self == Folds::Halves && batches % 2 == 1 {
+            return Err(crate::ReconError::BatchCount {
+                origin: origin.to_string(),
+                method,
+                requirement: "an even number of".into(),
+                found: batches,
+                hint: "cross-fitting splits the batches into two equal halves; re-render with an even --batches or choose other folds"
+                    .into(),
+            });
+        }
+        Ok(())
+    }
+
+    /// The fewest batches the folds work with.
+    pub fn min_batches(self) -> usize {
+        match self {
+            Folds::All => 2,
+            Folds::Halves => 4,
+        }
+    }
+}
+
 impl Dof {
     /// The factor on the residual for `df` of `n`.
     fn factor(self, df: f64, n: f64) -> f64 {

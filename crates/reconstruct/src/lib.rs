@@ -50,6 +50,7 @@
 mod batch_stats;
 pub mod control_variate;
 mod cv_pass;
+mod demodulate;
 mod diagnostics;
 mod error;
 mod estimator;

@@ -89,6 +89,20 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
             alias: Some("cv-centre"),
         },
         ParamSpec {
+            name: "folds",
+            kind: ParamKind::Choice(Folds::NAMES),
+            default: "all",
+            doc: "Which CRN batches β is estimated from and applied to: all, or halves (cross-fitting: each half's β applied to the other half's mean; even batch count ≥ 4).",
+            alias: Some("cv-folds"),
+        },
+        ParamSpec {
+            name: "demodulate",
+            kind: ParamKind::Bool,
+            default: "false",
+            doc: "Reconstruct illumination: both streams divided by the first-hit albedo (each channel at least 0.05), the output multiplied back (needs features).",
+            alias: Some("cv-demodulate"),
+        },
+        ParamSpec {
             name: "seed",
             kind: ParamKind::Int { min: 0, max: i64::MAX },
             default: "0",
@@ -96,7 +110,7 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
             alias: None,
         },
     ],
-    needs: |p| needs(p.choice("select")),
+    needs: |p| needs(&ClassicCvOptions::from_params(p)),
     build: |p| Ok(Box::new(ClassicCv::new(ClassicCvOptions::from_params(p))?)),
     variants: &[Variant {
         key: "cv-classic",
@@ -124,10 +138,14 @@ crate::named::named_enum! {
     }
 }
 
-fn needs(select: Selection) -> Needs {
+fn needs(o: &ClassicCvOptions) -> Needs {
     Needs {
-        batches: BatchNeed::Range { min: 2, max: MAX_BATCHES },
-        features: (select == Selection::Gbuffer).then_some("with --select gbuffer"),
+        batches: BatchNeed::Range { min: o.folds.min_batches(), max: MAX_BATCHES },
+        features: if o.demodulate {
+            Some("with demodulate = true")
+        } else {
+            (o.select == Selection::Gbuffer).then_some("with --select gbuffer")
+        },
         reference: false,
         spp: false,
         bounded_values: true,
@@ -151,6 +169,10 @@ pub struct ClassicCvOptions {
     pub low_pass_sigma: f64,
     /// What the output does with the centre's own PT mean.
     pub centre: Centre,
+    /// Which CRN batches β is estimated from and applied to.
+    pub folds: Folds,
+    /// Reconstruct illumination (radiance ÷ first-hit albedo) and multiply the albedo back.
+    pub demodulate: bool,
 }
 
 impl Default for ClassicCvOptions {
@@ -172,6 +194,8 @@ impl ClassicCvOptions {
             pt_noise: p.bool("pt_noise"),
             low_pass_sigma: p.float("low_pass_sigma"),
             centre: p.choice("centre"),
+            folds: p.choice("folds"),
+            demodulate: p.bool("demodulate"),
         }
     }
 
@@ -206,17 +230,28 @@ impl ClassicCv {
 
 impl Estimator for ClassicCv {
     fn reconstruct(&self, input: &Input) -> Result<Output, ReconError> {
+        if self.options.demodulate {
+            crate::demodulate::run(SPEC.name, input, |inner| self.reconstruct_radiance(inner))
+        } else {
+            self.reconstruct_radiance(input)
+        }
+    }
+}
+
+impl ClassicCv {
+    fn reconstruct_radiance(&self, input: &Input) -> Result<Output, ReconError> {
         let o = &self.options;
         let set = input.streams;
+        o.folds.check(input.streams_name, SPEC.name, set.batch_count())?;
         let errors = o.pt_noise.then(|| pt_errors(ErrorEstimate::Cbf, set, None, &CbfOptions::default()));
         let selector = Selector::new(o.select, o.neighbours, o.search_window, false, o.seed, set);
         let (image, stats) = match (o.centre, errors.as_deref()) {
             (Centre::InverseVariance, Some(e)) => {
-                let (two, stats) = two_stage(set, selector, o.neighbours, e, o.ridge, o.shared_coefficients, Dof::None);
+                let (two, stats) = two_stage(set, selector, o.solve(), e, Dof::None);
                 (two.image, stats)
             }
             _ => {
-                let out = cv_pass(set, selector, o.neighbours, errors.as_deref(), o.ridge, o.shared_coefficients, None).run();
+                let out = cv_pass(set, selector, o.solve(), errors.as_deref(), None).run();
                 (out.image, out.stats)
             }
         };
@@ -228,29 +263,46 @@ impl Estimator for ClassicCv {
     }
 }
 
+/// The settings of a centre-free control-variate solve.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Solve {
+    /// Control variates per pixel (the centre not among them).
+    pub neighbours: usize,
+    /// Ridge, relative to the mean diagonal of the system.
+    pub ridge: f64,
+    /// One coefficient vector for the three channels.
+    pub shared: bool,
+    /// Which CRN batches β is estimated from and applied to.
+    pub folds: Folds,
+}
+
+impl ClassicCvOptions {
+    fn solve(&self) -> Solve {
+        Solve { neighbours: self.neighbours, ridge: self.ridge, shared: self.shared_coefficients, folds: self.folds }
+    }
+}
+
 /// The control-variate pass of `cv`: the centre left out, the PT noise modelled when `errors`
 /// are given (with the `avg` penalty); `variance` asks for the predicted variance with that
 /// degrees-of-freedom allowance.
 fn cv_pass<'a>(
     set: &'a StreamSet,
     selector: Selector<'a>,
-    neighbours: usize,
+    solve: Solve,
     errors: Option<&'a [[f32; 3]]>,
-    ridge: f64,
-    shared: bool,
     variance: Option<Dof>,
 ) -> CvPass<'a> {
     CvPass {
         set,
         selector,
-        k: neighbours,
+        k: solve.neighbours,
         errors,
         penalty: if errors.is_some() { Penalty::Avg } else { Penalty::None },
-        ridge,
-        shared,
+        ridge: solve.ridge,
+        shared: solve.shared,
         include_centre: false,
         floor: None,
-        folds: Folds::All,
+        folds: solve.folds,
         variance: variance.is_some(),
         dof: variance.unwrap_or(Dof::None),
         centre_free: None,
@@ -273,16 +325,8 @@ pub(crate) struct Estimate {
 /// then combined with the centre's PT mean by inverse variance. `errors` are the PT error
 /// estimates (variances of the PT means); `dof` is the allowance of the first stage's variance,
 /// which weights the two.
-pub(crate) fn two_stage(
-    set: &StreamSet,
-    selector: Selector<'_>,
-    neighbours: usize,
-    errors: &[[f32; 3]],
-    ridge: f64,
-    shared: bool,
-    dof: Dof,
-) -> (Estimate, PassStats) {
-    let out = cv_pass(set, selector, neighbours, Some(errors), ridge, shared, Some(dof)).run();
+pub(crate) fn two_stage(set: &StreamSet, selector: Selector<'_>, solve: Solve, errors: &[[f32; 3]], dof: Dof) -> (Estimate, PassStats) {
+    let out = cv_pass(set, selector, solve, Some(errors), Some(dof)).run();
     let v_f = out.variance.expect("asked for the variance");
     (combine_with_centre(&out.image, &v_f, &set.pt.mean, errors), out.stats)
 }

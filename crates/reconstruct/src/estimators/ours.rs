@@ -9,7 +9,7 @@
 //! inverse variance): the two weight the centre differently, their errors are not the same, and
 //! their average measured lower relMSE on the bundled scenes than either. See
 //! docs/estimators.md for the defaults and their measurements.
-use super::cv::{centre_free, combine_with_centre, two_stage, ClassicCvOptions, Estimate};
+use super::cv::{centre_free, combine_with_centre, two_stage, ClassicCvOptions, Estimate, Solve};
 use crate::batch_stats::variance_of_mean;
 use crate::cv_pass::{CvPass, Dof, Folds};
 use crate::floor::{Floor, FloorMode, FloorSource};
@@ -56,6 +56,7 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
         param("variance_dof", ParamKind::Choice(Dof::NAMES), "mallows", "How the predicted variance allows for β fitted to the batches it is judged on: none, gcv (RSS/(1 − df/n)²) or mallows (RSS·(n + df)/(n − df)), df the trace of the hat matrix; weights the two-stage estimate and fills the variance layer.", Some("variance-dof")),
         param("mix_correlation", ParamKind::Choice(MixCorrelation::NAMES), "bound", "The correlation of the joint and two-stage estimates in the variance layer of their mix: bound (1, the largest variance) or local (estimated from their squared differences, smoothed by the PT error filter). The image does not depend on it.", Some("mix-correlation")),
         param("folds", ParamKind::Choice(Folds::NAMES), "all", "Which CRN batches β is estimated from and applied to: all, or halves (each half's β applied to the other half's mean; even batch count ≥ 4).", Some("folds")),
+        param("demodulate", ParamKind::Bool, "false", "Reconstruct illumination: both streams divided by the first-hit albedo (each channel at least 0.05), the output multiplied back (needs features).", Some("demodulate")),
     ],
     needs: |p| needs(&ImperfectCvOptions::from_params(p)),
     build: |p| Ok(Box::new(ImperfectCv::new(ImperfectCvOptions::from_params(p))?)),
@@ -109,6 +110,9 @@ pub struct ImperfectCvOptions {
     pub variance_dof: Dof,
     /// The correlation of the two mixed estimates that the variance layer assumes.
     pub mix_correlation: MixCorrelation,
+    /// Reconstruct illumination (radiance ÷ first-hit albedo) and multiply the albedo back
+    /// ([`crate::demodulate`]).
+    pub demodulate: bool,
 }
 
 crate::named::named_enum! {
@@ -156,20 +160,19 @@ impl ImperfectCvOptions {
             two_stage_weight: p.float("two_stage_weight"),
             variance_dof: p.choice("variance_dof"),
             mix_correlation: p.choice("mix_correlation"),
+            demodulate: p.bool("demodulate"),
         }
     }
 }
 
 fn needs(o: &ImperfectCvOptions) -> Needs {
     Needs {
-        batches: BatchNeed::Range {
-            min: match o.folds {
-                Folds::All => 2,
-                Folds::Halves => 4,
-            },
-            max: MAX_BATCHES,
+        batches: BatchNeed::Range { min: o.folds.min_batches(), max: MAX_BATCHES },
+        features: if o.demodulate {
+            Some("with demodulate = true")
+        } else {
+            (o.select == Selection::Gbuffer).then_some("with --select gbuffer")
         },
-        features: (o.select == Selection::Gbuffer).then_some("with --select gbuffer"),
         reference: o.errors == ErrorEstimate::Oracle,
         spp: false,
         bounded_values: true,
@@ -234,7 +237,11 @@ impl ImperfectCv {
 
 impl Estimator for ImperfectCv {
     fn reconstruct(&self, input: &Input) -> Result<Output, ReconError> {
-        self.reconstruct_with(input, Pass::Shared)
+        if self.options.demodulate {
+            crate::demodulate::run(SPEC.name, input, |inner| self.reconstruct_with(inner, Pass::Shared))
+        } else {
+            self.reconstruct_with(input, Pass::Shared)
+        }
     }
 }
 
@@ -255,16 +262,7 @@ impl ImperfectCv {
         let start = Instant::now();
         let o = &self.options;
         let set = input.streams;
-        if o.folds == Folds::Halves && set.batch_count() % 2 == 1 {
-            return Err(ReconError::BatchCount {
-                origin: input.streams_name.to_string(),
-                method: SPEC.name,
-                requirement: "an even number of".into(),
-                found: set.batch_count(),
-                hint: "cross-fitting splits the batches into two equal halves; re-render with an even --batches or choose other --folds"
-                    .into(),
-            });
-        }
+        o.folds.check(input.streams_name, SPEC.name, set.batch_count())?;
         let errors = pt_errors(o.errors, set, input.reference, &o.cbf);
         let crn_variance = (o.crn_floor > 0.0 && o.crn_floor_source == FloorSource::Crn)
             .then(|| cross_bilateral(&variance_of_mean(&set.crn), set, &o.cbf));
@@ -301,7 +299,10 @@ impl ImperfectCv {
                 Some(f) => combine_with_centre(&f.image, &f.variance, &set.pt.mean, &errors),
                 None => {
                     let neighbours = Selector::new(o.select, o.k - 1, o.search_window, false, o.seed, set);
-                    two_stage(set, neighbours, o.k - 1, &errors, two_stage_ridge, o.shared_coefficients, o.variance_dof).0
+                    {
+                        let solve = Solve { neighbours: o.k - 1, ridge: two_stage_ridge, shared: o.shared_coefficients, folds: Folds::All };
+                        two_stage(set, neighbours, solve, &errors, o.variance_dof).0
+                    }
                 }
             };
             estimate = match o.mix_correlation {

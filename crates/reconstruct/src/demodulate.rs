@@ -1,0 +1,120 @@
+//! Albedo demodulation: reconstruct illumination instead of radiance, where the first-hit albedo
+//! is known.
+//!
+//! Every pixel value of both streams (means and batches) is divided by the pixel's first-hit
+//! albedo, the estimator runs on the quotient, and its output is multiplied back by the same
+//! albedo. A texture edge then no longer separates pixels that receive the same light: the
+//! k-NN selection by CRN colour, the PT error filter and the low-pass correction see the
+//! illumination, which is smooth where the texture is not.
+//!
+//! The transform is exact for the centre (`a_c·(ḡ_c/a_c) = ḡ_c`); for a neighbour it rescales
+//! the control variate `ḡ_i − h̄_i` by `a_c/a_i`, which keeps its expectation at zero as long
+//! as `a_i` does not depend on the samples it divides. The albedo feature is averaged over the
+//! PT samples, so it shares their subpixel positions: at a texture edge the quotient `h̄_i/a_i`
+//! carries an O(1/n) ratio bias, which the low-pass correction removes at coarse scales.
+use crate::{Input, Output, ReconError};
+use cvtrace_streams::{Image, Stream, StreamSet};
+
+/// Albedo channels below this are raised to it before dividing: a black (or pure-colour)
+/// albedo channel would otherwise turn that channel's specular light and noise into a huge
+/// quotient that dominates the CRN-colour distance of k-NN selection.
+pub const ALBEDO_FLOOR: f32 = 0.05;
+
+/// The per-pixel, per-channel divisor: the albedo, each channel at least [`ALBEDO_FLOOR`].
+pub fn divisor(albedo: &Image) -> Image {
+    let mut d = albedo.clone();
+    for p in &mut d.pixels {
+        for v in p.iter_mut() {
+            *v = if v.is_finite() { v.max(ALBEDO_FLOOR) } else { 1.0 };
+        }
+    }
+    d
+}
+
+/// `image / d` per pixel and channel.
+fn divided(image: &Image, d: &Image) -> Image {
+    let mut out = image.clone();
+    for (o, q) in out.pixels.iter_mut().zip(&d.pixels) {
+        for ch in 0..3 {
+            o[ch] /= q[ch];
+        }
+    }
+    out
+}
+
+/// The stream set with every mean and batch of both streams divided by `d` (features and
+/// metadata unchanged).
+pub fn demodulated(set: &StreamSet, d: &Image) -> StreamSet {
+    let stream = |s: &Stream| Stream { mean: divided(&s.mean, d), batches: s.batches.iter().map(|b| divided(b, d)).collect() };
+    StreamSet {
+        width: set.width,
+        height: set.height,
+        pt: stream(&set.pt),
+        crn: stream(&set.crn),
+        features: set.features.clone(),
+        meta: set.meta.clone(),
+    }
+}
+
+/// Multiplies `image` back by `d`, raised to `power` (1 for an image, 2 for a variance).
+pub fn remodulate(image: &mut Image, d: &Image, power: i32) {
+    for (o, q) in image.pixels.iter_mut().zip(&d.pixels) {
+        for ch in 0..3 {
+            o[ch] = (f64::from(o[ch]) * f64::from(q[ch]).powi(power)) as f32;
+        }
+    }
+}
+
+/// Runs `estimate` on the demodulated input and multiplies its image (and a `variance` layer,
+/// by the square) back. The method must declare that it needs features: `input.check` has
+/// then made sure the albedo is there and of the stream set's size.
+pub fn run(method: &'static str, input: &Input, estimate: impl FnOnce(&Input) -> Result<Output, ReconError>) -> Result<Output, ReconError> {
+    let features = input.streams.features.as_ref().ok_or_else(|| ReconError::MissingFeatures {
+        origin: input.streams_name.to_string(),
+        method,
+        why: "with demodulate = true",
+    })?;
+    let d = divisor(&features.albedo);
+    let set = demodulated(input.streams, &d);
+    let reference = input.reference.map(|r| divided(r, &d));
+    let inner = Input { streams: &set, reference: reference.as_ref(), ..*input };
+    let mut out = estimate(&inner)?;
+    remodulate(&mut out.image, &d, 1);
+    for (name, layer) in &mut out.aovs {
+        if name == "variance" {
+            remodulate(layer, &d, 2);
+        }
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn demodulating_and_remodulating_restores_the_streams() {
+        let albedo = Image::from_fn(5, 4, |x, y| [0.1 * x as f32, 0.9, if y == 0 { 0.0 } else { 0.5 }]);
+        let d = divisor(&albedo);
+        assert!(d.pixels.iter().flatten().all(|v| *v >= ALBEDO_FLOOR));
+        let im = |k: f32| Image::from_fn(5, 4, |x, y| [k + x as f32, k * y as f32, 2.0]);
+        let set = StreamSet {
+            width: 5,
+            height: 4,
+            pt: Stream::from_batches(vec![im(1.0), im(2.0)]),
+            crn: Stream::from_batches(vec![im(3.0), im(4.0)]),
+            features: None,
+            meta: Default::default(),
+        };
+        let q = demodulated(&set, &d);
+        let mut back = q.crn.batches[1].clone();
+        remodulate(&mut back, &d, 1);
+        for (a, b) in back.pixels.iter().flatten().zip(set.crn.batches[1].pixels.iter().flatten()) {
+            assert!((a - b).abs() <= 1e-6 * b.abs().max(1.0), "{a} vs {b}");
+        }
+        // A variance scales by the square.
+        let mut v = Image::from_fn(5, 4, |_, _| [1.0; 3]);
+        remodulate(&mut v, &d, 2);
+        assert_eq!(v.pixels[0][2], ALBEDO_FLOOR * ALBEDO_FLOOR);
+    }
+}
