@@ -15,6 +15,25 @@
 use crate::{Input, Output, ReconError};
 use cvtrace_streams::{Image, Stream, StreamSet};
 
+crate::named::named_enum! {
+    /// Whether an estimator reconstructs radiance or illumination (radiance ÷ first-hit albedo).
+    pub enum Demodulation: "demodulate" {
+        /// Illumination where the input has first-hit features, radiance where it has none.
+        Auto => "auto",
+        /// Illumination; the input must have features.
+        On => "on",
+        /// Radiance, as the paper's estimators do.
+        Off => "off",
+    }
+}
+
+impl Demodulation {
+    /// What the estimator needs features for, when it needs them whatever the input.
+    pub fn needs_features(self) -> Option<&'static str> {
+        (self == Demodulation::On).then_some("with demodulate = on")
+    }
+}
+
 /// Albedo channels below this are raised to it before dividing: a black (or pure-colour)
 /// albedo channel would otherwise turn that channel's specular light and noise into a huge
 /// quotient that dominates the CRN-colour distance of k-NN selection.
@@ -65,15 +84,36 @@ pub fn remodulate(image: &mut Image, d: &Image, power: i32) {
     }
 }
 
-/// Runs `estimate` on the demodulated input and multiplies its image (and a `variance` layer,
-/// by the square) back. The method must declare that it needs features: `input.check` has
-/// then made sure the albedo is there and of the stream set's size.
-pub fn run(method: &'static str, input: &Input, estimate: impl FnOnce(&Input) -> Result<Output, ReconError>) -> Result<Output, ReconError> {
-    let features = input.streams.features.as_ref().ok_or_else(|| ReconError::MissingFeatures {
-        origin: input.streams_name.to_string(),
-        method,
-        why: "with demodulate = true",
-    })?;
+/// Runs `estimate` on the input as `mode` asks: on the demodulated input, its image (and a
+/// `variance` layer, by the square) multiplied back, or on the input as it is. The diagnostic
+/// `demodulated` (1 or 0) says which.
+pub fn run(
+    mode: Demodulation,
+    method: &'static str,
+    input: &Input,
+    estimate: impl FnOnce(&Input) -> Result<Output, ReconError>,
+) -> Result<Output, ReconError> {
+    let features = match (mode, input.streams.features.as_ref()) {
+        (Demodulation::Off, _) | (Demodulation::Auto, None) => {
+            let mut out = estimate(input)?;
+            out.diagnostics.int("demodulated", 0);
+            return Ok(out);
+        }
+        (Demodulation::On, None) => {
+            return Err(ReconError::MissingFeatures { origin: input.streams_name.to_string(), method, why: "with demodulate = on" })
+        }
+        (_, Some(f)) => f,
+    };
+    if !features.albedo.same_size(&input.streams.pt.mean) {
+        return Err(ReconError::SizeMismatch {
+            origin: input.streams_name.to_string(),
+            layer: "albedo.*".into(),
+            width: features.albedo.width,
+            height: features.albedo.height,
+            expected_width: input.streams.width,
+            expected_height: input.streams.height,
+        });
+    }
     let d = divisor(&features.albedo);
     let set = demodulated(input.streams, &d);
     let reference = input.reference.map(|r| divided(r, &d));
@@ -85,6 +125,7 @@ pub fn run(method: &'static str, input: &Input, estimate: impl FnOnce(&Input) ->
             remodulate(layer, &d, 2);
         }
     }
+    out.diagnostics.int("demodulated", 1);
     Ok(out)
 }
 

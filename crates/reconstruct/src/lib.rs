@@ -76,6 +76,7 @@ pub use batch_stats::variance_of_mean;
 pub use cv_pass::Folds;
 /// The input types, re-exported so that library callers need no second import.
 pub use cvtrace_streams::{Features, Image, Stream, StreamMeta, StreamSet};
+pub use demodulate::Demodulation;
 pub use diagnostics::{DiagValue, Diagnostics};
 pub use error::{ParseNameError, ReconError};
 pub use estimator::{Estimator, Instance, Output};

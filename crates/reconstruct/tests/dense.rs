@@ -81,22 +81,23 @@ fn ours_matches_a_dense_solve_of_eq7_from_the_batches() {
 
 #[test]
 fn cv_matches_a_dense_solve_without_the_centre() {
-    // The classic form: V_h = 0, no low-pass; Ω' the k = 24 pixels nearest by CRN colour
-    // (default) or spatially, the centre left out; (V_g + λ·I) β = V_fg with λ = 0.3 · mean diag(V_g) over Ω'.
+    // The classic form: V_h = 0, no low-pass; Ω' the 48 pixels nearest by CRN colour (default)
+    // or spatially in the 15×15 window, the centre left out; (V_g + λ·I) β = V_fg with
+    // λ = 0.3 · mean diag(V_g) over Ω'.
     for (rule, select) in [(Rule::Knn, "knn"), (Rule::Window, "window")] {
         let options = Overrides::default().with("cv", &[("select", select), ("pt_noise", "false"), ("low_pass_sigma", "0")]);
-        // Panel width 16 (B = 16 < 24) and the general solve (B = 32).
-        for b in [16usize, 32] {
+        // Panel widths 16 and 32 (B < 48) and the general solve (B = 48).
+        for b in [16usize, 32, 48] {
             let (w, h) = (17, 15);
             let set = random_set(w, h, b, 300 + b as u64, 0.2, 0.15);
             let out = build("cv", &options).unwrap().run(&Input::new(&set)).unwrap().image;
             let s = 1.0 / (b * (b - 1)) as f64;
             for (x, y) in probes(w, h) {
                 let c = y * w + x;
-                let omega = set_of(rule, &set.crn.mean, x, y, 24, 11, false);
-                assert!(omega.len() == 24 && !omega.contains(&c));
+                let omega = set_of(rule, &set.crn.mean, x, y, 48, 15, false);
+                assert!(omega.len() == 48 && !omega.contains(&c));
                 for ch in 0..3 {
-                    let fit = Fit { set: &set, centre: c, omega: &omega, ch, fit: 0..b, s, w: vec![0.0; 24], ridge: 0.3 };
+                    let fit = Fit { set: &set, centre: c, omega: &omega, ch, fit: 0..b, s, w: vec![0.0; 48], ridge: 0.3 };
                     let want = fit.apply(&fit.beta(), |i| set.crn.mean.pixels[i][ch] as f64);
                     let got = out.pixels[c][ch] as f64;
                     assert!(rel(got, want) < 1e-5, "{rule:?}, B = {b}, pixel ({x}, {y}) ch {ch}: cv {got} vs dense {want}");

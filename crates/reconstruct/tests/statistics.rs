@@ -260,7 +260,8 @@ fn cv_without_shared_noise(centre: &str, seed: u64) -> (f64, f64) {
         |b, i| 0.5 * normal(10 * seed + 5, (b * 4096 + i) as u64),
     );
     let exact = Image { width: 32, height: 32, pixels: (0..32 * 32).map(|i| [truth(i) as f32; 3]).collect() };
-    let options = Overrides::parse([format!("cv.centre={centre}")]).unwrap();
+    // The neighbourhood of the two-stage estimate inside `ours`: 24 neighbours in 11×11.
+    let options = Overrides::parse([format!("cv.centre={centre}"), "cv.k=25".into(), "cv.search_window=11".into()]).unwrap();
     let cv = build("cv", &options).unwrap().run(&Input::new(&set)).unwrap();
     let average = build("average", &Overrides::default()).unwrap().run(&Input::new(&set)).unwrap();
     (msd(&cv.image, &exact), msd(&average.image, &exact))
@@ -305,8 +306,8 @@ fn demodulation_helps_ours_on_a_textured_scene_and_keeps_the_mean() {
     let scene = SoftShadowScene::default();
     let (w, h) = (64, 64);
     let reference = scene.reference(w, h);
-    let plain = build("ours", &Overrides::default()).unwrap();
-    let demod = build("ours", &Overrides::parse(["ours.demodulate=true"]).unwrap()).unwrap();
+    let plain = build("ours", &Overrides::parse(["ours.demodulate=off"]).unwrap()).unwrap();
+    let demod = build("ours", &Overrides::parse(["ours.demodulate=on"]).unwrap()).unwrap();
     let mean = |im: &Image| im.pixels.iter().flatten().map(|v| f64::from(*v)).sum::<f64>() / (3 * im.pixels.len()) as f64;
     let (mut ratio, mut shift) = (vec![], vec![]);
     for seed in 0..12 {

@@ -1,11 +1,13 @@
-//! `cv`: the control-variate baseline, `F̂_c = ḡ_c − Σ_{i≠c} β_i (ḡ_i − h̄_i)` over the same
-//! k-NN set as `ours` but **without the centre**: the centre's own PT value never enters, so the
-//! estimator can only explain the centre's CRN value by its neighbours. That is the one thing
-//! `ours` adds (with the centre, `β = e_c` returns PT), which is what makes `ours ÷ cv` the
-//! effect of the centre in the set. With `centre = inverse-variance` the estimate is then
-//! combined with the centre's own PT mean by inverse variance: an imperfect control variate in
-//! two stages rather than the paper's baseline, kept as the `cv-two-stage` variant to compare
-//! the joint solve of `ours` with.
+//! `cv`: the control-variate baseline, `F̂_c = ḡ_c − Σ_{i≠c} β_i (ḡ_i − h̄_i)` over a k-NN set
+//! chosen by CRN colour **without the centre**: the centre's own PT value never enters, so the
+//! estimator can only explain the centre's CRN value by its neighbours. Without the centre,
+//! more neighbours are what lowers the error (they dilute the PT noise copied in and find more
+//! pixels that share the centre's CRN noise), so the default set is 48 neighbours in 15×15,
+//! where `ours` takes 24 in 11×11; the `cv-k25` variant uses the neighbourhood of `ours`, which
+//! makes `ours ÷ cv-k25` the effect of the centre in the set alone. With `centre =
+//! inverse-variance` the estimate is then combined with the centre's own PT mean by inverse
+//! variance: an imperfect control variate in two stages rather than the paper's baseline, kept
+//! as the `cv-two-stage` variant to compare the joint solve of `ours` with.
 //!
 //! By default `β` solves `(V_g + V_h' + ridge) β = V_fg` with the covariances of `ours` (CRN
 //! batch covariances, the PT error filter's estimates with the `avg` penalty) and the low-pass
@@ -15,6 +17,7 @@
 //! is singular, so the ridge is essential. See docs/estimators.md for both, measured.
 use super::ours::check_selection;
 use crate::cv_pass::{CentreFree, CvPass, Dof, Folds, PassStats};
+use crate::demodulate::Demodulation;
 use crate::input::BatchNeed;
 use crate::low_pass::restore_low_frequencies;
 use crate::penalty::Penalty;
@@ -42,14 +45,14 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
         ParamSpec {
             name: "k",
             kind: ParamKind::Int { min: 2, max: MAX_K as i64 },
-            default: "25",
-            doc: "Pixels per set counted as in `ours`, centre included; `cv` leaves the centre out and uses the k − 1 neighbours.",
+            default: "49",
+            doc: "Pixels per set counted as in `ours`, centre included; `cv` leaves the centre out and uses the k − 1 neighbours (48 by default, where `ours` uses 24: without the centre, more neighbours are what lowers the error).",
             alias: Some("k"),
         },
         ParamSpec {
             name: "search_window",
             kind: ParamKind::Int { min: 1, max: MAX_SEARCH_WINDOW as i64 },
-            default: "11",
+            default: "15",
             doc: "Side of the (odd) square window the pixels are chosen from.",
             alias: Some("search-window"),
         },
@@ -97,9 +100,9 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
         },
         ParamSpec {
             name: "demodulate",
-            kind: ParamKind::Bool,
-            default: "false",
-            doc: "Reconstruct illumination: both streams divided by the first-hit albedo (each channel at least 0.05), the output multiplied back (needs features).",
+            kind: ParamKind::Choice(Demodulation::NAMES),
+            default: "off",
+            doc: "Reconstruct illumination: both streams divided by the first-hit albedo (each channel at least 0.05), the output multiplied back; auto where the input has features, on (needs them) or off (radiance, as in the paper).",
             alias: Some("cv-demodulate"),
         },
         ParamSpec {
@@ -113,6 +116,10 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
     needs: |p| needs(&ClassicCvOptions::from_params(p)),
     build: |p| Ok(Box::new(ClassicCv::new(ClassicCvOptions::from_params(p))?)),
     variants: &[Variant {
+        key: "cv-k25",
+        label: "CV, 24 neighbours in 11×11 (the neighbourhood of ours)",
+        params: &[("k", "25"), ("search_window", "11")],
+    }, Variant {
         key: "cv-classic",
         label: "CV, PT means as exact (classic)",
         params: &[("pt_noise", "false"), ("low_pass_sigma", "0"), ("centre", "out")],
@@ -141,11 +148,7 @@ crate::named::named_enum! {
 fn needs(o: &ClassicCvOptions) -> Needs {
     Needs {
         batches: BatchNeed::Range { min: o.folds.min_batches(), max: MAX_BATCHES },
-        features: if o.demodulate {
-            Some("with demodulate = true")
-        } else {
-            (o.select == Selection::Gbuffer).then_some("with --select gbuffer")
-        },
+        features: o.demodulate.needs_features().or((o.select == Selection::Gbuffer).then_some("with --select gbuffer")),
         reference: false,
         spp: false,
         bounded_values: true,
@@ -172,7 +175,7 @@ pub struct ClassicCvOptions {
     /// Which CRN batches β is estimated from and applied to.
     pub folds: Folds,
     /// Reconstruct illumination (radiance ÷ first-hit albedo) and multiply the albedo back.
-    pub demodulate: bool,
+    pub demodulate: Demodulation,
 }
 
 impl Default for ClassicCvOptions {
@@ -195,7 +198,7 @@ impl ClassicCvOptions {
             low_pass_sigma: p.float("low_pass_sigma"),
             centre: p.choice("centre"),
             folds: p.choice("folds"),
-            demodulate: p.bool("demodulate"),
+            demodulate: p.choice("demodulate"),
         }
     }
 
@@ -230,11 +233,7 @@ impl ClassicCv {
 
 impl Estimator for ClassicCv {
     fn reconstruct(&self, input: &Input) -> Result<Output, ReconError> {
-        if self.options.demodulate {
-            crate::demodulate::run(SPEC.name, input, |inner| self.reconstruct_radiance(inner))
-        } else {
-            self.reconstruct_radiance(input)
-        }
+        crate::demodulate::run(self.options.demodulate, SPEC.name, input, |inner| self.reconstruct_radiance(inner))
     }
 }
 

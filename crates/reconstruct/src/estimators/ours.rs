@@ -12,6 +12,7 @@
 use super::cv::{centre_free, combine_with_centre, two_stage, ClassicCvOptions, Estimate, Solve};
 use crate::batch_stats::variance_of_mean;
 use crate::cv_pass::{CvPass, Dof, Folds};
+use crate::demodulate::Demodulation;
 use crate::floor::{Floor, FloorMode, FloorSource};
 use crate::input::BatchNeed;
 use crate::low_pass::{low_pass_variance, restore_low_frequencies};
@@ -56,7 +57,7 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
         param("variance_dof", ParamKind::Choice(Dof::NAMES), "mallows", "How the predicted variance allows for β fitted to the batches it is judged on: none, gcv (RSS/(1 − df/n)²) or mallows (RSS·(n + df)/(n − df)), df the trace of the hat matrix; weights the two-stage estimate and fills the variance layer.", Some("variance-dof")),
         param("mix_correlation", ParamKind::Choice(MixCorrelation::NAMES), "bound", "The correlation of the joint and two-stage estimates in the variance layer of their mix: bound (1, the largest variance) or local (estimated from their squared differences, smoothed by the PT error filter). The image does not depend on it.", Some("mix-correlation")),
         param("folds", ParamKind::Choice(Folds::NAMES), "all", "Which CRN batches β is estimated from and applied to: all, or halves (each half's β applied to the other half's mean; even batch count ≥ 4).", Some("folds")),
-        param("demodulate", ParamKind::Bool, "false", "Reconstruct illumination: both streams divided by the first-hit albedo (each channel at least 0.05), the output multiplied back (needs features).", Some("demodulate")),
+        param("demodulate", ParamKind::Choice(Demodulation::NAMES), "auto", "Reconstruct illumination: both streams divided by the first-hit albedo (each channel at least 0.05), the output multiplied back; auto where the input has features, on (needs them) or off (radiance, as in the paper).", Some("demodulate")),
     ],
     needs: |p| needs(&ImperfectCvOptions::from_params(p)),
     build: |p| Ok(Box::new(ImperfectCv::new(ImperfectCvOptions::from_params(p))?)),
@@ -112,7 +113,7 @@ pub struct ImperfectCvOptions {
     pub mix_correlation: MixCorrelation,
     /// Reconstruct illumination (radiance ÷ first-hit albedo) and multiply the albedo back
     /// ([`crate::demodulate`]).
-    pub demodulate: bool,
+    pub demodulate: Demodulation,
 }
 
 crate::named::named_enum! {
@@ -160,7 +161,7 @@ impl ImperfectCvOptions {
             two_stage_weight: p.float("two_stage_weight"),
             variance_dof: p.choice("variance_dof"),
             mix_correlation: p.choice("mix_correlation"),
-            demodulate: p.bool("demodulate"),
+            demodulate: p.choice("demodulate"),
         }
     }
 }
@@ -168,11 +169,7 @@ impl ImperfectCvOptions {
 fn needs(o: &ImperfectCvOptions) -> Needs {
     Needs {
         batches: BatchNeed::Range { min: o.folds.min_batches(), max: MAX_BATCHES },
-        features: if o.demodulate {
-            Some("with demodulate = true")
-        } else {
-            (o.select == Selection::Gbuffer).then_some("with --select gbuffer")
-        },
+        features: o.demodulate.needs_features().or((o.select == Selection::Gbuffer).then_some("with --select gbuffer")),
         reference: o.errors == ErrorEstimate::Oracle,
         spp: false,
         bounded_values: true,
@@ -237,11 +234,7 @@ impl ImperfectCv {
 
 impl Estimator for ImperfectCv {
     fn reconstruct(&self, input: &Input) -> Result<Output, ReconError> {
-        if self.options.demodulate {
-            crate::demodulate::run(SPEC.name, input, |inner| self.reconstruct_with(inner, Pass::Shared))
-        } else {
-            self.reconstruct_with(input, Pass::Shared)
-        }
+        crate::demodulate::run(self.options.demodulate, SPEC.name, input, |inner| self.reconstruct_with(inner, Pass::Shared))
     }
 }
 
