@@ -46,10 +46,8 @@ VARIANTS = [
     ("cv centre out", ["--method", "cv", "--cv-centre", "out"]),
     ("cv classic", ["--method", "cv", "--cv-centre", "out", "--param", "cv.pt_noise=false", "--cv-low-pass-sigma", "0"]),
     ("cv cross-fit", ["--method", "cv", "--cv-folds", "halves"]),
-    ("cv k 49", ["--method", "cv", "--k", "49", "--search-window", "15"]),
-    ("cv k 49 demodulate", ["--method", "cv", "--k", "49", "--search-window", "15", "--cv-demodulate"]),
-    ("cv k 49 ridge 0.1", ["--method", "cv", "--k", "49", "--search-window", "15", "--cv-ridge", "0.1"]),
-    ("cv k 49 ridge 1", ["--method", "cv", "--k", "49", "--search-window", "15", "--cv-ridge", "1"]),
+    ("cv k 25", ["--method", "cv", "--k", "25", "--search-window", "11"]),
+    ("cv ridge 0.1", ["--method", "cv", "--cv-ridge", "0.1"]),
     ("cv k 42 window 15", ["--method", "cv", "--k", "42", "--search-window", "15"]),
     ("cv k 56 window 15", ["--method", "cv", "--k", "56", "--search-window", "15"]),
     ("cv k 36 window 13", ["--method", "cv", "--k", "36", "--search-window", "13"]),
@@ -57,10 +55,9 @@ VARIANTS = [
     ("cv k 64 window 21", ["--method", "cv", "--k", "64", "--search-window", "21"]),
     ("cv k 49 window 21", ["--method", "cv", "--k", "49", "--search-window", "21"]),
     ("cv ridge 1 pt-noise", ["--method", "cv", "--cv-ridge", "1"]),
-    ("cv window 5", ["--method", "cv", "--select", "window", "--search-window", "5"]),
-    ("cv demodulate", ["--method", "cv", "--cv-demodulate"]),
-    # Illumination instead of radiance: both streams divided by the first-hit albedo.
-    ("demodulate", ["--demodulate"]),
+    ("cv window 5", ["--method", "cv", "--k", "25", "--select", "window", "--search-window", "5"]),
+    # Radiance instead of illumination (the default divides both streams by the first-hit albedo).
+    ("demodulate off", ["--demodulate", "off"]),
 ]
 
 

@@ -12,7 +12,7 @@
 //! as `a_i` does not depend on the samples it divides. The albedo feature is averaged over the
 //! PT samples, so it shares their subpixel positions: at a texture edge the quotient `h̄_i/a_i`
 //! carries an O(1/n) ratio bias, which the low-pass correction removes at coarse scales.
-use crate::{Input, Output, ReconError};
+use crate::{Input, ReconError};
 use cvtrace_streams::{Image, Stream, StreamSet};
 
 crate::named::named_enum! {
@@ -51,7 +51,7 @@ pub fn divisor(albedo: &Image) -> Image {
 }
 
 /// `image / d` per pixel and channel.
-fn divided(image: &Image, d: &Image) -> Image {
+pub fn divided(image: &Image, d: &Image) -> Image {
     let mut out = image.clone();
     for (o, q) in out.pixels.iter_mut().zip(&d.pixels) {
         for ch in 0..3 {
@@ -75,30 +75,20 @@ pub fn demodulated(set: &StreamSet, d: &Image) -> StreamSet {
     }
 }
 
-/// Multiplies `image` back by `d`, raised to `power` (1 for an image, 2 for a variance).
-pub fn remodulate(image: &mut Image, d: &Image, power: i32) {
-    for (o, q) in image.pixels.iter_mut().zip(&d.pixels) {
+/// Multiplies per-pixel values back by `d`, raised to `power` (1 for an image, 2 for a variance).
+pub fn remodulate(pixels: &mut [[f32; 3]], d: &Image, power: i32) {
+    for (o, q) in pixels.iter_mut().zip(&d.pixels) {
         for ch in 0..3 {
             o[ch] = (f64::from(o[ch]) * f64::from(q[ch]).powi(power)) as f32;
         }
     }
 }
 
-/// Runs `estimate` on the input as `mode` asks: on the demodulated input, its image (and a
-/// `variance` layer, by the square) multiplied back, or on the input as it is. The diagnostic
-/// `demodulated` (1 or 0) says which.
-pub fn run(
-    mode: Demodulation,
-    method: &'static str,
-    input: &Input,
-    estimate: impl FnOnce(&Input) -> Result<Output, ReconError>,
-) -> Result<Output, ReconError> {
+/// The divisor when `mode` asks for demodulation of this input, `None` when it does not;
+/// an error when `mode` is `on` and the input has no features.
+pub fn divisor_for(mode: Demodulation, method: &'static str, input: &Input) -> Result<Option<Image>, ReconError> {
     let features = match (mode, input.streams.features.as_ref()) {
-        (Demodulation::Off, _) | (Demodulation::Auto, None) => {
-            let mut out = estimate(input)?;
-            out.diagnostics.int("demodulated", 0);
-            return Ok(out);
-        }
+        (Demodulation::Off, _) | (Demodulation::Auto, None) => return Ok(None),
         (Demodulation::On, None) => {
             return Err(ReconError::MissingFeatures { origin: input.streams_name.to_string(), method, why: "with demodulate = on" })
         }
@@ -114,19 +104,7 @@ pub fn run(
             expected_height: input.streams.height,
         });
     }
-    let d = divisor(&features.albedo);
-    let set = demodulated(input.streams, &d);
-    let reference = input.reference.map(|r| divided(r, &d));
-    let inner = Input { streams: &set, reference: reference.as_ref(), ..*input };
-    let mut out = estimate(&inner)?;
-    remodulate(&mut out.image, &d, 1);
-    for (name, layer) in &mut out.aovs {
-        if name == "variance" {
-            remodulate(layer, &d, 2);
-        }
-    }
-    out.diagnostics.int("demodulated", 1);
-    Ok(out)
+    Ok(Some(divisor(&features.albedo)))
 }
 
 #[cfg(test)]
@@ -149,13 +127,13 @@ mod tests {
         };
         let q = demodulated(&set, &d);
         let mut back = q.crn.batches[1].clone();
-        remodulate(&mut back, &d, 1);
+        remodulate(&mut back.pixels, &d, 1);
         for (a, b) in back.pixels.iter().flatten().zip(set.crn.batches[1].pixels.iter().flatten()) {
             assert!((a - b).abs() <= 1e-6 * b.abs().max(1.0), "{a} vs {b}");
         }
         // A variance scales by the square.
         let mut v = Image::from_fn(5, 4, |_, _| [1.0; 3]);
-        remodulate(&mut v, &d, 2);
+        remodulate(&mut v.pixels, &d, 2);
         assert_eq!(v.pixels[0][2], ALBEDO_FLOOR * ALBEDO_FLOOR);
     }
 }

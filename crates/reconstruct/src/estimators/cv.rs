@@ -17,7 +17,6 @@
 //! is singular, so the ridge is essential. See docs/estimators.md for both, measured.
 use super::ours::check_selection;
 use crate::cv_pass::{CentreFree, CvPass, Dof, Folds, PassStats};
-use crate::demodulate::Demodulation;
 use crate::input::BatchNeed;
 use crate::low_pass::restore_low_frequencies;
 use crate::penalty::Penalty;
@@ -99,13 +98,6 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
             alias: Some("cv-folds"),
         },
         ParamSpec {
-            name: "demodulate",
-            kind: ParamKind::Choice(Demodulation::NAMES),
-            default: "off",
-            doc: "Reconstruct illumination: both streams divided by the first-hit albedo (each channel at least 0.05), the output multiplied back; auto where the input has features, on (needs them) or off (radiance, as in the paper).",
-            alias: Some("cv-demodulate"),
-        },
-        ParamSpec {
             name: "seed",
             kind: ParamKind::Int { min: 0, max: i64::MAX },
             default: "0",
@@ -148,7 +140,7 @@ crate::named::named_enum! {
 fn needs(o: &ClassicCvOptions) -> Needs {
     Needs {
         batches: BatchNeed::Range { min: o.folds.min_batches(), max: MAX_BATCHES },
-        features: o.demodulate.needs_features().or((o.select == Selection::Gbuffer).then_some("with --select gbuffer")),
+        features: (o.select == Selection::Gbuffer).then_some("with --select gbuffer"),
         reference: false,
         spp: false,
         bounded_values: true,
@@ -174,8 +166,6 @@ pub struct ClassicCvOptions {
     pub centre: Centre,
     /// Which CRN batches β is estimated from and applied to.
     pub folds: Folds,
-    /// Reconstruct illumination (radiance ÷ first-hit albedo) and multiply the albedo back.
-    pub demodulate: Demodulation,
 }
 
 impl Default for ClassicCvOptions {
@@ -198,7 +188,6 @@ impl ClassicCvOptions {
             low_pass_sigma: p.float("low_pass_sigma"),
             centre: p.choice("centre"),
             folds: p.choice("folds"),
-            demodulate: p.choice("demodulate"),
         }
     }
 
@@ -233,12 +222,6 @@ impl ClassicCv {
 
 impl Estimator for ClassicCv {
     fn reconstruct(&self, input: &Input) -> Result<Output, ReconError> {
-        crate::demodulate::run(self.options.demodulate, SPEC.name, input, |inner| self.reconstruct_radiance(inner))
-    }
-}
-
-impl ClassicCv {
-    fn reconstruct_radiance(&self, input: &Input) -> Result<Output, ReconError> {
         let o = &self.options;
         let set = input.streams;
         o.folds.check(input.streams_name, SPEC.name, set.batch_count())?;

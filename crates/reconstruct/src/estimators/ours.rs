@@ -12,7 +12,7 @@
 use super::cv::{centre_free, combine_with_centre, two_stage, ClassicCvOptions, Estimate, Solve};
 use crate::batch_stats::variance_of_mean;
 use crate::cv_pass::{CvPass, Dof, Folds};
-use crate::demodulate::Demodulation;
+use crate::demodulate::{self, Demodulation};
 use crate::floor::{Floor, FloorMode, FloorSource};
 use crate::input::BatchNeed;
 use crate::low_pass::{low_pass_variance, restore_low_frequencies};
@@ -234,7 +234,7 @@ impl ImperfectCv {
 
 impl Estimator for ImperfectCv {
     fn reconstruct(&self, input: &Input) -> Result<Output, ReconError> {
-        crate::demodulate::run(self.options.demodulate, SPEC.name, input, |inner| self.reconstruct_with(inner, Pass::Shared))
+        self.reconstruct_with(input, Pass::Shared)
     }
 }
 
@@ -251,7 +251,39 @@ enum Pass {
 }
 
 impl ImperfectCv {
+    /// The estimate, demodulated if the options ask for it, then the low-pass correction on
+    /// radiance: it takes the low frequencies from the PT mean in the units of the output, so
+    /// it keeps the image mean whatever the demodulation did to the estimate's bias.
     fn reconstruct_with(&self, input: &Input, how: Pass) -> Result<Output, ReconError> {
+        let o = &self.options;
+        let divisor = demodulate::divisor_for(o.demodulate, SPEC.name, input)?;
+        let (mut estimate, errors, mut d) = match &divisor {
+            None => self.estimate(input, how)?,
+            Some(q) => {
+                let set = demodulate::demodulated(input.streams, q);
+                let reference = input.reference.map(|r| demodulate::divided(r, q));
+                let (mut estimate, mut errors, d) =
+                    self.estimate(&Input { streams: &set, reference: reference.as_ref(), ..*input }, how)?;
+                demodulate::remodulate(&mut estimate.image.pixels, q, 1);
+                demodulate::remodulate(&mut estimate.variance.pixels, q, 2);
+                demodulate::remodulate(&mut errors, q, 2);
+                (estimate, errors, d)
+            }
+        };
+        d.int("demodulated", i64::from(divisor.is_some()));
+        let set = input.streams;
+        let image = restore_low_frequencies(&estimate.image, &set.pt.mean, o.low_pass_sigma);
+        for (v, add) in estimate.variance.pixels.iter_mut().zip(low_pass_variance(&errors, set.width, set.height, o.low_pass_sigma)) {
+            for ch in 0..3 {
+                v[ch] = (v[ch] as f64 + add[ch]) as f32;
+            }
+        }
+        Ok(Output { image, diagnostics: d, aovs: vec![("variance".into(), estimate.variance)] })
+    }
+
+    /// The control-variate estimate before the low-pass correction, with the PT error
+    /// estimates it used and its diagnostics.
+    fn estimate(&self, input: &Input, how: Pass) -> Result<(Estimate, Vec<[f32; 3]>, Diagnostics), ReconError> {
         let start = Instant::now();
         let o = &self.options;
         let set = input.streams;
@@ -303,20 +335,13 @@ impl ImperfectCv {
                 MixCorrelation::Local => mix_local(&estimate, &two, o.two_stage_weight, set, &o.cbf),
             };
         }
-        let image = restore_low_frequencies(&estimate.image, &set.pt.mean, o.low_pass_sigma);
-        let mut variance = estimate.variance;
-        for (v, add) in variance.pixels.iter_mut().zip(low_pass_variance(&errors, set.width, set.height, o.low_pass_sigma)) {
-            for ch in 0..3 {
-                v[ch] = (v[ch] as f64 + add[ch]) as f32;
-            }
-        }
         let mut d = Diagnostics::default();
         d.float("centre_weight_mean", st.centre_weight / st.solves.max(1) as f64);
         st.report(&mut d);
         d.float("set_size_mean", st.set_size as f64 / st.pixels.max(1) as f64)
             .int("batches", set.batch_count() as i64)
             .float("seconds_prepare", t_prepare);
-        Ok(Output { image, diagnostics: d, aovs: vec![("variance".into(), variance)] })
+        Ok((estimate, errors, d))
     }
 }
 
