@@ -17,6 +17,7 @@ VARIANTS = [
     ("default", []),
     ("ridge 1e-4", ["--ridge", "1e-4"]), ("ridge 1e-2", ["--ridge", "1e-2"]), ("ridge 1e-1", ["--ridge", "1e-1"]),
     ("k 16", ["--k", "16"]), ("k 36", ["--k", "36"]), ("k 49", ["--k", "49"]),
+    ("k 36 window 13", ["--k", "36", "--search-window", "13"]), ("k 49 window 15", ["--k", "49", "--search-window", "15"]),
     ("window 7", ["--search-window", "7"]), ("window 15", ["--search-window", "15"]), ("window 21", ["--search-window", "21"]),
     ("penalty none", ["--penalty", "none"]), ("penalty max", ["--penalty", "max"]), ("penalty residual", ["--penalty", "residual"]),
     ("errors variance", ["--errors", "variance"]), ("errors cbf-residual", ["--errors", "cbf-residual"]),

@@ -59,7 +59,7 @@ fn ours_matches_a_dense_solve_of_eq7_from_the_batches() {
     .unwrap();
     // (B, k): panel widths 8, 16, 32 and 64, then B ≥ k (the general f64 solve).
     for (b, k) in [(4usize, 25usize), (16, 25), (24, 25), (36, 37), (32, 25)] {
-        let options = base.with("ours", &[("k", &k.to_string())]);
+        let options = base.with("ours", &[("k", &k.to_string()), ("search_window", "11")]);
         let (w, h) = (17, 15);
         let set = random_set(w, h, b, 100 + b as u64, 0.2, 0.15);
         let out = build("ours", &options).unwrap().run(&Input::new(&set)).unwrap().image;

@@ -130,7 +130,8 @@ fn follow(batches: usize, crn: f64, pt: f64, seed: u64) -> (f64, f64, f64) {
     // The two streams get different per-pixel variances here, which renders of one integrand
     // never have; the CRN floor's premise is Var(ḡ_i) = Var(h̄_i), so it is off for this test of
     // the solve (with it, the V_h-dominant case moves from CRN towards neighbouring PT values).
-    let options = Overrides::parse(["ours.crn_floor=0"]).unwrap();
+    // The bounds below are derived for the paper's set, k = 25 in 11×11.
+    let options = Overrides::parse(["ours.crn_floor=0", "ours.k=25", "ours.search_window=11"]).unwrap();
     let out = build("ours", &options).unwrap().run(&Input::new(&set)).unwrap();
     (msd(&out.image, &set.pt.mean), msd(&out.image, &set.crn.mean), centre_weight(&out))
 }
@@ -260,7 +261,8 @@ fn cv_without_shared_noise(centre: &str, seed: u64) -> (f64, f64) {
         |b, i| 0.5 * normal(10 * seed + 5, (b * 4096 + i) as u64),
     );
     let exact = Image { width: 32, height: 32, pixels: (0..32 * 32).map(|i| [truth(i) as f32; 3]).collect() };
-    // The neighbourhood of the two-stage estimate inside `ours`: 24 neighbours in 11×11.
+    // The paper's set, 24 neighbours in 11×11: with 48 control variates fitted to 16 batches,
+    // Eq. 7 at in-sample coefficients is more optimistic still (1.59× the average).
     let options = Overrides::parse([format!("cv.centre={centre}"), "cv.k=25".into(), "cv.search_window=11".into()]).unwrap();
     let cv = build("cv", &options).unwrap().run(&Input::new(&set)).unwrap();
     let average = build("average", &Overrides::default()).unwrap().run(&Input::new(&set)).unwrap();
@@ -299,7 +301,7 @@ fn cv_in_two_stages_recovers_what_the_centre_left_out_costs() {
 /// texture edges. `ours` with `demodulate` must be better than without over 12 seeds, paired
 /// (upper 99% limit of the geometric mean of the per-seed ratios below the bound), and must
 /// keep the image mean (within 3 standard errors of the seeds' spread, or 0.2%). Measured when
-/// written: 0.875 (± 0.018 in log), so the upper 99% limit is 0.92; image mean +0.03% ± 0.04%.
+/// written: 0.855 (± 0.019 in log), so the upper 99% limit is 0.90; image mean +0.03% ± 0.04%.
 #[test]
 fn demodulation_helps_ours_on_a_textured_scene_and_keeps_the_mean() {
     const T99_11: f64 = 2.718;

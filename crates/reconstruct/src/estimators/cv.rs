@@ -1,13 +1,14 @@
-//! `cv`: the control-variate baseline, `F̂_c = ḡ_c − Σ_{i≠c} β_i (ḡ_i − h̄_i)` over a k-NN set
-//! chosen by CRN colour **without the centre**: the centre's own PT value never enters, so the
-//! estimator can only explain the centre's CRN value by its neighbours. Without the centre,
-//! more neighbours are what lowers the error (they dilute the PT noise copied in and find more
-//! pixels that share the centre's CRN noise), so the default set is 48 neighbours in 15×15,
-//! where `ours` takes 24 in 11×11; the `cv-k25` variant uses the neighbourhood of `ours`, which
-//! makes `ours ÷ cv-k25` the effect of the centre in the set alone. With `centre =
-//! inverse-variance` the estimate is then combined with the centre's own PT mean by inverse
-//! variance: an imperfect control variate in two stages rather than the paper's baseline, kept
-//! as the `cv-two-stage` variant to compare the joint solve of `ours` with.
+//! `cv`: the control-variate baseline, `F̂_c = ḡ_c − Σ_{i≠c} β_i (ḡ_i − h̄_i)` over the same
+//! k-NN set as `ours` but **without the centre**: the centre's own PT value never enters, so the
+//! estimator can only explain the centre's CRN value by its neighbours. That is the one thing
+//! `ours` adds (with the centre, `β = e_c` returns PT), which is what makes `ours ÷ cv` the
+//! effect of the centre in the set. Both default to 49 pixels in 15×15 (48 neighbours here),
+//! chosen on the bundled scenes: without the centre a larger set dilutes the PT noise the
+//! estimate copies in and finds more pixels that share the centre's CRN noise; the paper's 25 in
+//! 11×11 is the `cv-k25` variant. With `centre = inverse-variance` the estimate is then
+//! combined with the centre's own PT mean by inverse variance: an imperfect control variate in
+//! two stages rather than the paper's baseline, kept as the `cv-two-stage` variant to compare
+//! the joint solve of `ours` with.
 //!
 //! By default `β` solves `(V_g + V_h' + ridge) β = V_fg` with the covariances of `ours` (CRN
 //! batch covariances, the PT error filter's estimates with the `avg` penalty) and the low-pass
@@ -45,7 +46,7 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
             name: "k",
             kind: ParamKind::Int { min: 2, max: MAX_K as i64 },
             default: "49",
-            doc: "Pixels per set counted as in `ours`, centre included; `cv` leaves the centre out and uses the k − 1 neighbours (48 by default, where `ours` uses 24: without the centre, more neighbours are what lowers the error).",
+            doc: "Pixels per set counted as in `ours`, centre included; `cv` leaves the centre out and uses the k − 1 neighbours.",
             alias: Some("k"),
         },
         ParamSpec {
@@ -109,7 +110,7 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
     build: |p| Ok(Box::new(ClassicCv::new(ClassicCvOptions::from_params(p))?)),
     variants: &[Variant {
         key: "cv-k25",
-        label: "CV, 24 neighbours in 11×11 (the neighbourhood of ours)",
+        label: "CV, 24 neighbours in 11×11 (the paper's set)",
         params: &[("k", "25"), ("search_window", "11")],
     }, Variant {
         key: "cv-classic",

@@ -37,8 +37,8 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
     samples: Samples::BothStreams,
     params: &[
         param("select", ParamKind::Choice(Selection::NAMES), "knn", "How the set Ω_c is chosen in the search window (gbuffer needs features).", Some("select")),
-        param("k", ParamKind::Int { min: 1, max: MAX_K as i64 }, "25", "|Ω_c|, the centre included.", Some("k")),
-        param("search_window", ParamKind::Int { min: 1, max: MAX_SEARCH_WINDOW as i64 }, "11", "Side of the (odd) square window the k pixels are chosen from.", Some("search-window")),
+        param("k", ParamKind::Int { min: 1, max: MAX_K as i64 }, "49", "|Ω_c|, the centre included (the paper: 25).", Some("k")),
+        param("search_window", ParamKind::Int { min: 1, max: MAX_SEARCH_WINDOW as i64 }, "15", "Side of the (odd) square window the k pixels are chosen from (the paper: 11).", Some("search-window")),
         param("errors", ParamKind::Choice(ErrorEstimate::NAMES), "cbf", "Where the PT error estimates V_h come from (oracle needs a reference).", Some("errors")),
         param("penalty", ParamKind::Choice(Penalty::NAMES), "avg", "The symmetric penalty on neighbours' error estimates.", Some("penalty")),
         param("ridge", ParamKind::Float(Bounds::at_least(0.0)), "0.001", "Ridge, relative to the mean diagonal of V_g + V_h.", Some("ridge")),
@@ -62,6 +62,7 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
     needs: |p| needs(&ImperfectCvOptions::from_params(p)),
     build: |p| Ok(Box::new(ImperfectCv::new(ImperfectCvOptions::from_params(p))?)),
     variants: &[
+        Variant { key: "ours-k25", label: "Ours, 25 pixels in 11×11 (the paper's set)", params: &[("k", "25"), ("search_window", "11")] },
         Variant { key: "ours-joint", label: "Ours, the joint solve alone", params: &[("two_stage_weight", "0")] },
         Variant { key: "ours-no-low-pass", label: "Ours, no low-pass correction", params: &[("low_pass_sigma", "0")] },
         Variant { key: "ours-no-penalty", label: "Ours, no penalty (CBF errors)", params: &[("penalty", "none")] },
@@ -433,7 +434,7 @@ mod tests {
             (40, 33, 16, 16, ImperfectCvOptions { penalty: Penalty::Residual, shared_coefficients: true, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { errors: ErrorEstimate::Variance, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { select: Selection::Random, seed: 5, ..d() }),
-            (40, 33, 16, 16, ImperfectCvOptions { select: Selection::Window, search_window: 5, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { select: Selection::Window, k: 25, search_window: 5, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { select: Selection::Gbuffer, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { two_stage_weight: 0.3, low_pass_sigma: 0.0, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { folds: Folds::Halves, ..d() }),
