@@ -209,6 +209,13 @@ mod tests {
             let recorded: Vec<_> = e.settings().into_iter().map(|(k, _)| k).collect();
             let declared: Vec<_> = spec.params.iter().map(|p| p.name).collect();
             assert_eq!(recorded, declared, "{}", spec.name);
+            // `study --ablations` builds every variant over the defaults.
+            for v in spec.variants {
+                let o = Overrides::default().with(spec.name, v.params);
+                if let Err(e) = r.build(spec.name, &o) {
+                    panic!("variant {} of {}: {e}", v.key, spec.name);
+                }
+            }
         }
     }
 

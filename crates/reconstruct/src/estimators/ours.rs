@@ -68,7 +68,7 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
         Variant { key: "ours-no-penalty", label: "Ours, no penalty (CBF errors)", params: &[("penalty", "none")] },
         Variant { key: "ours-oracle", label: "Ours, oracle errors", params: &[("errors", "oracle")] },
         Variant { key: "ours-oracle-no-penalty", label: "Ours, oracle errors, no penalty", params: &[("errors", "oracle"), ("penalty", "none")] },
-        Variant { key: "ours-window", label: "Ours, 5×5 window selection", params: &[("select", "window"), ("search_window", "5")] },
+        Variant { key: "ours-window", label: "Ours, 5×5 window selection", params: &[("select", "window"), ("k", "25"), ("search_window", "5")] },
         Variant { key: "ours-random", label: "Ours, random selection", params: &[("select", "random")] },
         Variant { key: "ours-gbuffer", label: "Ours, G-buffer selection", params: &[("select", "gbuffer")] },
     ],
