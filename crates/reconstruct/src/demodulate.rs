@@ -2,16 +2,19 @@
 //! is known.
 //!
 //! Every pixel value of both streams (means and batches) is divided by the pixel's first-hit
-//! albedo, the estimator runs on the quotient, and its output is multiplied back by the same
-//! albedo. A texture edge then no longer separates pixels that receive the same light: the
-//! k-NN selection by CRN colour, the PT error filter and the low-pass correction see the
-//! illumination, which is smooth where the texture is not.
+//! albedo, the control-variate estimate is computed on the quotient, and it is multiplied back
+//! by the same albedo. A texture edge then no longer separates pixels that receive the same
+//! light: the k-NN selection by CRN colour and the PT error filter see the illumination, which
+//! is smooth where the texture is not.
 //!
 //! The transform is exact for the centre (`a_c·(ḡ_c/a_c) = ḡ_c`); for a neighbour it rescales
-//! the control variate `ḡ_i − h̄_i` by `a_c/a_i`, which keeps its expectation at zero as long
-//! as `a_i` does not depend on the samples it divides. The albedo feature is averaged over the
-//! PT samples, so it shares their subpixel positions: at a texture edge the quotient `h̄_i/a_i`
-//! carries an O(1/n) ratio bias, which the low-pass correction removes at coarse scales.
+//! the control variate `ḡ_i − h̄_i` by `a_c/a_i`. That keeps its mean at zero only if `a_i`
+//! does not depend on the samples it divides, and the albedo feature is averaged over the PT
+//! samples: where the texture varies inside a pixel, `h̄_i/a_i` follows the PT samples' own
+//! texels and `ḡ_i/a_i` does not, so the quotient's control variates are not centred (+1.3% of
+//! the image mean on a textured bundled scene when nothing corrected it). The estimators
+//! therefore run their low-pass correction on radiance, after multiplying back, which removes
+//! that bias at every scale coarser than its σ.
 use crate::{Input, ReconError};
 use cvtrace_streams::{Image, Stream, StreamSet};
 
