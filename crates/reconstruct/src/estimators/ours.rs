@@ -325,10 +325,8 @@ impl ImperfectCv {
                 Some(f) => combine_with_centre(&f.image, &f.variance, &set.pt.mean, &errors),
                 None => {
                     let neighbours = Selector::new(o.select, o.k - 1, o.search_window, false, o.seed, set);
-                    {
-                        let solve = Solve { neighbours: o.k - 1, ridge: two_stage_ridge, shared: o.shared_coefficients, folds: Folds::All };
-                        two_stage(set, neighbours, solve, &errors, o.variance_dof).0
-                    }
+                    let solve = Solve { neighbours: o.k - 1, ridge: two_stage_ridge, shared: o.shared_coefficients, folds: Folds::All };
+                    two_stage(set, neighbours, solve, &errors, o.variance_dof).0
                 }
             };
             estimate = match o.mix_correlation {
