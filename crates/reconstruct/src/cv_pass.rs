@@ -424,16 +424,20 @@ impl CvPass<'_> {
         for (dst, v) in r.iter_mut().zip(cube.row(c, ch)) {
             *dst = *v as f64;
         }
-        let mut pt = 0.0;
         for (&i, &b) in idx.iter().zip(beta) {
             for (dst, v) in r.iter_mut().zip(cube.row(i as usize, ch)) {
                 *dst -= b * *v as f64;
             }
-            if let Some(e) = self.errors {
-                pt += b * b * e[i as usize][ch] as f64;
-            }
         }
-        (s * r.iter().map(|x| x * x).sum::<f64>(), pt)
+        (s * r.iter().map(|x| x * x).sum::<f64>(), self.pt_variance(idx, beta, ch))
+    }
+
+    /// Eq. 7's PT part at `beta` for channel `ch`: `Σ β_j² e_j`, from the unpenalised error
+    /// estimates.
+    #[inline(always)]
+    fn pt_variance(&self, idx: &[u32], beta: &[f64], ch: usize) -> f64 {
+        let Some(e) = self.errors else { return 0.0 };
+        idx.iter().zip(beta).map(|(&i, &b)| b * b * e[i as usize][ch] as f64).sum()
     }
 
     /// `W` for control variate `i` of centre `c` in channel `ch` (summed over channels when shared).
@@ -556,18 +560,16 @@ impl CvPass<'_> {
                 let common = self.floor.is_some_and(|f| f.mode == FloorMode::Common);
                 let n_obs = (b - 1 + usize::from(common)) as f64;
                 for ch in 0..3 {
-                    if matches!(outcomes[ch], Outcome::Solved | Outcome::Regularised) {
-                        let winv = p.centre_winv(ch);
-                        blend_towards_centre(&mut p.beta[ch][..n], delta_c[ch], winv);
-                    }
+                    let solved = matches!(outcomes[ch], Outcome::Solved | Outcome::Regularised);
+                    let winv = p.centre_winv(ch);
+                    let shrink = if solved { blend_towards_centre(&mut p.beta[ch][..n], delta_c[ch], winv) } else { 1.0 };
                     let beta = &mut p.beta[ch][..n];
                     st[0].record(outcomes[ch], beta, self.include_centre);
                     acc[ch] += combine(target[c][ch] as f64, &sc.gs3[ch][..n], &sc.hs3[ch][..n], beta);
                     if self.variance {
-                        let solved = matches!(outcomes[ch], Outcome::Solved | Outcome::Regularised);
                         let factor = if solved { self.dof.factor(P as f64 - p.trace_inv[ch], n_obs) } else { 1.0 };
-                        let (crn, pt) = self.predicted_variance(cube, c, idx, beta, ch, s);
-                        var[ch] += factor * crn + pt;
+                        let crn = s * if solved { shrink * shrink * p.resid_sq[ch] } else { f64::from(cube.sq[c][ch]) };
+                        var[ch] += factor * crn + self.pt_variance(idx, beta, ch);
                     }
                 }
                 if let (Some(f), Some(q), Some(fr)) = (free, q, free_rows.as_ref()) {
@@ -583,8 +585,8 @@ impl CvPass<'_> {
                         let beta = &mut q.beta[ch][..m];
                         st[1].record(outcomes[ch], beta, false);
                         free_acc[ch] += combine(target[c][ch] as f64, &sc.gs3[ch][1..n], &sc.hs3[ch][1..n], beta);
-                        let (crn, pt) = self.predicted_variance(plain, c, &idx[1..], beta, ch, s);
-                        free_var[ch] += factor * crn + pt;
+                        let crn = s * if solved { q.resid_sq[ch] } else { f64::from(plain.sq[c][ch]) };
+                        free_var[ch] += factor * crn + self.pt_variance(&idx[1..], beta, ch);
                     }
                 }
             }

@@ -70,17 +70,19 @@ impl Floor<'_> {
 
 /// Turns `β'` (the solution with `Δ` in the diagonal but without `δ_c` in `V_fg`) into the
 /// solution with it: `β = (1 − a)·β' + a·e_c`, `a = δ_c·winv_c`, `winv_c = 1/(w_c + λ)`.
-/// The centre must be `beta[0]`.
+/// The centre must be `beta[0]`. Returns `1 − a` (1 where nothing changed): the fit's residual
+/// `d_c − Σ β_j D_j` is `1 − a` times that of `β'`, because `D_c = d_c`.
 #[inline]
-pub(crate) fn blend_towards_centre(beta: &mut [f64], delta_c: f64, winv_c: f64) {
+pub(crate) fn blend_towards_centre(beta: &mut [f64], delta_c: f64, winv_c: f64) -> f64 {
     let a = delta_c * winv_c;
     if !(a > 0.0 && a.is_finite()) || beta.is_empty() {
-        return;
+        return 1.0;
     }
     for b in beta.iter_mut() {
         *b *= 1.0 - a;
     }
     beta[0] += a;
+    1.0 - a
 }
 
 #[cfg(test)]
