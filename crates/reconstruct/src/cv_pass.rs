@@ -26,6 +26,7 @@ use crate::simd::{Portable, Simd};
 use crate::solve::{Form, Outcome, Workspace, MAX_BATCHES, MAX_K};
 use cvtrace_streams::{Image, Stream, StreamSet};
 use rayon::prelude::*;
+use std::ops::Range;
 
 pub struct CvPass<'a> {
     pub set: &'a StreamSet,
@@ -272,6 +273,9 @@ struct RowOut<'r> {
 /// A pixel's joint and centre-free estimates, each (value, predicted variance).
 type PixelOut = [([f32; 3], [f32; 3]); 2];
 
+/// Columns per strip of the pass (see [`CvPass::run_width`]).
+const STRIP: usize = 64;
+
 /// `s` of `V = s·Σ d·dᵀ`: the covariance of the full mean of `batches` batches estimated from
 /// the deviations of `m` of them (a single batch's covariance is `Σ d·dᵀ/(m − 1)`).
 fn scale(batches: usize, m: usize) -> f64 {
@@ -349,26 +353,33 @@ impl CvPass<'_> {
         let mut free_variance = Image::new(w, h);
         let mut rows = vec![[PassStats::default(); 2]; h];
         let fused = self.centre_free.is_some();
-        image
-            .pixels
-            .par_chunks_mut(w)
-            .zip(variance.pixels.par_chunks_mut(w))
-            .zip(free_image.pixels.par_chunks_mut(w).zip(free_variance.pixels.par_chunks_mut(w)))
-            .zip(rows.par_iter_mut())
-            .enumerate()
-            .for_each_init(
-                || Scratch::<P>::new(fused),
-                |sc, (y, (((image, variance), (free_image, free_variance)), st))| {
-                    let out = RowOut { image, variance, free_image, free_variance };
-                    #[cfg(target_arch = "x86_64")]
-                    if crate::simd::use_avx2() {
-                        // SAFETY: the CPU supports AVX2 (checked just above).
-                        unsafe { self.row_avx2::<P>(halves, y, out, sc, st) };
-                        return;
-                    }
-                    self.row::<P, Portable>(halves, y, out, sc, st);
-                },
-            );
+        // Strips of columns, one after the other, each a parallel pass over the rows: a
+        // thread's consecutive rows then share 14 of their 15 window rows within a few hundred
+        // KB of cube data, which stays in L2, where whole rows of a wide image would not. Each
+        // row's pixels and statistics still run in column order, so no bit depends on it.
+        for x0 in (0..w).step_by(STRIP) {
+            let xs = x0..(x0 + STRIP).min(w);
+            image
+                .pixels
+                .par_chunks_mut(w)
+                .zip(variance.pixels.par_chunks_mut(w))
+                .zip(free_image.pixels.par_chunks_mut(w).zip(free_variance.pixels.par_chunks_mut(w)))
+                .zip(rows.par_iter_mut())
+                .enumerate()
+                .for_each_init(
+                    || Scratch::<P>::new(fused),
+                    |sc, (y, (((image, variance), (free_image, free_variance)), st))| {
+                        let out = RowOut { image, variance, free_image, free_variance };
+                        #[cfg(target_arch = "x86_64")]
+                        if crate::simd::use_avx2() {
+                            // SAFETY: the CPU supports AVX2 (checked just above).
+                            unsafe { self.row_avx2::<P>(halves, y, xs.clone(), out, sc, st) };
+                            return;
+                        }
+                        self.row::<P, Portable>(halves, y, xs.clone(), out, sc, st);
+                    },
+                );
+        }
         let (mut stats, mut free_stats) = (PassStats::default(), PassStats::default());
         for [r, f] in &rows {
             stats.add(r);
@@ -384,14 +395,30 @@ impl CvPass<'_> {
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn row_avx2<const P: usize>(&self, halves: &[Half], y: usize, out: RowOut, sc: &mut Scratch<P>, st: &mut [PassStats; 2]) {
-        self.row::<P, crate::simd::Avx2>(halves, y, out, sc, st);
+    unsafe fn row_avx2<const P: usize>(
+        &self,
+        halves: &[Half],
+        y: usize,
+        xs: Range<usize>,
+        out: RowOut,
+        sc: &mut Scratch<P>,
+        st: &mut [PassStats; 2],
+    ) {
+        self.row::<P, crate::simd::Avx2>(halves, y, xs, out, sc, st);
     }
 
     #[inline(always)]
-    fn row<const P: usize, S: Simd>(&self, halves: &[Half], y: usize, out: RowOut, sc: &mut Scratch<P>, st: &mut [PassStats; 2]) {
+    fn row<const P: usize, S: Simd>(
+        &self,
+        halves: &[Half],
+        y: usize,
+        xs: Range<usize>,
+        out: RowOut,
+        sc: &mut Scratch<P>,
+        st: &mut [PassStats; 2],
+    ) {
         let fused = self.centre_free.is_some();
-        for x in 0..out.image.len() {
+        for x in xs {
             let [(value, variance), (free_value, free_variance)] = self.pixel::<P, S>(halves, x, y, sc, st);
             out.image[x] = value;
             out.variance[x] = variance;

@@ -142,7 +142,7 @@ impl<const P: usize> Panel<P> {
             if !ok[ch] {
                 continue;
             }
-            // G = I + s·Σ_j D_j·D_jᵀ / w_j in 4×8 blocks, accumulators in registers while the
+            // G = I + s·Σ_j D_j·D_jᵀ / w_j in 8×8 blocks, accumulators in registers while the
             // k rows of D stream past. Only blocks touching the lower triangle are formed: the
             // factorisation never reads above the diagonal.
             for j in 0..k {
@@ -150,16 +150,16 @@ impl<const P: usize> Panel<P> {
                 self.scaled[j] = std::array::from_fn(|a| c * r[a]);
             }
             let g = &mut self.g[ch];
-            for a0 in (0..P).step_by(4) {
-                for b0 in (0..P).step_by(8).take_while(|b0| *b0 < a0 + 4) {
+            for a0 in (0..P).step_by(8) {
+                for b0 in (0..=a0).step_by(8) {
                     let acc = S::gram_block(&rows.d[ch][..k], &self.scaled[..k], a0, b0);
-                    for q in 0..4 {
+                    for q in 0..8 {
                         for l in 0..8 {
                             g[a0 + q][b0 + l] = acc[q][l];
                         }
                     }
                 }
-                for q in 0..4 {
+                for q in 0..8 {
                     g[a0 + q][a0 + q] += 1.0;
                 }
             }

@@ -44,9 +44,11 @@ pub(crate) fn force_portable<T>(f: impl FnOnce() -> T) -> T {
 
 /// Vector kernels over fixed-width rows (`P` a multiple of 8).
 pub(crate) trait Simd {
-    /// For `q < 4`, `l < 8`: `Σ_j e_j[a0+q] · d_j[b0+l]` over the rows, summed in `j` order,
-    /// where `e_j` is `d_j` scaled by its weight.
-    fn gram_block<const P: usize>(d: &[&[f32; P]], e: &[[f32; P]], a0: usize, b0: usize) -> [[f32; 8]; 4];
+    /// For `q < 8`, `l < 8`: `Σ_j e_j[a0+q] · d_j[b0+l]` over the rows, summed in `j` order,
+    /// where `e_j` is `d_j` scaled by its weight. Eight rows of the block at once: each
+    /// accumulator is a chain of `k` dependent additions, and eight independent chains keep
+    /// the adder busy where four left it waiting on their latency.
+    fn gram_block<const P: usize>(d: &[&[f32; P]], e: &[[f32; P]], a0: usize, b0: usize) -> [[f32; 8]; 8];
     /// `y[l] += a · x[l]`.
     fn axpy32<const P: usize>(y: &mut [f32; P], a: f32, x: &[f32; P]);
     /// `Σ a[l]·b[l]` with eight lane sums combined pairwise.
@@ -274,10 +276,10 @@ impl Simd for Portable {
     }
 
     #[inline(always)]
-    fn gram_block<const P: usize>(d: &[&[f32; P]], e: &[[f32; P]], a0: usize, b0: usize) -> [[f32; 8]; 4] {
-        let mut acc = [[0.0f32; 8]; 4];
+    fn gram_block<const P: usize>(d: &[&[f32; P]], e: &[[f32; P]], a0: usize, b0: usize) -> [[f32; 8]; 8] {
+        let mut acc = [[0.0f32; 8]; 8];
         for (r, ej) in d.iter().zip(e) {
-            for q in 0..4 {
+            for q in 0..8 {
                 let ra = ej[a0 + q];
                 for l in 0..8 {
                     acc[q][l] += ra * r[b0 + l];
@@ -536,13 +538,13 @@ impl Simd for Avx2 {
     }
 
     #[inline(always)]
-    fn gram_block<const P: usize>(d: &[&[f32; P]], e: &[[f32; P]], a0: usize, b0: usize) -> [[f32; 8]; 4] {
+    fn gram_block<const P: usize>(d: &[&[f32; P]], e: &[[f32; P]], a0: usize, b0: usize) -> [[f32; 8]; 8] {
         use std::arch::x86_64::*;
-        assert!(a0 + 4 <= P && b0 + 8 <= P);
+        assert!(a0 + 8 <= P && b0 + 8 <= P);
         // SAFETY: AVX2 is available (see the type's contract); loads stay inside each row
         // (asserted above).
         unsafe {
-            let mut acc = [_mm256_setzero_ps(); 4];
+            let mut acc = [_mm256_setzero_ps(); 8];
             for (r, ej) in d.iter().zip(e) {
                 let rb = _mm256_loadu_ps(r.as_ptr().add(b0));
                 for (q, a) in acc.iter_mut().enumerate() {
@@ -550,7 +552,7 @@ impl Simd for Avx2 {
                     *a = _mm256_add_ps(*a, _mm256_mul_ps(ra, rb));
                 }
             }
-            let mut out = [[0.0f32; 8]; 4];
+            let mut out = [[0.0f32; 8]; 8];
             for (o, a) in out.iter_mut().zip(acc) {
                 _mm256_storeu_ps(o.as_mut_ptr(), a);
             }
@@ -637,10 +639,10 @@ mod tests {
     use crate::rng::{hash4, uniform};
 
     #[target_feature(enable = "avx2")]
-    fn avx_results(d: &[&[f32; 16]], c: &[[f32; 16]], y: &[f32; 16]) -> ([[f32; 8]; 4], [f32; 16], f32) {
+    fn avx_results(d: &[&[f32; 16]], c: &[[f32; 16]], y: &[f32; 16]) -> ([[f32; 8]; 8], [f32; 16], f32) {
         let mut yy = *y;
         Avx2::axpy32(&mut yy, -0.37, d[2]);
-        (Avx2::gram_block(d, c, 4, 8), yy, Avx2::dot32(d[0], d[1]))
+        (Avx2::gram_block(d, c, 8, 0), yy, Avx2::dot32(d[0], d[1]))
     }
 
     #[target_feature(enable = "avx2")]
@@ -714,7 +716,7 @@ mod tests {
         let (g, yy, d32) = unsafe { avx_results(&d, &c, &y) };
         let mut py = y;
         Portable::axpy32(&mut py, -0.37, d[2]);
-        assert_eq!(g, Portable::gram_block(&d, &c, 4, 8));
+        assert_eq!(g, Portable::gram_block(&d, &c, 8, 0));
         assert_eq!(yy.map(f32::to_bits), py.map(f32::to_bits));
         assert_eq!(d32.to_bits(), Portable::dot32(d[0], d[1]).to_bits());
         let t: Vec<f32> = (0..229).map(|i| (u(3, i) + 0.5) as f32 * 4.0).collect();
