@@ -10,8 +10,8 @@ follows), Russian roulette from depth 5:
                 triangles and the emissive quad; the converter rejects anything else);
   mitsuba-cbox  Mitsuba's own mi.cornell_box(), converted to glTF for cvtrace (its rectangles
                 and cubes become triangles).
-For each, every renderer (cvtrace with its default robust traversal and with
-`--traversal fast`, then the Mitsuba variants) renders the same spp in turn, `--repeats` times, and the script
+For each, every renderer (cvtrace with `--traversal robust`, printed as `cvtrace`, and with
+`--traversal fast`, its default, printed as `cvtrace-fast`; then the Mitsuba variants) renders the same spp in turn, `--repeats` times, and the script
 prints samples per CPU-second (process CPU time: user + system over all threads) and the
 image means, which must agree to Monte Carlo noise if both render the same thing.
 On cvtrace-cbox, Embree's own `pathtracer` tutorial (Debian's embree-tools) renders the box it
