@@ -262,8 +262,10 @@ struct Stage<'f> {
     dof: Dof,
 }
 
-/// One image row of the outputs: the joint estimate and the centre-free one.
+/// One image row of the outputs: the joint estimate and the centre-free one, of which the
+/// pixels `xs` are computed.
 struct RowOut<'r> {
+    xs: Range<usize>,
     image: &'r mut [[f32; 3]],
     variance: &'r mut [[f32; 3]],
     free_image: &'r mut [[f32; 3]],
@@ -369,14 +371,14 @@ impl CvPass<'_> {
                 .for_each_init(
                     || Scratch::<P>::new(fused),
                     |sc, (y, (((image, variance), (free_image, free_variance)), st))| {
-                        let out = RowOut { image, variance, free_image, free_variance };
+                        let out = RowOut { xs: xs.clone(), image, variance, free_image, free_variance };
                         #[cfg(target_arch = "x86_64")]
                         if crate::simd::use_avx2() {
                             // SAFETY: the CPU supports AVX2 (checked just above).
-                            unsafe { self.row_avx2::<P>(halves, y, xs.clone(), out, sc, st) };
+                            unsafe { self.row_avx2::<P>(halves, y, out, sc, st) };
                             return;
                         }
-                        self.row::<P, Portable>(halves, y, xs.clone(), out, sc, st);
+                        self.row::<P, Portable>(halves, y, out, sc, st);
                     },
                 );
         }
@@ -395,30 +397,14 @@ impl CvPass<'_> {
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn row_avx2<const P: usize>(
-        &self,
-        halves: &[Half],
-        y: usize,
-        xs: Range<usize>,
-        out: RowOut,
-        sc: &mut Scratch<P>,
-        st: &mut [PassStats; 2],
-    ) {
-        self.row::<P, crate::simd::Avx2>(halves, y, xs, out, sc, st);
+    unsafe fn row_avx2<const P: usize>(&self, halves: &[Half], y: usize, out: RowOut, sc: &mut Scratch<P>, st: &mut [PassStats; 2]) {
+        self.row::<P, crate::simd::Avx2>(halves, y, out, sc, st);
     }
 
     #[inline(always)]
-    fn row<const P: usize, S: Simd>(
-        &self,
-        halves: &[Half],
-        y: usize,
-        xs: Range<usize>,
-        out: RowOut,
-        sc: &mut Scratch<P>,
-        st: &mut [PassStats; 2],
-    ) {
+    fn row<const P: usize, S: Simd>(&self, halves: &[Half], y: usize, out: RowOut, sc: &mut Scratch<P>, st: &mut [PassStats; 2]) {
         let fused = self.centre_free.is_some();
-        for x in xs {
+        for x in out.xs.clone() {
             let [(value, variance), (free_value, free_variance)] = self.pixel::<P, S>(halves, x, y, sc, st);
             out.image[x] = value;
             out.variance[x] = variance;
