@@ -47,7 +47,7 @@ pub struct PathLimits {
 
 /// Balance of two densities by the power heuristic (β = 2), for the first one.
 #[inline]
-fn power_heuristic(a: f32, b: f32) -> f32 {
+pub(crate) fn power_heuristic(a: f32, b: f32) -> f32 {
     let (a2, b2) = (a * a, b * b);
     if a2.is_infinite() {
         return 1.0;
@@ -61,7 +61,7 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
 
 /// Starts a ray at `p` off the surface with geometric normal `ng`, on the side of `dir`.
 #[inline]
-fn spawn_origin(p: Vec3A, ng: Vec3A, dir: Vec3A, eps: f32) -> Vec3A {
+pub(crate) fn spawn_origin(p: Vec3A, ng: Vec3A, dir: Vec3A, eps: f32) -> Vec3A {
     if dir.dot(ng) >= 0.0 {
         p + ng * eps
     } else {
@@ -90,37 +90,97 @@ pub fn radiance_from_hit<T: Intersector>(
     scene: &Scene,
     tracer: &T,
     limits: PathLimits,
-    mut ray: Ray,
+    ray: Ray,
     camera_hit: Option<Hit>,
     sampler: &SampleSampler,
     mut first: Option<&mut FirstHit>,
 ) -> Vec3A {
-    let eps = scene.ray_epsilon();
-    let textures = scene.textures();
-    let lights = scene.lights();
-    let max_depth = if limits.max_depth < 0 { u32::MAX } else { limits.max_depth as u32 };
-    let mut l = Vec3A::ZERO;
-    let mut beta = Vec3A::ONE;
-    let mut eta_scale = 1.0f32;
-    // Density of the BSDF sample that produced `ray`, and whether it was a delta lobe.
-    let mut prev_pdf = 0.0f32;
-    let mut prev_delta = true;
-    // Segments so far, including `ray`.
-    let mut depth = 1u32;
-    // The nearest hit of `ray`.
-    let mut next_hit = camera_hit;
+    let ctx = PathContext::new(scene, limits);
+    let mut path = Path::new(ray);
+    let mut hit = camera_hit;
     loop {
-        let Some(hit) = next_hit else {
+        let step = ctx.vertex(&mut path, hit, sampler, first.take());
+        if let Some((shadow, light)) = step.shadow {
+            if !tracer.occluded(&shadow) {
+                path.l += light;
+            }
+        }
+        if !step.next {
+            return path.l;
+        }
+        hit = tracer.intersect(&path.ray);
+    }
+}
+
+/// One path between two vertices: the ray that left the last one and what the path carries.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Path {
+    /// The ray whose nearest hit is the next vertex (the camera ray at first).
+    pub ray: Ray,
+    /// Throughput from the camera to the next vertex.
+    pub beta: Vec3A,
+    /// Radiance gathered so far.
+    pub l: Vec3A,
+    /// Product of the squared relative indices crossed (Russian roulette undoes them).
+    pub eta_scale: f32,
+    /// Density of the BSDF sample that produced `ray`, and whether it was a delta lobe.
+    pub prev_pdf: f32,
+    pub prev_delta: bool,
+    /// Segments so far, including `ray`.
+    pub depth: u32,
+}
+
+impl Path {
+    pub fn new(ray: Ray) -> Path {
+        Path { ray, beta: Vec3A::ONE, l: Vec3A::ZERO, eta_scale: 1.0, prev_pdf: 0.0, prev_delta: true, depth: 1 }
+    }
+}
+
+/// What one vertex leaves for the ray caster.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Step {
+    /// A shadow ray towards a light sample, and the radiance it adds to `l` if nothing
+    /// occludes it.
+    pub shadow: Option<(Ray, Vec3A)>,
+    /// Whether the path goes on: the nearest hit of its new `ray` is the next vertex.
+    pub next: bool,
+}
+
+/// What every vertex of a render reads.
+#[derive(Clone, Copy)]
+pub(crate) struct PathContext<'a> {
+    pub scene: &'a Scene,
+    pub limits: PathLimits,
+    /// `limits.max_depth` as a count of segments (`u32::MAX` for unlimited).
+    pub max_depth: u32,
+    pub eps: f32,
+}
+
+impl<'a> PathContext<'a> {
+    pub fn new(scene: &'a Scene, limits: PathLimits) -> PathContext<'a> {
+        let max_depth = if limits.max_depth < 0 { u32::MAX } else { limits.max_depth as u32 };
+        PathContext { scene, limits, max_depth, eps: scene.ray_epsilon() }
+    }
+
+    /// The vertex at `hit`, the nearest hit of `path.ray` (`None`: the ray escaped): adds its
+    /// emission to `path.l`, samples a light and the continuation, and leaves the path ready
+    /// for its next ray. `first` receives the first-hit features if asked for.
+    #[inline]
+    pub fn vertex(&self, path: &mut Path, hit: Option<Hit>, sampler: &SampleSampler, first: Option<&mut FirstHit>) -> Step {
+        let (scene, lights, textures) = (self.scene, self.scene.lights(), self.scene.textures());
+        let done = Step { shadow: None, next: false };
+        let ray = path.ray;
+        let Some(hit) = hit else {
             // Escaped: the environment, MIS-weighted against its light sampling.
             if let Some(env) = lights.environment() {
-                let (le, pdf_light) = if prev_delta { (env.eval(ray.dir), 0.0) } else { lights.environment_radiance(ray.dir) };
-                let w = if prev_delta { 1.0 } else { power_heuristic(prev_pdf, pdf_light) };
-                l += beta * le * w;
-                if let Some(f) = first.take() {
+                let (le, pdf_light) = if path.prev_delta { (env.eval(ray.dir), 0.0) } else { lights.environment_radiance(ray.dir) };
+                let w = if path.prev_delta { 1.0 } else { power_heuristic(path.prev_pdf, pdf_light) };
+                path.l += path.beta * le * w;
+                if let Some(f) = first {
                     *f = FirstHit { albedo: le, normal: Vec3A::ZERO, depth: 0.0 };
                 }
             }
-            break;
+            return done;
         };
         let sp = scene.surface(hit.prim, hit.u, hit.v);
         let material = &scene.materials()[sp.material as usize];
@@ -130,72 +190,71 @@ pub fn radiance_from_hit<T: Intersector>(
         let mut le = Vec3A::ZERO;
         if front && material.is_emissive() {
             le = material.emission_at(textures, sp.uv);
-            let w = if prev_delta {
+            let w = if path.prev_delta {
                 1.0
             } else {
                 let cos_l = -ray.dir.dot(sp.ng);
                 let pdf_light = lights.pdf_area(hit.prim) * hit.t * hit.t / cos_l;
-                power_heuristic(prev_pdf, pdf_light)
+                power_heuristic(path.prev_pdf, pdf_light)
             };
-            l += beta * le * w;
+            path.l += path.beta * le * w;
         }
-        if let Some(f) = first.take() {
+        if let Some(f) = first {
             let ns = if sp.ns.dot(ray.dir) > 0.0 { -sp.ns } else { sp.ns };
             *f =
                 FirstHit { albedo: if le != Vec3A::ZERO { le } else { material.base_color_at(textures, sp.uv) }, normal: ns, depth: hit.t };
         }
-        if depth >= max_depth {
-            break;
+        if path.depth >= self.max_depth {
+            return done;
         }
 
         let wo = -ray.dir;
         let bsdf = material.bsdf_at(textures, sp.uv, sp.ns, sp.ng, wo);
-        let vertex = depth - 1;
+        let vertex = path.depth - 1;
         // The continuation's random numbers, drawn before the shadow ray (see `SampleDraw`).
         let u_choice = if bsdf.has_glass() { sampler.get1d(dims::at(vertex, dims::DIELECTRIC_CHOICE)) } else { 0.0 };
         let u_lobe = if matches!(bsdf, Bsdf::Mixture(_)) { sampler.get1d(dims::at(vertex, dims::LOBE)) } else { 0.0 };
         let draw = SampleDraw::new(u_lobe, sampler.get2d(dims::at(vertex, dims::BSDF_DIR)), u_choice);
 
         // Next-event estimation: one point or direction on one emitter.
+        let mut shadow = None;
         if bsdf.has_non_delta() && !lights.is_empty() {
             let u_sel = sampler.get1d(dims::at(vertex, dims::LIGHT_SELECT));
             let u_pos = sampler.get2d(dims::at(vertex, dims::LIGHT_POS));
             if let Some(ls) = lights.sample(scene, sp.p, u_sel, u_pos) {
                 let (f, pdf_bsdf) = bsdf.eval_pdf(ls.wi);
                 if f != Vec3A::ZERO {
-                    let origin = spawn_origin(sp.p, sp.ng, ls.wi, eps);
-                    let shadow = match ls.end {
+                    let origin = spawn_origin(sp.p, sp.ng, ls.wi, self.eps);
+                    let ray = match ls.end {
                         ShadowEnd::Point(target) => Ray { origin, dir: target - origin, tmin: 0.0, tmax: 1.0 },
                         ShadowEnd::Infinite => Ray { origin, dir: ls.wi, tmin: 0.0, tmax: f32::INFINITY },
                     };
-                    if !tracer.occluded(&shadow) {
-                        let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, pdf_bsdf) };
-                        l += beta * f * ls.li * (w / ls.pdf);
-                    }
+                    let w = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, pdf_bsdf) };
+                    shadow = Some((ray, path.beta * f * ls.li * (w / ls.pdf)));
                 }
             }
         }
 
         // Continue the path by sampling the BSDF.
-        let Some(bs) = bsdf.sample_drawn(&draw) else { break };
-        beta *= bs.weight;
+        let Some(bs) = bsdf.sample_drawn(&draw) else { return Step { shadow, next: false } };
+        let mut beta = path.beta * bs.weight;
         if beta == Vec3A::ZERO || !beta.is_finite() {
-            break;
+            return Step { shadow, next: false };
         }
-        eta_scale *= bs.eta * bs.eta;
-        prev_pdf = bs.pdf;
-        prev_delta = bs.delta;
-        if depth >= limits.rr_depth {
-            let q = (beta.max_element() * eta_scale).min(0.95);
+        path.eta_scale *= bs.eta * bs.eta;
+        path.prev_pdf = bs.pdf;
+        path.prev_delta = bs.delta;
+        if path.depth >= self.limits.rr_depth {
+            let q = (beta.max_element() * path.eta_scale).min(0.95);
             // q may be NaN only if beta is; beta was checked finite above.
             if sampler.get1d(dims::at(vertex, dims::RUSSIAN_ROULETTE)) >= q {
-                break;
+                return Step { shadow, next: false };
             }
             beta /= q;
         }
-        ray = Ray { origin: spawn_origin(sp.p, sp.ng, bs.wi, eps), dir: bs.wi, tmin: 0.0, tmax: f32::INFINITY };
-        next_hit = tracer.intersect(&ray);
-        depth += 1;
+        path.beta = beta;
+        path.ray = Ray { origin: spawn_origin(sp.p, sp.ng, bs.wi, self.eps), dir: bs.wi, tmin: 0.0, tmax: f32::INFINITY };
+        path.depth += 1;
+        Step { shadow, next: true }
     }
-    l
 }
