@@ -30,6 +30,7 @@ pub mod stream_file;
 pub mod testing;
 pub mod texture;
 pub mod vector;
+mod wavefront;
 
 pub use camera::Camera;
 pub use intersect::{Hit, Intersector, Ray};

@@ -8,11 +8,12 @@
 use crate::camera::CameraFrame;
 use crate::exact;
 use crate::film::{tiles, Tile, TileResult, TileStream, TILE_SIZE};
-use crate::integrator::{radiance_from_hit, FirstHit, PathLimits};
+use crate::integrator::{FirstHit, PathContext, PathLimits};
 use crate::intersect::{Hit, Intersector, Ray};
 use crate::part::{StreamPart, StreamSums};
 use crate::sampler::{dims, SampleSampler, StreamKind, StreamSampler};
 use crate::scene::Scene;
+use crate::wavefront::Wavefront;
 use cvtrace_streams::{Image, StreamSet};
 use glam::{DVec3, Vec3A};
 use rayon::prelude::*;
@@ -140,12 +141,18 @@ struct Context<'a, T: Intersector> {
 /// `Intersector::intersect_coherent`).
 const CAMERA_BATCH: usize = 64;
 
-/// One batch of camera rays, with the tile pixel, sample index and sampler of each.
+/// Paths followed together (see [`crate::wavefront`]): whole camera batches, so that the
+/// camera rays handed to the ray caster at once, and so their coherent batches, stay those
+/// of [`CAMERA_BATCH`] consecutive samples.
+const WAVE: usize = 4 * CAMERA_BATCH;
+
+/// One wavefront of camera rays, with the tile pixel, sample index and sampler of each.
 #[derive(Default)]
 struct CameraBatch {
     paths: Vec<(usize, u32, SampleSampler)>,
     rays: Vec<Ray>,
     hits: Vec<Option<Hit>>,
+    wave: Wavefront,
 }
 
 impl<T: Intersector> Context<'_, T> {
@@ -156,39 +163,43 @@ impl<T: Intersector> Context<'_, T> {
     /// first-hit features if `features` is set.
     fn tile_samples(
         &self,
+        batch: &mut CameraBatch,
         stream: &StreamSampler,
         tile: &Tile,
         samples: Range<u32>,
         features: bool,
         mut each: impl FnMut(usize, u32, Vec3A, bool, &FirstHit),
     ) {
-        let mut batch = CameraBatch::default();
         for (i, (x, y)) in tile.pixels().enumerate() {
             let pixel = y as u64 * self.width as u64 + x as u64;
             for s in samples.clone() {
                 let smp = stream.sample(pixel, s);
                 batch.rays.push(self.frame.ray(x, y, smp.get2d(dims::PIXEL)));
                 batch.paths.push((i, s, smp));
-                if batch.rays.len() == CAMERA_BATCH {
-                    self.trace_batch(&mut batch, features, &mut each);
+                if batch.rays.len() == WAVE {
+                    self.trace_batch(batch, features, &mut each);
                 }
             }
         }
-        self.trace_batch(&mut batch, features, &mut each);
+        self.trace_batch(batch, features, &mut each);
     }
 
-    /// Traces the batch's camera rays together, then follows each path on its own; empties the batch.
+    /// Traces the batch's camera rays (in coherent groups of [`CAMERA_BATCH`]), then follows
+    /// its paths as one wavefront; empties the batch.
     #[inline]
     fn trace_batch(&self, batch: &mut CameraBatch, features: bool, each: &mut impl FnMut(usize, u32, Vec3A, bool, &FirstHit)) {
         batch.hits.clear();
         batch.hits.resize(batch.rays.len(), None);
         self.tracer.intersect_coherent(&batch.rays, &mut batch.hits);
-        for ((&(i, s, smp), &ray), &hit) in batch.paths.iter().zip(&batch.rays).zip(&batch.hits) {
-            let mut fh = FirstHit::default();
-            let first = if features { Some(&mut fh) } else { None };
-            let v = radiance_from_hit(self.scene, self.tracer, self.limits, ray, hit, &smp, first);
+        batch.wave.clear();
+        for ((&(_, _, smp), &ray), &hit) in batch.paths.iter().zip(&batch.rays).zip(&batch.hits) {
+            batch.wave.push(ray, hit, smp);
+        }
+        batch.wave.run(&PathContext::new(self.scene, self.limits), self.tracer, features);
+        for (k, &(i, s, _)) in batch.paths.iter().enumerate() {
+            let v = batch.wave.radiance(k);
             let bad = !v.is_finite();
-            each(i, s, if bad { Vec3A::ZERO } else { v }, bad, &fh);
+            each(i, s, if bad { Vec3A::ZERO } else { v }, bad, batch.wave.first_hit(k));
         }
         batch.paths.clear();
         batch.rays.clear();
@@ -350,10 +361,11 @@ impl<'a, T: Intersector> StreamRender<'a, T> {
         let close_batch = |batch: &mut Vec<DVec3>| -> Vec<[f32; 3]> {
             batch.iter_mut().map(|b| (std::mem::take(b) / per_batch as f64).as_vec3().to_array()).collect()
         };
+        let mut camera = CameraBatch::default();
         // PT with features.
         r.pt.sum = vec![[0; 3]; n];
         for s in samples.clone() {
-            ctx.tile_samples(pt, tile, s..s + 1, true, |i, _, v, bad, fh| {
+            ctx.tile_samples(&mut camera, pt, tile, s..s + 1, true, |i, _, v, bad, fh| {
                 r.non_finite += bad as u64;
                 exact::add3(&mut r.pt.sum[i], exact::fixed3(v.to_array()));
                 batch[i] += v.as_dvec3();
@@ -368,7 +380,7 @@ impl<'a, T: Intersector> StreamRender<'a, T> {
         // CRN.
         r.crn.sum = vec![[0; 3]; n];
         for s in samples.clone() {
-            ctx.tile_samples(crn, tile, s..s + 1, false, |i, _, v, bad, _| {
+            ctx.tile_samples(&mut camera, crn, tile, s..s + 1, false, |i, _, v, bad, _| {
                 r.non_finite += bad as u64;
                 exact::add3(&mut r.crn.sum[i], exact::fixed3(v.to_array()));
                 batch[i] += v.as_dvec3();
@@ -512,9 +524,10 @@ pub fn render_reference_pass<T: Intersector>(
         .map(|tile| {
             let mut out: Vec<[i128; 3]> = tile.pixels().map(|(x, y)| sums[y as usize * width + x as usize]).collect();
             let mut bad_count = 0u64;
+            let mut camera = CameraBatch::default();
             // Sample by sample, as the streams: the same rays are traced together whatever the passes.
             for s in sample_range.clone() {
-                ctx.tile_samples(&pt, tile, s..s + 1, false, |i, _, v, bad, _| {
+                ctx.tile_samples(&mut camera, &pt, tile, s..s + 1, false, |i, _, v, bad, _| {
                     bad_count += bad as u64;
                     exact::add3(&mut out[i], exact::fixed3(v.to_array()));
                 });

@@ -105,6 +105,13 @@ pub struct SampleSampler {
 const INV_2_24: f32 = 1.0 / (1u32 << 24) as f32;
 
 impl SampleSampler {
+    /// The key every dimension of this sample is hashed with (for code that draws the same
+    /// numbers for many samples at once).
+    #[inline]
+    pub(crate) fn key(&self) -> u64 {
+        self.key
+    }
+
     /// Dimension `dim` as a float in `[0, 1)` with 24 random bits (exactly representable).
     #[inline]
     pub fn get1d(&self, dim: u32) -> f32 {

@@ -279,6 +279,18 @@ impl Scene {
         self.ray_epsilon
     }
 
+    /// The vertex normals of triangle `prim` (`None` if the scene has none).
+    #[inline]
+    pub(crate) fn triangle_normals(&self, prim: u32) -> Option<[Vec3A; 3]> {
+        (!self.normals.is_empty()).then(|| self.triangles[prim as usize].map(|i| self.normals[i as usize]))
+    }
+
+    /// Whether the scene has vertex normals.
+    #[inline]
+    pub(crate) fn has_normals(&self) -> bool {
+        !self.normals.is_empty()
+    }
+
     #[inline]
     pub fn triangle_vertices(&self, prim: u32) -> [Vec3A; 3] {
         self.triangles[prim as usize].map(|i| self.positions[i as usize])

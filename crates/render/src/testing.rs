@@ -98,6 +98,11 @@ pub fn add_box(parts: &mut SceneParts, lo: Vec3A, hi: Vec3A, material: u32) {
 /// A Cornell-style box: room `[-1, 1]³` open towards +z, red left and green right walls, a
 /// downward-facing area light under the ceiling and two white blocks; Lambertian throughout.
 pub fn cornell_box() -> Scene {
+    Scene::from_parts(cornell_box_parts()).expect("the built-in Cornell box is valid")
+}
+
+/// The parts of [`cornell_box`], to vary it.
+pub fn cornell_box_parts() -> SceneParts {
     let mut parts = SceneParts {
         materials: vec![
             Material::diffuse(Vec3A::splat(0.73)),
@@ -118,7 +123,7 @@ pub fn cornell_box() -> Scene {
     add_box(&mut parts, v(-0.65, -1.0, -0.6), v(-0.05, 0.2, -0.05), 0);
     add_box(&mut parts, v(0.1, -1.0, -0.1), v(0.65, -0.4, 0.5), 0);
     parts.camera = Some(Camera { eye: v(0.0, 0.0, 3.9), target: v(0.0, 0.0, 0.0), up: Vec3A::Y, vfov_deg: 38.0, width: 256, height: 256 });
-    Scene::from_parts(parts).expect("the built-in Cornell box is valid")
+    parts
 }
 
 /// The Cornell-style box with a material line-up: a glossy plastic floor, a rough gold tall

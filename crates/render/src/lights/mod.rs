@@ -183,11 +183,7 @@ impl LightSet {
     /// outside a spot cone, a black texel).
     #[inline]
     pub fn sample(&self, scene: &Scene, p: Vec3A, u_select: f32, u: Vec2) -> Option<LightSample> {
-        if self.emitters.is_empty() {
-            return None;
-        }
-        let i = self.cdf.partition_point(|&c| c <= u_select).min(self.emitters.len() - 1);
-        match self.emitters[i] {
+        match self.choose(u_select)? {
             Emitter::Triangle(prim) => sample_area(scene, prim, self.pdf_area[prim as usize], p, u),
             Emitter::Punctual(k) => {
                 let s = self.punctual[k as usize].sample_li(p)?;
@@ -205,6 +201,24 @@ impl LightSet {
                     end: ShadowEnd::Infinite,
                 })
             }
+        }
+    }
+}
+
+impl LightSet {
+    /// The emitter `u_select` chooses (`None` without emitters).
+    #[inline]
+    fn choose(&self, u_select: f32) -> Option<Emitter> {
+        let last = self.emitters.len().checked_sub(1)?;
+        Some(self.emitters[self.cdf.partition_point(|&c| c <= u_select).min(last)])
+    }
+
+    /// The emissive triangle [`LightSet::sample`] samples for `u_select`, if it chooses one.
+    #[inline]
+    pub(crate) fn chosen_triangle(&self, u_select: f32) -> Option<u32> {
+        match self.choose(u_select)? {
+            Emitter::Triangle(prim) => Some(prim),
+            Emitter::Punctual(_) | Emitter::Environment => None,
         }
     }
 }
