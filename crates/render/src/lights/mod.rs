@@ -209,14 +209,20 @@ impl LightSet {
     /// The emitter `u_select` chooses (`None` without emitters).
     #[inline]
     fn choose(&self, u_select: f32) -> Option<Emitter> {
-        let last = self.emitters.len().checked_sub(1)?;
-        Some(self.emitters[self.cdf.partition_point(|&c| c <= u_select).min(last)])
+        self.choose_index(u_select).map(|i| self.emitters[i])
     }
 
-    /// The emissive triangle [`LightSet::sample`] samples for `u_select`, if it chooses one.
+    /// The index (in selection order) of the emitter [`LightSet::sample`] samples for
+    /// `u_select` (`None` without emitters).
     #[inline]
-    pub(crate) fn chosen_triangle(&self, u_select: f32) -> Option<u32> {
-        match self.choose(u_select)? {
+    pub(crate) fn choose_index(&self, u_select: f32) -> Option<usize> {
+        let last = self.emitters.len().checked_sub(1)?;
+        Some(self.cdf.partition_point(|&c| c <= u_select).min(last))
+    }
+
+    /// The triangle of emitter `index` (selection order), if it is one.
+    pub(crate) fn emitter_triangle(&self, index: usize) -> Option<u32> {
+        match self.emitters[index] {
             Emitter::Triangle(prim) => Some(prim),
             Emitter::Punctual(_) | Emitter::Environment => None,
         }

@@ -14,6 +14,7 @@ mod lanes;
 use crate::integrator::{FirstHit, Path, PathContext};
 use crate::intersect::{Hit, Intersector, Ray};
 use crate::sampler::{dims, SampleSampler};
+use crate::scene::Scene;
 use glam::Vec3A;
 use lanes::{Consts, Kernel, LaneIn, LaneOut, W};
 
@@ -36,6 +37,70 @@ pub(crate) struct Wavefront {
     lanes_out: Box<LaneOut>,
     /// The path of each filled lane.
     lane_path: [u32; W],
+    /// What the lanes read of the scene's materials and lights, for the scene of the last run.
+    tables: Tables,
+}
+
+/// A material as the lane kernel reads it.
+#[derive(Clone, Copy)]
+struct LaneMaterial {
+    /// Whether a vertex with it is the kernel's: diffuse, no texture.
+    lanes: bool,
+    base: Vec3A,
+    /// The BSDF's albedo, `base` at least 0 (as [`crate::bsdf::Bsdf::diffuse`] takes it).
+    albedo: Vec3A,
+    emission: Vec3A,
+}
+
+/// An emitter as the lane kernel samples it: an emissive triangle without a texture.
+#[derive(Clone, Copy)]
+struct LaneLight {
+    p: [Vec3A; 3],
+    ng: Vec3A,
+    pdf_area: f32,
+    emission: Vec3A,
+}
+
+/// Per material and per emitter (in selection order) of one scene, what the lanes read.
+#[derive(Default)]
+struct Tables {
+    /// The scene these are of (its address: a scene lives as long as its render).
+    scene: usize,
+    materials: Vec<LaneMaterial>,
+    lights: Vec<Option<LaneLight>>,
+}
+
+impl Tables {
+    fn of(&mut self, scene: &Scene) -> &Tables {
+        let id = scene as *const Scene as usize;
+        if self.scene != id || self.materials.len() != scene.materials().len() {
+            self.scene = id;
+            self.materials = scene
+                .materials()
+                .iter()
+                .map(|m| LaneMaterial {
+                    lanes: m.is_diffuse_only() && m.base_color_texture.is_none() && m.emissive_texture.is_none(),
+                    base: m.base_color,
+                    albedo: m.base_color.max(Vec3A::ZERO),
+                    emission: m.emission,
+                })
+                .collect();
+            let lights = scene.lights();
+            self.lights = (0..lights.len())
+                .map(|k| {
+                    let prim = lights.emitter_triangle(k)?;
+                    let m = scene.material_of(prim);
+                    m.emissive_texture.is_none().then(|| LaneLight {
+                        p: scene.triangle_vertices(prim),
+                        ng: scene.geometric_normal(prim),
+                        pdf_area: lights.pdf_area(prim),
+                        emission: m.emission,
+                    })
+                })
+                .collect();
+        }
+        self
+    }
 }
 
 impl Default for Wavefront {
@@ -60,6 +125,7 @@ impl Wavefront {
             lanes_in: Box::default(),
             lanes_out: Box::default(),
             lane_path: [0; W],
+            tables: Tables::default(),
         }
     }
 
@@ -84,6 +150,9 @@ impl Wavefront {
     pub fn run<T: Intersector>(&mut self, ctx: &PathContext, tracer: &T, features: bool) {
         self.active.clear();
         self.active.extend(0..self.paths.len() as u32);
+        if self.kernel.is_some() {
+            self.tables.of(ctx.scene);
+        }
         let consts = Consts { eps: ctx.eps, max_depth: ctx.max_depth, rr_depth: ctx.limits.rr_depth, normals: ctx.scene.has_normals() };
         let mut first_bounce = true;
         while !self.active.is_empty() {
@@ -134,23 +203,20 @@ impl Wavefront {
         assert!(l < W);
         let Some(hit) = self.hits[i] else { return false };
         let scene = ctx.scene;
-        let material = scene.material_of(hit.prim);
-        if !material.is_diffuse_only() || material.base_color_texture.is_some() || material.emissive_texture.is_some() {
+        let material = &self.tables.materials[scene.triangle_materials()[hit.prim as usize] as usize];
+        if !material.lanes {
             return false;
         }
         let path = &self.paths[i];
         let lights = scene.lights();
-        let inp = &mut *self.lanes_in;
-        let light = if lights.is_empty() {
-            None
-        } else {
-            let u_select = self.samplers[i].get1d(dims::at(path.depth - 1, dims::LIGHT_SELECT));
-            let Some(prim) = lights.chosen_triangle(u_select) else { return false };
-            if scene.material_of(prim).emissive_texture.is_some() {
-                return false;
-            }
-            Some(prim)
+        let light = match lights.choose_index(self.samplers[i].get1d(dims::at(path.depth - 1, dims::LIGHT_SELECT))) {
+            None => None,
+            Some(k) => match &self.tables.lights[k] {
+                Some(light) => Some(light),
+                None => return false,
+            },
         };
+        let inp = &mut *self.lanes_in;
         let put = |a: &mut [[f32; W]; 3], v: Vec3A| {
             a[0][l] = v.x;
             a[1][l] = v.y;
@@ -173,18 +239,18 @@ impl Wavefront {
             }
         }
         put(&mut inp.ng, scene.geometric_normal(hit.prim));
-        put(&mut inp.base, material.base_color);
-        put(&mut inp.albedo, material.base_color.max(Vec3A::ZERO));
+        put(&mut inp.base, material.base);
+        put(&mut inp.albedo, material.albedo);
         put(&mut inp.emission, material.emission);
         inp.pdf_area[l] = lights.pdf_area(hit.prim);
         inp.has_light[l] = light.is_some() as u32;
-        if let Some(prim) = light {
-            for (dst, p) in inp.light_p.iter_mut().zip(scene.triangle_vertices(prim)) {
+        if let Some(light) = light {
+            for (dst, p) in inp.light_p.iter_mut().zip(light.p) {
                 put(dst, p);
             }
-            put(&mut inp.light_ng, scene.geometric_normal(prim));
-            inp.light_pdf_area[l] = lights.pdf_area(prim);
-            put(&mut inp.light_emission, scene.material_of(prim).emission);
+            put(&mut inp.light_ng, light.ng);
+            inp.light_pdf_area[l] = light.pdf_area;
+            put(&mut inp.light_emission, light.emission);
         }
         true
     }
