@@ -216,13 +216,12 @@ fn cosine_direction(ux: f32, uy: f32) -> V3 {
 /// returns early on `x <= 0`, the lane keeps `!(x <= 0)`: the same side for NaN.
 #[allow(clippy::neg_cmp_op_on_partial_ord)]
 #[inline(always)]
-fn lane<const NORMALS: bool>(i: &LaneIn, o: &mut LaneOut, k: &Consts, l: usize) {
+fn lane<const NORMALS: bool>(i: &LaneIn, draws: &Draws, o: &mut LaneOut, k: &Consts, l: usize) {
     let d = V3::at(&i.dir, l);
     let (t, u, v) = (i.t[l], i.u[l], i.v[l]);
     let beta = V3::at(&i.beta, l);
     let prev_delta = i.prev_delta[l] != 0;
     let depth = i.depth[l];
-    let key = i.key[l];
 
     // Scene::surface.
     let w = 1.0 - u - v;
@@ -270,12 +269,10 @@ fn lane<const NORMALS: bool>(i: &LaneIn, o: &mut LaneOut, k: &Consts, l: usize) 
     let wo_dot_ng = wo.dot(ng);
     let albedo = V3::at(&i.albedo, l);
     let lit = albedo.max_element() > 0.0;
-    let vertex = depth.wrapping_sub(1);
-    let (bx, by) = get2d(key, dims::at(vertex, dims::BSDF_DIR));
-    let cosine = cosine_direction(bx, by);
+    let cosine = cosine_direction(draws.bsdf[0][l], draws.bsdf[1][l]);
 
     // Next-event estimation towards a point on the chosen triangle (`lights::sample_area`).
-    let (lx, ly) = get2d(key, dims::at(vertex, dims::LIGHT_POS));
+    let (lx, ly) = (draws.light[0][l], draws.light[1][l]);
     let su = lx.sqrt();
     let (ba, bb) = (su * (1.0 - ly), su * ly);
     let [q0, q1, q2] = [0, 1, 2].map(|c| V3::at(&i.light_p[c], l));
@@ -313,7 +310,7 @@ fn lane<const NORMALS: bool>(i: &LaneIn, o: &mut LaneOut, k: &Consts, l: usize) 
     let eta_scale = i.eta_scale[l] * 1.0;
     let roulette = depth >= k.rr_depth;
     let q = (next_beta.max_element() * eta_scale).min(0.95);
-    let survives = !(get1d(key, dims::at(vertex, dims::RUSSIAN_ROULETTE)) >= q);
+    let survives = !(draws.roulette[l] >= q);
     o.next[l] = (goes_on && scattered && carries && (!roulette || survives)) as u32;
     V3::select(roulette, next_beta.div(q), next_beta).put(&mut o.beta, l);
     o.pdf[l] = wi_l.z.abs() * FRAC_1_PI;
@@ -321,10 +318,34 @@ fn lane<const NORMALS: bool>(i: &LaneIn, o: &mut LaneOut, k: &Consts, l: usize) 
     next_dir.put(&mut o.next_dir, l);
 }
 
+/// The random numbers of one vertex per lane: the BSDF pair, the light-position pair and
+/// Russian roulette's.
+#[derive(Clone, Copy)]
+struct Draws {
+    bsdf: [[f32; W]; 2],
+    light: [[f32; W]; 2],
+    roulette: [f32; W],
+}
+
+/// The hashes in a loop of their own: on 64-bit lanes they would halve the width the rest
+/// of the vertex runs at.
+#[inline(always)]
+fn draws(i: &LaneIn) -> Draws {
+    let mut d = Draws { bsdf: [[0.0; W]; 2], light: [[0.0; W]; 2], roulette: [0.0; W] };
+    for l in 0..W {
+        let (key, vertex) = (i.key[l], i.depth[l].wrapping_sub(1));
+        (d.bsdf[0][l], d.bsdf[1][l]) = get2d(key, dims::at(vertex, dims::BSDF_DIR));
+        (d.light[0][l], d.light[1][l]) = get2d(key, dims::at(vertex, dims::LIGHT_POS));
+        d.roulette[l] = get1d(key, dims::at(vertex, dims::RUSSIAN_ROULETTE));
+    }
+    d
+}
+
 #[inline(always)]
 fn lanes<const NORMALS: bool>(i: &LaneIn, o: &mut LaneOut, k: &Consts) {
+    let d = draws(i);
     for l in 0..W {
-        lane::<NORMALS>(i, o, k, l);
+        lane::<NORMALS>(i, &d, o, k, l);
     }
 }
 
