@@ -13,7 +13,7 @@ use crate::intersect::{Hit, Intersector, Ray};
 use crate::part::{StreamPart, StreamSums};
 use crate::sampler::{dims, SampleSampler, StreamKind, StreamSampler};
 use crate::scene::Scene;
-use crate::wavefront::Wavefront;
+use crate::wavefront::{SceneLanes, Wavefront};
 use cvtrace_streams::{Image, StreamSet};
 use glam::{DVec3, Vec3A};
 use rayon::prelude::*;
@@ -128,6 +128,8 @@ impl RenderSettings {
 /// Shared, read-only state of one render.
 struct Context<'a, T: Intersector> {
     scene: &'a Scene,
+    /// The scene as the wavefronts' lane kernel reads it.
+    lanes: SceneLanes,
     tracer: &'a T,
     frame: CameraFrame,
     limits: PathLimits,
@@ -195,7 +197,7 @@ impl<T: Intersector> Context<'_, T> {
         for ((&(_, _, smp), &ray), &hit) in batch.paths.iter().zip(&batch.rays).zip(&batch.hits) {
             batch.wave.push(ray, hit, smp);
         }
-        batch.wave.run(&PathContext::new(self.scene, self.limits), self.tracer, features);
+        batch.wave.run(&PathContext::new(self.scene, self.limits), Some(&self.lanes), self.tracer, features);
         for (k, &(i, s, _)) in batch.paths.iter().enumerate() {
             let v = batch.wave.radiance(k);
             let bad = !v.is_finite();
@@ -213,6 +215,7 @@ fn context<'a, T: Intersector>(scene: &'a Scene, tracer: &'a T, settings: &Rende
     }
     Ok(Context {
         scene,
+        lanes: SceneLanes::new(scene),
         tracer,
         frame: scene.camera().frame(settings.width, settings.height),
         limits: settings.limits(),

@@ -112,6 +112,12 @@ impl SampleSampler {
         self.key
     }
 
+    /// The sample whose [`SampleSampler::key`] is `key`.
+    #[inline]
+    pub(crate) fn from_key(key: u64) -> SampleSampler {
+        SampleSampler { key }
+    }
+
     /// Dimension `dim` as a float in `[0, 1)` with 24 random bits (exactly representable).
     #[inline]
     pub fn get1d(&self, dim: u32) -> f32 {

@@ -279,10 +279,10 @@ impl Scene {
         self.ray_epsilon
     }
 
-    /// The vertex normals of triangle `prim` (`None` if the scene has none).
+    /// The vertex normals (empty if the scene has none).
     #[inline]
-    pub(crate) fn triangle_normals(&self, prim: u32) -> Option<[Vec3A; 3]> {
-        (!self.normals.is_empty()).then(|| self.triangles[prim as usize].map(|i| self.normals[i as usize]))
+    pub(crate) fn vertex_normals(&self) -> &[Vec3A] {
+        &self.normals
     }
 
     /// Whether the scene has vertex normals.

@@ -4,64 +4,84 @@
 //! vertex, operation by operation and in the same order (glam's `Vec3A` sums its dot products
 //! as `(x·x' + y·y') + z·z'`, and so does [`V3::dot`]), with every branch replaced by a select,
 //! so that the compiler can run each step on all lanes at once; the result is the same bit
-//! for bit, which `tests` checks against the scalar vertex and the renders check end to end.
+//! for bit, which the tests check against the scalar vertex and the renders check end to end.
 //!
-//! The kernel is written once, as a loop over the lanes of structure-of-arrays inputs, and
-//! compiled three times ([`kernel`]): for AVX-512, for AVX2 and for any x86-64 (or other) CPU.
-//! Rust never fuses a multiplication and an addition on its own, so all three do the same
-//! IEEE operations and give the same bits: an image does not depend on the CPU it was
-//! rendered on, and a farm's parts from different machines still merge into the one-shot file.
+//! The kernel is written once, as loops over the lanes of a [`Chunk`] (structure of arrays),
+//! and compiled three times ([`Isa`]): for AVX-512, for AVX2 and for any CPU. Rust never fuses
+//! a multiplication and an addition on its own, so all three do the same IEEE operations and
+//! give the same bits: an image does not depend on the CPU it was rendered on, and a farm's
+//! parts from different machines still merge into the one-shot file. What a lane reads of the
+//! scene comes as one 16-value record per triangle, material and emitter ([`SceneLanes`]),
+//! copied in per lane and turned into structure-of-arrays by a 16×16 transpose in registers
+//! ([`Transpose`]): a gather of each value on its own cost several times as much.
 use crate::sampler::dims;
+use crate::scene::Scene;
+use glam::Vec3A;
 use std::f32::consts::{FRAC_1_PI, FRAC_PI_4};
 
-/// Lanes per kernel call: 16 single-precision values fill one AVX-512 register.
+/// Lanes per chunk: 16 single-precision values fill one AVX-512 register.
 pub(crate) const W: usize = 16;
 
-/// What the kernel reads of one lane's path, hit and scene data (gathered by the caller).
-#[derive(Clone, Copy, Default)]
-pub(crate) struct LaneIn {
-    /// The ray that found the vertex: its unit direction.
+/// The state of [`W`] paths, structure of arrays: what the kernel reads, and updates in place
+/// for the lanes it shades.
+#[derive(Clone, Copy)]
+pub(crate) struct Chunk {
+    /// The ray whose nearest hit is the next vertex (`tmin` 0, `tmax` infinite).
+    pub origin: [[f32; W]; 3],
     pub dir: [[f32; W]; 3],
-    /// Hit distance and barycentrics of vertices 1 and 2.
-    pub t: [f32; W],
-    pub u: [f32; W],
-    pub v: [f32; W],
     pub beta: [[f32; W]; 3],
+    /// Radiance gathered so far.
+    pub l: [[f32; W]; 3],
     pub eta_scale: [f32; W],
     pub prev_pdf: [f32; W],
-    /// 1 where the previous bounce was a delta lobe (or the ray is the camera's), else 0.
+    /// 1 where the previous bounce was a delta lobe (or the ray is the camera's).
     pub prev_delta: [u32; W],
     /// Segments so far, including the ray.
     pub depth: [u32; W],
     /// The sample's sampler key.
     pub key: [u64; W],
-    /// The hit triangle's vertices, vertex normals (when the scene has them) and geometric normal.
-    pub p: [[[f32; W]; 3]; 3],
-    pub n: [[[f32; W]; 3]; 3],
-    pub ng: [[f32; W]; 3],
-    /// The material's base colour (the albedo feature) and the BSDF's albedo (at least 0).
-    pub base: [[f32; W]; 3],
-    pub albedo: [[f32; W]; 3],
-    /// The material's emission (0 for a non-emitter) and the hit triangle's area density as a
-    /// light.
-    pub emission: [[f32; W]; 3],
-    pub pdf_area: [f32; W],
-    /// 1 where next-event estimation has a triangle to sample (then the light fields are set).
+    /// Which of the wavefront's paths the lane holds.
+    pub id: [u32; W],
+    /// The ray's nearest hit: 1 where there is one; distance, barycentrics, triangle.
+    pub hit: [u32; W],
+    pub t: [f32; W],
+    pub u: [f32; W],
+    pub v: [f32; W],
+    pub prim: [u32; W],
+    /// Set before the kernel runs: 1 where it shades the lane's vertex, and 1 where
+    /// next-event estimation samples an emitter there (whose record is in the blocks).
+    pub shade: [u32; W],
     pub has_light: [u32; W],
-    /// The chosen light triangle: vertices, geometric normal, area density, emission.
-    pub light_p: [[[f32; W]; 3]; 3],
-    pub light_ng: [[f32; W]; 3],
-    pub light_pdf_area: [f32; W],
-    pub light_emission: [[f32; W]; 3],
 }
 
-/// What the kernel leaves for each lane.
-#[derive(Clone, Copy, Default)]
-pub(crate) struct LaneOut {
-    /// 1 where the vertex emits towards the ray: `emitted` is then added to the path's radiance.
-    pub emits: [u32; W],
-    pub emitted: [[f32; W]; 3],
-    /// First-hit features: albedo, shading normal facing the ray, depth.
+impl Default for Chunk {
+    fn default() -> Self {
+        Chunk {
+            origin: [[0.0; W]; 3],
+            dir: [[0.0; W]; 3],
+            beta: [[0.0; W]; 3],
+            l: [[0.0; W]; 3],
+            eta_scale: [0.0; W],
+            prev_pdf: [0.0; W],
+            prev_delta: [0; W],
+            depth: [0; W],
+            key: [0; W],
+            id: [0; W],
+            hit: [0; W],
+            t: [0.0; W],
+            u: [0.0; W],
+            v: [0.0; W],
+            prim: [0; W],
+            shade: [0; W],
+            has_light: [0; W],
+        }
+    }
+}
+
+/// What the kernel leaves beside the state, for the lanes it shades.
+#[derive(Clone, Copy)]
+pub(crate) struct Out {
+    /// First-hit features: albedo and shading normal facing the ray (the depth is `t`).
     pub first_albedo: [[f32; W]; 3],
     pub first_normal: [[f32; W]; 3],
     /// 1 where a shadow ray is to be traced: origin, direction (`tmax` 1), the light it brings.
@@ -69,12 +89,146 @@ pub(crate) struct LaneOut {
     pub shadow_origin: [[f32; W]; 3],
     pub shadow_dir: [[f32; W]; 3],
     pub shadow_light: [[f32; W]; 3],
-    /// 1 where the path goes on: its new ray, throughput and BSDF density.
+    /// 1 where the path goes on (its new ray is in the chunk).
     pub next: [u32; W],
-    pub origin: [[f32; W]; 3],
-    pub next_dir: [[f32; W]; 3],
-    pub beta: [[f32; W]; 3],
-    pub pdf: [f32; W],
+}
+
+impl Default for Out {
+    fn default() -> Self {
+        Out {
+            first_albedo: [[0.0; W]; 3],
+            first_normal: [[0.0; W]; 3],
+            shadow: [0; W],
+            shadow_origin: [[0.0; W]; 3],
+            shadow_dir: [[0.0; W]; 3],
+            shadow_light: [[0.0; W]; 3],
+            next: [0; W],
+        }
+    }
+}
+
+/// One record of the scene as the kernel reads it: 16 values, one cache line, so that a lane
+/// takes a triangle, a material or an emitter with one copy and a chunk's records are turned
+/// into structure-of-arrays by one 16×16 transpose ([`Transpose`]).
+pub(crate) type Record = [f32; W];
+
+/// The offsets of a triangle record: its vertices, geometric normal and area density as a light.
+const TRI_P: usize = 0;
+const TRI_NG: usize = 9;
+const TRI_PDF: usize = 12;
+/// The offsets of a material record: base colour, the BSDF's albedo (at least 0), emission.
+const MAT_BASE: usize = 0;
+const MAT_ALBEDO: usize = 3;
+const MAT_EMISSION: usize = 6;
+/// The offsets of an emitter record: its triangle's vertices and normal, area density, emission.
+const LIGHT_P: usize = 0;
+const LIGHT_NG: usize = 9;
+const LIGHT_PDF: usize = 12;
+const LIGHT_EMISSION: usize = 13;
+
+/// The scene as the kernel reads it: a record per triangle (and one of its vertex normals,
+/// when the scene has them), per material and per emitter (in selection order), and which
+/// materials and emitters are the kernel's (diffuse without texture; a triangle without an
+/// emission texture). 64 bytes per triangle, twice that with vertex normals: 34 MB for the
+/// 268,041 triangles of the largest validation scene, held while it renders.
+pub(crate) struct SceneLanes {
+    pub triangle: Vec<Record>,
+    pub normals: Option<Vec<Record>>,
+    pub material: Vec<Record>,
+    pub material_shaded: Vec<bool>,
+    pub light: Vec<Record>,
+    pub light_sampled: Vec<bool>,
+}
+
+fn record(parts: &[(usize, &[f32])]) -> Record {
+    let mut r = [0.0; W];
+    for (at, values) in parts {
+        r[*at..*at + values.len()].copy_from_slice(values);
+    }
+    r
+}
+
+impl SceneLanes {
+    pub fn new(scene: &Scene) -> SceneLanes {
+        let lights = scene.lights();
+        let triangle_record = |p: u32| {
+            let [p0, p1, p2] = scene.triangle_vertices(p).map(|v| v.to_array());
+            record(&[
+                (TRI_P, &p0),
+                (TRI_P + 3, &p1),
+                (TRI_P + 6, &p2),
+                (TRI_NG, &scene.geometric_normal(p).to_array()),
+                (TRI_PDF, &[lights.pdf_area(p)]),
+            ])
+        };
+        let triangles = 0..scene.triangles().len() as u32;
+        let normals = scene.has_normals().then(|| {
+            let n = scene.vertex_normals();
+            scene
+                .triangles()
+                .iter()
+                .map(|t| {
+                    let [n0, n1, n2] = t.map(|i| n[i as usize].to_array());
+                    record(&[(0, &n0), (3, &n1), (6, &n2)])
+                })
+                .collect()
+        });
+        let emitters: Vec<Option<u32>> = (0..lights.len()).map(|k| lights.emitter_triangle(k)).collect();
+        SceneLanes {
+            triangle: triangles.map(triangle_record).collect(),
+            normals,
+            material: scene
+                .materials()
+                .iter()
+                .map(|m| {
+                    record(&[
+                        (MAT_BASE, &m.base_color.to_array()),
+                        (MAT_ALBEDO, &m.base_color.max(Vec3A::ZERO).to_array()),
+                        (MAT_EMISSION, &m.emission.to_array()),
+                    ])
+                })
+                .collect(),
+            material_shaded: scene
+                .materials()
+                .iter()
+                .map(|m| m.is_diffuse_only() && m.base_color_texture.is_none() && m.emissive_texture.is_none())
+                .collect(),
+            light: emitters
+                .iter()
+                .map(|e| match *e {
+                    Some(p) => {
+                        let [p0, p1, p2] = scene.triangle_vertices(p).map(|v| v.to_array());
+                        record(&[
+                            (LIGHT_P, &p0),
+                            (LIGHT_P + 3, &p1),
+                            (LIGHT_P + 6, &p2),
+                            (LIGHT_NG, &scene.geometric_normal(p).to_array()),
+                            (LIGHT_PDF, &[lights.pdf_area(p)]),
+                            (LIGHT_EMISSION, &scene.material_of(p).emission.to_array()),
+                        ])
+                    }
+                    None => [0.0; W],
+                })
+                .collect(),
+            light_sampled: emitters.iter().map(|e| e.is_some_and(|p| scene.material_of(p).emissive_texture.is_none())).collect(),
+        }
+    }
+}
+
+/// The records of a chunk's lanes: `[lane][value]` as the caller copies them in, and after
+/// [`Transpose`] `[value][lane]` as the kernel reads them.
+#[derive(Clone, Copy)]
+pub(crate) struct Blocks {
+    pub triangle: [Record; W],
+    pub normals: [Record; W],
+    pub material: [Record; W],
+    pub light: [Record; W],
+}
+
+impl Default for Blocks {
+    fn default() -> Self {
+        Blocks { triangle: [[0.0; W]; W], normals: [[0.0; W]; W], material: [[0.0; W]; W], light: [[0.0; W]; W] }
+    }
 }
 
 /// What every lane shares.
@@ -83,8 +237,6 @@ pub(crate) struct Consts {
     pub eps: f32,
     pub max_depth: u32,
     pub rr_depth: u32,
-    /// Whether the scene has vertex normals (else the shading normal is the geometric one).
-    pub normals: bool,
 }
 
 /// A 3-vector of scalars whose operations round as glam's `Vec3A` does.
@@ -97,8 +249,13 @@ struct V3 {
 
 impl V3 {
     #[inline(always)]
-    fn at(a: &[[f32; W]; 3], l: usize) -> V3 {
+    fn lane(a: &[[f32; W]; 3], l: usize) -> V3 {
         V3 { x: a[0][l], y: a[1][l], z: a[2][l] }
+    }
+    /// Values `at..at + 3` of a transposed block.
+    #[inline(always)]
+    fn field(b: &[Record; W], at: usize, l: usize) -> V3 {
+        V3 { x: b[at][l], y: b[at + 1][l], z: b[at + 2][l] }
     }
     #[inline(always)]
     fn put(self, a: &mut [[f32; W]; 3], l: usize) {
@@ -211,25 +368,48 @@ fn cosine_direction(ux: f32, uy: f32) -> V3 {
     V3 { x: dx, y: dy, z: (1.0 - r * r).max(0.0).sqrt() }
 }
 
+/// The random numbers of one vertex per lane: the BSDF pair, the light-position pair and
+/// Russian roulette's.
+struct Draws {
+    bsdf: [[f32; W]; 2],
+    light: [[f32; W]; 2],
+    roulette: [f32; W],
+}
+
+/// The hashes in a loop of their own: on 64-bit lanes they would halve the width the rest
+/// of the vertex runs at.
+#[inline(always)]
+fn draws(c: &Chunk) -> Draws {
+    let mut d = Draws { bsdf: [[0.0; W]; 2], light: [[0.0; W]; 2], roulette: [0.0; W] };
+    for l in 0..std::hint::black_box(W).min(W) {
+        let (key, vertex) = (c.key[l], c.depth[l].wrapping_sub(1));
+        (d.bsdf[0][l], d.bsdf[1][l]) = get2d(key, dims::at(vertex, dims::BSDF_DIR));
+        (d.light[0][l], d.light[1][l]) = get2d(key, dims::at(vertex, dims::LIGHT_POS));
+        d.roulette[l] = get1d(key, dims::at(vertex, dims::RUSSIAN_ROULETTE));
+    }
+    d
+}
+
 /// One lane: the vertex of [`crate::integrator::PathContext::vertex`] for a hit on a diffuse,
 /// untextured material whose light sample (if any) is on a triangle. Where the scalar code
 /// returns early on `x <= 0`, the lane keeps `!(x <= 0)`: the same side for NaN.
 #[allow(clippy::neg_cmp_op_on_partial_ord)]
 #[inline(always)]
-fn lane<const NORMALS: bool>(i: &LaneIn, draws: &Draws, o: &mut LaneOut, k: &Consts, l: usize) {
-    let d = V3::at(&i.dir, l);
-    let (t, u, v) = (i.t[l], i.u[l], i.v[l]);
-    let beta = V3::at(&i.beta, l);
-    let prev_delta = i.prev_delta[l] != 0;
-    let depth = i.depth[l];
+fn lane<const NORMALS: bool>(c: &mut Chunk, o: &mut Out, blk: &Blocks, draws: &Draws, k: &Consts, l: usize) {
+    let shade = c.shade[l] != 0;
+    let d = V3::lane(&c.dir, l);
+    let (t, u, v) = (c.t[l], c.u[l], c.v[l]);
+    let beta = V3::lane(&c.beta, l);
+    let prev_delta = c.prev_delta[l] != 0;
+    let depth = c.depth[l];
 
     // Scene::surface.
     let w = 1.0 - u - v;
-    let [p0, p1, p2] = [0, 1, 2].map(|c| V3::at(&i.p[c], l));
+    let (p0, p1, p2) = (V3::field(&blk.triangle, TRI_P, l), V3::field(&blk.triangle, TRI_P + 3, l), V3::field(&blk.triangle, TRI_P + 6, l));
     let p = p0.scale(w).add(p1.scale(u)).add(p2.scale(v));
-    let ng = V3::at(&i.ng, l);
+    let ng = V3::field(&blk.triangle, TRI_NG, l);
     let ns = if NORMALS {
-        let [n0, n1, n2] = [0, 1, 2].map(|c| V3::at(&i.n[c], l));
+        let (n0, n1, n2) = (V3::field(&blk.normals, 0, l), V3::field(&blk.normals, 3, l), V3::field(&blk.normals, 6, l));
         let n = n0.scale(w).add(n1.scale(u)).add(n2.scale(v));
         let len2 = n.dot(n);
         let unit = n.div(len2.sqrt());
@@ -241,18 +421,18 @@ fn lane<const NORMALS: bool>(i: &LaneIn, draws: &Draws, o: &mut LaneOut, k: &Con
     let front = d.dot(ng) < 0.0;
 
     // Emission, MIS-weighted against light sampling unless the previous bounce was a delta.
-    let emission = V3::at(&i.emission, l);
+    let emission = V3::field(&blk.material, MAT_EMISSION, l);
     let emits = front && emission.max_element() > 0.0;
     let le = V3::select(emits, emission, V3::splat(0.0));
     let cos_l = -d.dot(ng);
-    let pdf_light = i.pdf_area[l] * t * t / cos_l;
-    let w_em = if prev_delta { 1.0 } else { power_heuristic(i.prev_pdf[l], pdf_light) };
-    o.emits[l] = emits as u32;
-    beta.mul(le).scale(w_em).put(&mut o.emitted, l);
+    let pdf_light = blk.triangle[TRI_PDF][l] * t * t / cos_l;
+    let w_em = if prev_delta { 1.0 } else { power_heuristic(c.prev_pdf[l], pdf_light) };
+    let path_l = V3::lane(&c.l, l);
+    V3::select(shade && emits, path_l.add(beta.mul(le).scale(w_em)), path_l).put(&mut c.l, l);
 
     // First-hit features.
     V3::select(ns.dot(d) > 0.0, ns.neg(), ns).put(&mut o.first_normal, l);
-    V3::select(le.nonzero(), le, V3::at(&i.base, l)).put(&mut o.first_albedo, l);
+    V3::select(le.nonzero(), le, V3::field(&blk.material, MAT_BASE, l)).put(&mut o.first_albedo, l);
     let goes_on = depth < k.max_depth;
 
     // Bsdf::diffuse: the frame around the shading normal (or the geometric one where the
@@ -267,7 +447,7 @@ fn lane<const NORMALS: bool>(i: &LaneIn, draws: &Draws, o: &mut LaneOut, k: &Con
     let wo_z = wo.dot(fnrm);
     let side = if wo_z < 0.0 { -1.0 } else { 1.0 };
     let wo_dot_ng = wo.dot(ng);
-    let albedo = V3::at(&i.albedo, l);
+    let albedo = V3::field(&blk.material, MAT_ALBEDO, l);
     let lit = albedo.max_element() > 0.0;
     let cosine = cosine_direction(draws.bsdf[0][l], draws.bsdf[1][l]);
 
@@ -275,16 +455,16 @@ fn lane<const NORMALS: bool>(i: &LaneIn, draws: &Draws, o: &mut LaneOut, k: &Con
     let (lx, ly) = (draws.light[0][l], draws.light[1][l]);
     let su = lx.sqrt();
     let (ba, bb) = (su * (1.0 - ly), su * ly);
-    let [q0, q1, q2] = [0, 1, 2].map(|c| V3::at(&i.light_p[c], l));
+    let (q0, q1, q2) = (V3::field(&blk.light, LIGHT_P, l), V3::field(&blk.light, LIGHT_P + 3, l), V3::field(&blk.light, LIGHT_P + 6, l));
     let point = q0.scale(1.0 - ba - bb).add(q1.scale(ba)).add(q2.scale(bb));
     let to_light = point.sub(p);
     let dist2 = to_light.dot(to_light);
-    let n_l = V3::at(&i.light_ng, l);
+    let n_l = V3::field(&blk.light, LIGHT_NG, l);
     let wi = to_light.div(dist2.sqrt());
     let cos_at_light = -wi.dot(n_l);
-    let li = V3::at(&i.light_emission, l);
-    let pdf = i.light_pdf_area[l] * dist2 / cos_at_light;
-    let sampled = i.has_light[l] != 0 && !(dist2 <= 0.0) && !(cos_at_light <= 0.0) && li.nonzero() && pdf > 0.0;
+    let li = V3::field(&blk.light, LIGHT_EMISSION, l);
+    let pdf = blk.light[LIGHT_PDF][l] * dist2 / cos_at_light;
+    let sampled = c.has_light[l] != 0 && !(dist2 <= 0.0) && !(cos_at_light <= 0.0) && li.nonzero() && pdf > 0.0;
     // Diffuse::eval_pdf at `wi`.
     let wi_z = wi.dot(fnrm);
     let geometric_reflection = wi.dot(ng) * wo_dot_ng > 0.0;
@@ -295,7 +475,7 @@ fn lane<const NORMALS: bool>(i: &LaneIn, draws: &Draws, o: &mut LaneOut, k: &Con
     let pdf_bsdf = if reflects { i_z * FRAC_1_PI } else { 0.0 };
     let origin = spawn_origin(p, ng, wi, k.eps);
     let target = point.add(n_l.scale(k.eps));
-    o.shadow[l] = (goes_on && lit && sampled && f.nonzero()) as u32;
+    o.shadow[l] = (shade && goes_on && lit && sampled && f.nonzero()) as u32;
     origin.put(&mut o.shadow_origin, l);
     target.sub(origin).put(&mut o.shadow_dir, l);
     let w_light = power_heuristic(pdf, pdf_bsdf);
@@ -307,77 +487,193 @@ fn lane<const NORMALS: bool>(i: &LaneIn, draws: &Draws, o: &mut LaneOut, k: &Con
     let scattered = lit && !(wi_l.z == 0.0 || next_dir.dot(ng) * wo_dot_ng <= 0.0);
     let next_beta = beta.mul(albedo);
     let carries = next_beta.nonzero() && next_beta.is_finite();
-    let eta_scale = i.eta_scale[l] * 1.0;
+    // `eta_scale *= bs.eta²` with a diffuse lobe's η = 1 changes no bit.
     let roulette = depth >= k.rr_depth;
-    let q = (next_beta.max_element() * eta_scale).min(0.95);
+    let q = (next_beta.max_element() * c.eta_scale[l]).min(0.95);
     let survives = !(draws.roulette[l] >= q);
-    o.next[l] = (goes_on && scattered && carries && (!roulette || survives)) as u32;
-    V3::select(roulette, next_beta.div(q), next_beta).put(&mut o.beta, l);
-    o.pdf[l] = wi_l.z.abs() * FRAC_1_PI;
-    spawn_origin(p, ng, next_dir, k.eps).put(&mut o.origin, l);
-    next_dir.put(&mut o.next_dir, l);
-}
-
-/// The random numbers of one vertex per lane: the BSDF pair, the light-position pair and
-/// Russian roulette's.
-#[derive(Clone, Copy)]
-struct Draws {
-    bsdf: [[f32; W]; 2],
-    light: [[f32; W]; 2],
-    roulette: [f32; W],
-}
-
-/// The hashes in a loop of their own: on 64-bit lanes they would halve the width the rest
-/// of the vertex runs at.
-#[inline(always)]
-fn draws(i: &LaneIn) -> Draws {
-    let mut d = Draws { bsdf: [[0.0; W]; 2], light: [[0.0; W]; 2], roulette: [0.0; W] };
-    for l in 0..W {
-        let (key, vertex) = (i.key[l], i.depth[l].wrapping_sub(1));
-        (d.bsdf[0][l], d.bsdf[1][l]) = get2d(key, dims::at(vertex, dims::BSDF_DIR));
-        (d.light[0][l], d.light[1][l]) = get2d(key, dims::at(vertex, dims::LIGHT_POS));
-        d.roulette[l] = get1d(key, dims::at(vertex, dims::RUSSIAN_ROULETTE));
-    }
-    d
+    let next = shade && goes_on && scattered && carries && (!roulette || survives);
+    o.next[l] = next as u32;
+    V3::select(next, V3::select(roulette, next_beta.div(q), next_beta), beta).put(&mut c.beta, l);
+    c.prev_pdf[l] = if next { wi_l.z.abs() * FRAC_1_PI } else { c.prev_pdf[l] };
+    c.prev_delta[l] = if next { 0 } else { c.prev_delta[l] };
+    c.depth[l] = if next { depth + 1 } else { depth };
+    V3::select(next, spawn_origin(p, ng, next_dir, k.eps), V3::lane(&c.origin, l)).put(&mut c.origin, l);
+    V3::select(next, next_dir, d).put(&mut c.dir, l);
 }
 
 #[inline(always)]
-fn lanes<const NORMALS: bool>(i: &LaneIn, o: &mut LaneOut, k: &Consts) {
-    let d = draws(i);
-    for l in 0..W {
-        lane::<NORMALS>(i, &d, o, k, l);
+fn lanes<const NORMALS: bool>(c: &mut Chunk, o: &mut Out, b: &Blocks, k: &Consts) {
+    let d = draws(c);
+    // A trip count the compiler cannot see: a known 16 gets the loop fully unrolled before
+    // the loop vectoriser runs, which then has nothing to vectorise.
+    let n = std::hint::black_box(W).min(W);
+    for l in 0..n {
+        lane::<NORMALS>(c, o, b, &d, k, l);
     }
 }
 
+/// Turns a block of records `[lane][value]` into `[value][lane]`. Pure data movement, so every
+/// build gives the same values.
+pub(crate) trait Transpose {
+    fn transpose(block: &mut [Record; W]);
+}
+
+struct Scalar;
+
+impl Transpose for Scalar {
+    #[inline(always)]
+    fn transpose(block: &mut [Record; W]) {
+        for j in 1..W {
+            let (upper, lower) = block.split_at_mut(j);
+            for (i, row) in upper.iter_mut().enumerate() {
+                std::mem::swap(&mut row[j], &mut lower[0][i]);
+            }
+        }
+    }
+}
+
+/// The 16×16 transpose in AVX-512 registers: 32-bit and 64-bit interleaves within 128-bit
+/// lanes, then two rounds of 128-bit lane shuffles (64 shuffles for 256 values). Plain loops,
+/// not closures: a closure would not inherit the caller's target features, and every
+/// intrinsic in it would become a call.
+#[cfg(target_arch = "x86_64")]
+struct Avx512;
+
+#[cfg(target_arch = "x86_64")]
+impl Transpose for Avx512 {
+    #[inline(always)]
+    fn transpose(block: &mut [Record; W]) {
+        use std::arch::x86_64::*;
+        // SAFETY: only called from functions compiled with AVX-512F (the kernel's `avx512`);
+        // every load and store is of one whole 16-value row of `block`.
+        unsafe {
+            let mut r = [_mm512_setzero_ps(); W];
+            for i in 0..W {
+                r[i] = _mm512_loadu_ps(block[i].as_ptr());
+            }
+            let mut t = [_mm512_setzero_ps(); W];
+            for p in 0..W / 2 {
+                t[2 * p] = _mm512_unpacklo_ps(r[2 * p], r[2 * p + 1]);
+                t[2 * p + 1] = _mm512_unpackhi_ps(r[2 * p], r[2 * p + 1]);
+            }
+            // u[4g + q]: rows 4g..4g+4 of columns q, q + 4, q + 8, q + 12 (one per 128-bit lane).
+            let mut u = [_mm512_setzero_ps(); W];
+            for g in 0..4 {
+                for h in 0..2 {
+                    let (a, b) = (_mm512_castps_pd(t[4 * g + h]), _mm512_castps_pd(t[4 * g + 2 + h]));
+                    u[4 * g + 2 * h] = _mm512_castpd_ps(_mm512_unpacklo_pd(a, b));
+                    u[4 * g + 2 * h + 1] = _mm512_castpd_ps(_mm512_unpackhi_pd(a, b));
+                }
+            }
+            for q in 0..4 {
+                let v0 = _mm512_shuffle_f32x4::<0b10_00_10_00>(u[q], u[4 + q]);
+                let v1 = _mm512_shuffle_f32x4::<0b11_01_11_01>(u[q], u[4 + q]);
+                let v2 = _mm512_shuffle_f32x4::<0b10_00_10_00>(u[8 + q], u[12 + q]);
+                let v3 = _mm512_shuffle_f32x4::<0b11_01_11_01>(u[8 + q], u[12 + q]);
+                _mm512_storeu_ps(block[q].as_mut_ptr(), _mm512_shuffle_f32x4::<0b10_00_10_00>(v0, v2));
+                _mm512_storeu_ps(block[q + 8].as_mut_ptr(), _mm512_shuffle_f32x4::<0b11_01_11_01>(v0, v2));
+                _mm512_storeu_ps(block[q + 4].as_mut_ptr(), _mm512_shuffle_f32x4::<0b10_00_10_00>(v1, v3));
+                _mm512_storeu_ps(block[q + 12].as_mut_ptr(), _mm512_shuffle_f32x4::<0b11_01_11_01>(v1, v3));
+            }
+        }
+    }
+}
+
+/// The 16×16 transpose as four 8×8 ones in AVX2 registers.
+#[cfg(target_arch = "x86_64")]
+struct Avx2;
+
+/// The transposed 8×8 block of `block` at row `r0`, column `c0`, as eight rows.
+#[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn generic(i: &LaneIn, o: &mut LaneOut, k: &Consts) {
-    if k.normals {
-        lanes::<true>(i, o, k)
+unsafe fn transpose8(block: &[Record; W], r0: usize, c0: usize) -> [std::arch::x86_64::__m256; 8] {
+    use std::arch::x86_64::*;
+    // SAFETY (the caller's): compiled with AVX2; r0 + 8 and c0 + 8 are at most 16.
+    unsafe {
+        let mut r = [_mm256_setzero_ps(); 8];
+        for i in 0..8 {
+            r[i] = _mm256_loadu_ps(block[r0 + i].as_ptr().add(c0));
+        }
+        let mut t = [_mm256_setzero_ps(); 8];
+        for p in 0..4 {
+            t[2 * p] = _mm256_unpacklo_ps(r[2 * p], r[2 * p + 1]);
+            t[2 * p + 1] = _mm256_unpackhi_ps(r[2 * p], r[2 * p + 1]);
+        }
+        // u[4g + q]: rows 4g..4g+4 of columns q and q + 4 (one per 128-bit lane).
+        let mut u = [_mm256_setzero_ps(); 8];
+        for g in 0..2 {
+            for h in 0..2 {
+                let (a, b) = (_mm256_castps_pd(t[4 * g + h]), _mm256_castps_pd(t[4 * g + 2 + h]));
+                u[4 * g + 2 * h] = _mm256_castpd_ps(_mm256_unpacklo_pd(a, b));
+                u[4 * g + 2 * h + 1] = _mm256_castpd_ps(_mm256_unpackhi_pd(a, b));
+            }
+        }
+        let mut out = [_mm256_setzero_ps(); 8];
+        for q in 0..4 {
+            out[q] = _mm256_permute2f128_ps::<0x20>(u[q], u[4 + q]);
+            out[q + 4] = _mm256_permute2f128_ps::<0x31>(u[q], u[4 + q]);
+        }
+        out
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Transpose for Avx2 {
+    #[inline(always)]
+    fn transpose(block: &mut [Record; W]) {
+        use std::arch::x86_64::*;
+        // SAFETY: only called from functions compiled with AVX2 (the kernel's `avx2`); every
+        // load and store is of eight values inside one row of `block`.
+        unsafe {
+            let q00 = transpose8(block, 0, 0);
+            let q01 = transpose8(block, 0, 8);
+            let q10 = transpose8(block, 8, 0);
+            let q11 = transpose8(block, 8, 8);
+            for i in 0..8 {
+                _mm256_storeu_ps(block[i].as_mut_ptr(), q00[i]);
+                _mm256_storeu_ps(block[i].as_mut_ptr().add(8), q10[i]);
+                _mm256_storeu_ps(block[8 + i].as_mut_ptr(), q01[i]);
+                _mm256_storeu_ps(block[8 + i].as_mut_ptr().add(8), q11[i]);
+            }
+        }
+    }
+}
+
+#[inline(always)]
+fn generic<T: Transpose>(c: &mut Chunk, o: &mut Out, b: &mut Blocks, normals: bool, k: &Consts) {
+    T::transpose(&mut b.triangle);
+    T::transpose(&mut b.material);
+    T::transpose(&mut b.light);
+    if normals {
+        T::transpose(&mut b.normals);
+        lanes::<true>(c, o, b, k)
     } else {
-        lanes::<false>(i, o, k)
+        lanes::<false>(c, o, b, k)
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512dq,avx512vl,avx512bw")]
-unsafe fn avx512(i: &LaneIn, o: &mut LaneOut, k: &Consts) {
-    generic(i, o, k)
+unsafe fn avx512(c: &mut Chunk, o: &mut Out, b: &mut Blocks, normals: bool, k: &Consts) {
+    generic::<Avx512>(c, o, b, normals, k)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn avx2(i: &LaneIn, o: &mut LaneOut, k: &Consts) {
-    generic(i, o, k)
+unsafe fn avx2(c: &mut Chunk, o: &mut Out, b: &mut Blocks, normals: bool, k: &Consts) {
+    generic::<Avx2>(c, o, b, normals, k)
 }
 
-fn portable(i: &LaneIn, o: &mut LaneOut, k: &Consts) {
-    generic(i, o, k)
+fn portable(c: &mut Chunk, o: &mut Out, b: &mut Blocks, normals: bool, k: &Consts) {
+    generic::<Scalar>(c, o, b, normals, k)
 }
 
-/// The kernel: all lanes of `i` into `o`.
-pub(crate) type Kernel = fn(&LaneIn, &mut LaneOut, &Consts);
+/// The kernel: shades the lanes of a chunk whose `shade` is set, from the records the
+/// caller copied into the blocks (which it transposes in place; vertex normals only if
+/// `normals`).
+pub(crate) type Kernel = fn(&mut Chunk, &mut Out, &mut Blocks, bool, &Consts);
 
-/// Which build of the kernel runs on this CPU.
+/// Which build of the kernel runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Isa {
     Avx512,
@@ -385,16 +681,20 @@ pub(crate) enum Isa {
     Portable,
 }
 
+#[cfg(target_arch = "x86_64")]
+fn has_avx512() -> bool {
+    std::is_x86_feature_detected!("avx512f")
+        && std::is_x86_feature_detected!("avx512dq")
+        && std::is_x86_feature_detected!("avx512vl")
+        && std::is_x86_feature_detected!("avx512bw")
+}
+
 impl Isa {
     /// The widest build this CPU runs.
     pub fn detect() -> Isa {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::is_x86_feature_detected!("avx512f")
-                && std::is_x86_feature_detected!("avx512dq")
-                && std::is_x86_feature_detected!("avx512vl")
-                && std::is_x86_feature_detected!("avx512bw")
-            {
+            if has_avx512() {
                 return Isa::Avx512;
             }
             if std::is_x86_feature_detected!("avx2") {
@@ -407,21 +707,14 @@ impl Isa {
     /// The kernel of this build, or `None` if the CPU lacks its instructions.
     pub fn kernel(self) -> Option<Kernel> {
         match self {
+            // SAFETY (both): the build runs only where the CPU has the instructions it is
+            // compiled for, checked just before.
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx512 => {
-                let ok = std::is_x86_feature_detected!("avx512f")
-                    && std::is_x86_feature_detected!("avx512dq")
-                    && std::is_x86_feature_detected!("avx512vl")
-                    && std::is_x86_feature_detected!("avx512bw");
-                // SAFETY: called only where the CPU has the instructions `avx512` is compiled for.
-                ok.then_some((|i: &LaneIn, o: &mut LaneOut, k: &Consts| unsafe { avx512(i, o, k) }) as Kernel)
-            }
+            Isa::Avx512 => has_avx512()
+                .then_some((|c: &mut Chunk, o: &mut Out, b: &mut Blocks, n: bool, k: &Consts| unsafe { avx512(c, o, b, n, k) }) as Kernel),
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx2 => {
-                // SAFETY: called only where the CPU has AVX2.
-                std::is_x86_feature_detected!("avx2")
-                    .then_some((|i: &LaneIn, o: &mut LaneOut, k: &Consts| unsafe { avx2(i, o, k) }) as Kernel)
-            }
+            Isa::Avx2 => std::is_x86_feature_detected!("avx2")
+                .then_some((|c: &mut Chunk, o: &mut Out, b: &mut Blocks, n: bool, k: &Consts| unsafe { avx2(c, o, b, n, k) }) as Kernel),
             #[cfg(not(target_arch = "x86_64"))]
             Isa::Avx512 | Isa::Avx2 => None,
             Isa::Portable => Some(portable as Kernel),

@@ -4,103 +4,37 @@
 //! numbers, its radiance summed in the same order), so the result is the same bit for bit.
 //!
 //! Why: a vertex on its own is a chain of dependent steps between two calls into the ray
-//! caster, run one path after the other. Shading many paths' vertices together lets the
-//! common vertex ([`lanes`]: diffuse material, an emissive triangle as the light sample) run
-//! on [`lanes::W`] paths per instruction; every other vertex (glossy or glass materials,
-//! textures, punctual lights, the environment, escaped rays) takes the scalar
-//! [`crate::integrator::PathContext::vertex`].
+//! caster, run one path after the other. The live paths are kept as structure-of-arrays
+//! [`lanes::Chunk`]s of [`lanes::W`] paths, compacted after every bounce, so that the common
+//! vertex ([`lanes`]: a diffuse material, an emissive triangle as the light sample) runs on a
+//! whole chunk per instruction, reading and updating the paths where they are; every other
+//! vertex (glossy or glass materials, textures, punctual lights, the environment, escaped
+//! rays) takes the scalar [`crate::integrator::PathContext::vertex`].
 mod lanes;
 
 use crate::integrator::{FirstHit, Path, PathContext};
 use crate::intersect::{Hit, Intersector, Ray};
 use crate::sampler::{dims, SampleSampler};
-use crate::scene::Scene;
 use glam::Vec3A;
-use lanes::{Consts, Kernel, LaneIn, LaneOut, W};
+use lanes::{Blocks, Chunk, Consts, Out, W};
 
-pub(crate) use lanes::Isa;
+pub(crate) use lanes::{Isa, Kernel, SceneLanes};
 
 /// The paths of one wavefront and the scratch of its bounces, reused from batch to batch.
 pub(crate) struct Wavefront {
-    paths: Vec<Path>,
-    samplers: Vec<SampleSampler>,
-    hits: Vec<Option<Hit>>,
+    /// The live paths, `live` of them, in chunks of `W` (the last one partly filled).
+    chunks: Vec<Chunk>,
+    outs: Vec<Out>,
+    live: usize,
+    /// Per path, in the order pushed: its radiance once it has ended, and its first-hit features.
+    radiance: Vec<Vec3A>,
     firsts: Vec<FirstHit>,
-    /// Indices of the paths that reach another vertex.
-    active: Vec<u32>,
-    next: Vec<u32>,
-    /// Shadow rays of this bounce: path, ray, the light it brings.
+    /// Shadow rays of the scalar vertices of this bounce: slot, ray, the light it brings.
     shadows: Vec<(u32, Ray, Vec3A)>,
     /// The lane kernel, or `None` to shade every vertex with the scalar code.
     kernel: Option<Kernel>,
-    lanes_in: Box<LaneIn>,
-    lanes_out: Box<LaneOut>,
-    /// The path of each filled lane.
-    lane_path: [u32; W],
-    /// What the lanes read of the scene's materials and lights, for the scene of the last run.
-    tables: Tables,
-}
-
-/// A material as the lane kernel reads it.
-#[derive(Clone, Copy)]
-struct LaneMaterial {
-    /// Whether a vertex with it is the kernel's: diffuse, no texture.
-    lanes: bool,
-    base: Vec3A,
-    /// The BSDF's albedo, `base` at least 0 (as [`crate::bsdf::Bsdf::diffuse`] takes it).
-    albedo: Vec3A,
-    emission: Vec3A,
-}
-
-/// An emitter as the lane kernel samples it: an emissive triangle without a texture.
-#[derive(Clone, Copy)]
-struct LaneLight {
-    p: [Vec3A; 3],
-    ng: Vec3A,
-    pdf_area: f32,
-    emission: Vec3A,
-}
-
-/// Per material and per emitter (in selection order) of one scene, what the lanes read.
-#[derive(Default)]
-struct Tables {
-    /// The scene these are of (its address: a scene lives as long as its render).
-    scene: usize,
-    materials: Vec<LaneMaterial>,
-    lights: Vec<Option<LaneLight>>,
-}
-
-impl Tables {
-    fn of(&mut self, scene: &Scene) -> &Tables {
-        let id = scene as *const Scene as usize;
-        if self.scene != id || self.materials.len() != scene.materials().len() {
-            self.scene = id;
-            self.materials = scene
-                .materials()
-                .iter()
-                .map(|m| LaneMaterial {
-                    lanes: m.is_diffuse_only() && m.base_color_texture.is_none() && m.emissive_texture.is_none(),
-                    base: m.base_color,
-                    albedo: m.base_color.max(Vec3A::ZERO),
-                    emission: m.emission,
-                })
-                .collect();
-            let lights = scene.lights();
-            self.lights = (0..lights.len())
-                .map(|k| {
-                    let prim = lights.emitter_triangle(k)?;
-                    let m = scene.material_of(prim);
-                    m.emissive_texture.is_none().then(|| LaneLight {
-                        p: scene.triangle_vertices(prim),
-                        ng: scene.geometric_normal(prim),
-                        pdf_area: lights.pdf_area(prim),
-                        emission: m.emission,
-                    })
-                })
-                .collect();
-        }
-        self
-    }
+    /// The scene records of the chunk being shaded.
+    blocks: Box<Blocks>,
 }
 
 impl Default for Wavefront {
@@ -109,191 +43,253 @@ impl Default for Wavefront {
     }
 }
 
+/// The chunk and lane of slot `s`.
+#[inline(always)]
+fn slot(s: usize) -> (usize, usize) {
+    (s / W, s % W)
+}
+
+#[inline(always)]
+fn get(a: &[[f32; W]; 3], l: usize) -> Vec3A {
+    Vec3A::new(a[0][l], a[1][l], a[2][l])
+}
+
+#[inline(always)]
+fn put(a: &mut [[f32; W]; 3], l: usize, v: Vec3A) {
+    a[0][l] = v.x;
+    a[1][l] = v.y;
+    a[2][l] = v.z;
+}
+
 impl Wavefront {
     /// A wavefront that shades its common vertices with `kernel` (all with the scalar code
     /// for `None`).
     pub fn new(kernel: Option<Kernel>) -> Wavefront {
         Wavefront {
-            paths: Vec::new(),
-            samplers: Vec::new(),
-            hits: Vec::new(),
+            chunks: Vec::new(),
+            outs: Vec::new(),
+            live: 0,
+            radiance: Vec::new(),
             firsts: Vec::new(),
-            active: Vec::new(),
-            next: Vec::new(),
             shadows: Vec::new(),
             kernel,
-            lanes_in: Box::default(),
-            lanes_out: Box::default(),
-            lane_path: [0; W],
-            tables: Tables::default(),
+            blocks: Box::default(),
         }
     }
 
     /// Empties the wavefront.
     pub fn clear(&mut self) {
-        self.paths.clear();
-        self.samplers.clear();
-        self.hits.clear();
+        self.live = 0;
+        self.radiance.clear();
         self.firsts.clear();
     }
 
     /// Adds a path starting with the camera ray `ray`, whose nearest hit is `hit`.
     pub fn push(&mut self, ray: Ray, hit: Option<Hit>, sampler: SampleSampler) {
-        self.paths.push(Path::new(ray));
-        self.hits.push(hit);
-        self.samplers.push(sampler);
+        let id = self.radiance.len() as u32;
+        self.radiance.push(Vec3A::ZERO);
         self.firsts.push(FirstHit::default());
+        let (c, l) = slot(self.live);
+        if c == self.chunks.len() {
+            self.chunks.push(Chunk::default());
+            self.outs.push(Out::default());
+        }
+        let ch = &mut self.chunks[c];
+        set_lane_path(ch, l, &Path::new(ray), sampler.key(), id);
+        set_hit(ch, l, hit);
+        self.live += 1;
     }
 
     /// Follows every path to its end; then [`Wavefront::radiance`] and [`Wavefront::first_hit`]
-    /// hold each path's results, in the order they were pushed.
-    pub fn run<T: Intersector>(&mut self, ctx: &PathContext, tracer: &T, features: bool) {
-        self.active.clear();
-        self.active.extend(0..self.paths.len() as u32);
-        if self.kernel.is_some() {
-            self.tables.of(ctx.scene);
-        }
-        let consts = Consts { eps: ctx.eps, max_depth: ctx.max_depth, rr_depth: ctx.limits.rr_depth, normals: ctx.scene.has_normals() };
+    /// hold each path's results, in the order they were pushed. `lanes` is the scene as the
+    /// kernel reads it (needed with a kernel).
+    pub fn run<T: Intersector>(&mut self, ctx: &PathContext, lanes: Option<&SceneLanes>, tracer: &T, features: bool) {
+        let consts = Consts { eps: ctx.eps, max_depth: ctx.max_depth, rr_depth: ctx.limits.rr_depth };
+        let kernel = self.kernel.zip(lanes);
         let mut first_bounce = true;
-        while !self.active.is_empty() {
-            self.shadows.clear();
-            self.next.clear();
+        while self.live > 0 {
             let want_first = features && first_bounce;
-            let mut filled = 0;
-            for a in 0..self.active.len() {
-                let i = self.active[a] as usize;
-                if self.kernel.is_some() && self.gather(ctx, i, filled) {
-                    self.lane_path[filled] = i as u32;
-                    filled += 1;
-                    if filled == W {
-                        self.shade_lanes(&consts, filled, want_first);
-                        filled = 0;
+            self.shadows.clear();
+            let chunks = self.live.div_ceil(W);
+            for c in 0..chunks {
+                let filled = (self.live - c * W).min(W);
+                let ch = &mut self.chunks[c];
+                let out = &mut self.outs[c];
+                out.next = [0; W];
+                if let Some((kernel, lanes)) = kernel {
+                    classify(ctx, lanes, ch, &mut self.blocks, filled);
+                    kernel(ch, out, &mut self.blocks, lanes.normals.is_some(), &consts);
+                } else {
+                    ch.shade = [0; W];
+                    out.shadow = [0; W];
+                }
+                for l in 0..filled {
+                    if ch.shade[l] != 0 {
+                        if want_first {
+                            self.firsts[ch.id[l] as usize] =
+                                FirstHit { albedo: get(&out.first_albedo, l), normal: get(&out.first_normal, l), depth: ch.t[l] };
+                        }
+                        continue;
                     }
-                    continue;
-                }
-                let first = if want_first { Some(&mut self.firsts[i]) } else { None };
-                let step = ctx.vertex(&mut self.paths[i], self.hits[i], &self.samplers[i], first);
-                if let Some((ray, light)) = step.shadow {
-                    self.shadows.push((i as u32, ray, light));
-                }
-                if step.next {
-                    self.next.push(i as u32);
-                }
-            }
-            if filled > 0 {
-                self.shade_lanes(&consts, filled, want_first);
-            }
-            for (i, ray, light) in &self.shadows {
-                if !tracer.occluded(ray) {
-                    self.paths[*i as usize].l += *light;
+                    // The scalar vertex, on the lane's path.
+                    let (mut path, key, id) = lane_path(ch, l);
+                    let hit = (ch.hit[l] != 0).then(|| Hit { t: ch.t[l], prim: ch.prim[l], u: ch.u[l], v: ch.v[l] });
+                    let first = if want_first { Some(&mut self.firsts[id as usize]) } else { None };
+                    let step = ctx.vertex(&mut path, hit, &SampleSampler::from_key(key), first);
+                    set_lane_path(ch, l, &path, key, id);
+                    out.next[l] = step.next as u32;
+                    if let Some((ray, light)) = step.shadow {
+                        self.shadows.push(((c * W + l) as u32, ray, light));
+                    }
                 }
             }
-            for &i in &self.next {
-                let i = i as usize;
-                self.hits[i] = tracer.intersect(&self.paths[i].ray);
+            self.trace_shadows(tracer, chunks);
+            self.compact();
+            for s in 0..self.live {
+                let (c, l) = slot(s);
+                let ch = &mut self.chunks[c];
+                let ray = Ray { origin: get(&ch.origin, l), dir: get(&ch.dir, l), tmin: 0.0, tmax: f32::INFINITY };
+                set_hit(ch, l, tracer.intersect(&ray));
             }
-            std::mem::swap(&mut self.active, &mut self.next);
             first_bounce = false;
         }
     }
 
-    /// Puts path `i`'s vertex into lane `l` if it is one the lane kernel shades (see [`lanes`]).
-    #[inline]
-    fn gather(&mut self, ctx: &PathContext, i: usize, l: usize) -> bool {
-        assert!(l < W);
-        let Some(hit) = self.hits[i] else { return false };
-        let scene = ctx.scene;
-        let material = &self.tables.materials[scene.triangle_materials()[hit.prim as usize] as usize];
-        if !material.lanes {
-            return false;
-        }
-        let path = &self.paths[i];
-        let lights = scene.lights();
-        let light = match lights.choose_index(self.samplers[i].get1d(dims::at(path.depth - 1, dims::LIGHT_SELECT))) {
-            None => None,
-            Some(k) => match &self.tables.lights[k] {
-                Some(light) => Some(light),
-                None => return false,
-            },
-        };
-        let inp = &mut *self.lanes_in;
-        let put = |a: &mut [[f32; W]; 3], v: Vec3A| {
-            a[0][l] = v.x;
-            a[1][l] = v.y;
-            a[2][l] = v.z;
-        };
-        put(&mut inp.dir, path.ray.dir);
-        (inp.t[l], inp.u[l], inp.v[l]) = (hit.t, hit.u, hit.v);
-        put(&mut inp.beta, path.beta);
-        inp.eta_scale[l] = path.eta_scale;
-        inp.prev_pdf[l] = path.prev_pdf;
-        inp.prev_delta[l] = path.prev_delta as u32;
-        inp.depth[l] = path.depth;
-        inp.key[l] = self.samplers[i].key();
-        for (dst, p) in inp.p.iter_mut().zip(scene.triangle_vertices(hit.prim)) {
-            put(dst, p);
-        }
-        if let Some(normals) = scene.triangle_normals(hit.prim) {
-            for (dst, n) in inp.n.iter_mut().zip(normals) {
-                put(dst, n);
+    /// Traces the bounce's shadow rays, the kernel's and the scalar vertices', and adds the
+    /// light of each unoccluded one to its path.
+    fn trace_shadows<T: Intersector>(&mut self, tracer: &T, chunks: usize) {
+        for c in 0..chunks {
+            let (ch, out) = (&mut self.chunks[c], &self.outs[c]);
+            for l in 0..W {
+                if out.shadow[l] != 0 {
+                    let ray = Ray { origin: get(&out.shadow_origin, l), dir: get(&out.shadow_dir, l), tmin: 0.0, tmax: 1.0 };
+                    if !tracer.occluded(&ray) {
+                        let lit = get(&ch.l, l) + get(&out.shadow_light, l);
+                        put(&mut ch.l, l, lit);
+                    }
+                }
             }
         }
-        put(&mut inp.ng, scene.geometric_normal(hit.prim));
-        put(&mut inp.base, material.base);
-        put(&mut inp.albedo, material.albedo);
-        put(&mut inp.emission, material.emission);
-        inp.pdf_area[l] = lights.pdf_area(hit.prim);
-        inp.has_light[l] = light.is_some() as u32;
-        if let Some(light) = light {
-            for (dst, p) in inp.light_p.iter_mut().zip(light.p) {
-                put(dst, p);
+        for (s, ray, light) in &self.shadows {
+            let (c, l) = slot(*s as usize);
+            if !tracer.occluded(ray) {
+                let ch = &mut self.chunks[c];
+                let lit = get(&ch.l, l) + *light;
+                put(&mut ch.l, l, lit);
             }
-            put(&mut inp.light_ng, light.ng);
-            inp.light_pdf_area[l] = light.pdf_area;
-            put(&mut inp.light_emission, light.emission);
         }
-        true
     }
 
-    /// Runs the lane kernel on the first `filled` lanes and hands each path its results.
-    fn shade_lanes(&mut self, consts: &Consts, filled: usize, want_first: bool) {
-        let kernel = self.kernel.expect("lanes are filled only with a kernel");
-        kernel(&self.lanes_in, &mut self.lanes_out, consts);
-        let (inp, out) = (&*self.lanes_in, &*self.lanes_out);
-        let get = |a: &[[f32; W]; 3], l: usize| Vec3A::new(a[0][l], a[1][l], a[2][l]);
-        for l in 0..filled {
-            let i = self.lane_path[l] as usize;
-            let path = &mut self.paths[i];
-            if out.emits[l] != 0 {
-                path.l += get(&out.emitted, l);
+    /// Records the radiance of every path that ended and moves the last live paths into the
+    /// slots they left, so that the live ones fill the first slots again.
+    fn compact(&mut self) {
+        let mut s = 0;
+        while s < self.live {
+            let (c, l) = slot(s);
+            if self.outs[c].next[l] != 0 {
+                s += 1;
+                continue;
             }
-            if want_first {
-                self.firsts[i] = FirstHit { albedo: get(&out.first_albedo, l), normal: get(&out.first_normal, l), depth: inp.t[l] };
-            }
-            if out.shadow[l] != 0 {
-                let ray = Ray { origin: get(&out.shadow_origin, l), dir: get(&out.shadow_dir, l), tmin: 0.0, tmax: 1.0 };
-                self.shadows.push((i as u32, ray, get(&out.shadow_light, l)));
-            }
-            if out.next[l] != 0 {
-                path.beta = get(&out.beta, l);
-                path.prev_pdf = out.pdf[l];
-                path.prev_delta = false;
-                path.ray = Ray { origin: get(&out.origin, l), dir: get(&out.next_dir, l), tmin: 0.0, tmax: f32::INFINITY };
-                path.depth += 1;
-                self.next.push(i as u32);
+            let ch = &self.chunks[c];
+            self.radiance[ch.id[l] as usize] = get(&ch.l, l);
+            self.live -= 1;
+            if s < self.live {
+                let (cl, ll) = slot(self.live);
+                self.move_slot((cl, ll), (c, l));
             }
         }
+    }
+
+    /// Copies the path in slot `from` (and whether it goes on) to slot `to`.
+    fn move_slot(&mut self, (fc, fl): (usize, usize), (tc, tl): (usize, usize)) {
+        let (path, key, id) = lane_path(&self.chunks[fc], fl);
+        set_lane_path(&mut self.chunks[tc], tl, &path, key, id);
+        self.outs[tc].next[tl] = self.outs[fc].next[fl];
     }
 
     /// The radiance of path `i`.
     pub fn radiance(&self, i: usize) -> Vec3A {
-        self.paths[i].l
+        self.radiance[i]
     }
 
     /// The first-hit features of path `i` (default unless `run` was asked for them).
     pub fn first_hit(&self, i: usize) -> &FirstHit {
         &self.firsts[i]
     }
+}
+
+/// The path in lane `l`, its sampler key and its id.
+#[inline(always)]
+fn lane_path(ch: &Chunk, l: usize) -> (Path, u64, u32) {
+    let path = Path {
+        ray: Ray { origin: get(&ch.origin, l), dir: get(&ch.dir, l), tmin: 0.0, tmax: f32::INFINITY },
+        beta: get(&ch.beta, l),
+        l: get(&ch.l, l),
+        eta_scale: ch.eta_scale[l],
+        prev_pdf: ch.prev_pdf[l],
+        prev_delta: ch.prev_delta[l] != 0,
+        depth: ch.depth[l],
+    };
+    (path, ch.key[l], ch.id[l])
+}
+
+/// Puts `path` (whose ray must start at `tmin` 0 and have no end) into lane `l`.
+#[inline(always)]
+fn set_lane_path(ch: &mut Chunk, l: usize, path: &Path, key: u64, id: u32) {
+    debug_assert!(path.ray.tmin == 0.0 && path.ray.tmax == f32::INFINITY);
+    put(&mut ch.origin, l, path.ray.origin);
+    put(&mut ch.dir, l, path.ray.dir);
+    put(&mut ch.beta, l, path.beta);
+    put(&mut ch.l, l, path.l);
+    ch.eta_scale[l] = path.eta_scale;
+    ch.prev_pdf[l] = path.prev_pdf;
+    ch.prev_delta[l] = path.prev_delta as u32;
+    ch.depth[l] = path.depth;
+    ch.key[l] = key;
+    ch.id[l] = id;
+}
+
+/// Sets lane `l`'s hit (index 0 where there is none, so that the kernel reads valid data).
+#[inline(always)]
+fn set_hit(ch: &mut Chunk, l: usize, hit: Option<Hit>) {
+    let h = hit.unwrap_or(Hit { t: 0.0, prim: 0, u: 0.0, v: 0.0 });
+    ch.hit[l] = hit.is_some() as u32;
+    (ch.t[l], ch.u[l], ch.v[l], ch.prim[l]) = (h.t, h.u, h.v, h.prim);
+}
+
+/// Marks the first `filled` lanes whose vertex the kernel shades (a hit on a material of its
+/// kind whose light sample, if any, is on an emitter of its kind) and copies their records
+/// into `blocks`.
+#[inline]
+fn classify(ctx: &PathContext, lanes: &SceneLanes, ch: &mut Chunk, blocks: &mut Blocks, filled: usize) {
+    let lights = ctx.scene.lights();
+    let materials = ctx.scene.triangle_materials();
+    for l in 0..filled {
+        ch.shade[l] = 0;
+        if ch.hit[l] == 0 {
+            continue;
+        }
+        let (prim, material) = (ch.prim[l] as usize, materials[ch.prim[l] as usize] as usize);
+        if !lanes.material_shaded[material] {
+            continue;
+        }
+        let u_select = SampleSampler::from_key(ch.key[l]).get1d(dims::at(ch.depth[l] - 1, dims::LIGHT_SELECT));
+        ch.has_light[l] = 0;
+        if let Some(k) = lights.choose_index(u_select) {
+            if !lanes.light_sampled[k] {
+                continue;
+            }
+            blocks.light[l] = lanes.light[k];
+            ch.has_light[l] = 1;
+        }
+        ch.shade[l] = 1;
+        blocks.triangle[l] = lanes.triangle[prim];
+        blocks.material[l] = lanes.material[material];
+        if let Some(normals) = &lanes.normals {
+            blocks.normals[l] = normals[prim];
+        }
+    }
+    ch.shade[filled..].fill(0);
 }
 
 #[cfg(test)]
@@ -324,6 +320,7 @@ mod tests {
         let tracer = BruteForce::new(scene);
         let frame = scene.camera().frame(24, 24);
         let stream = StreamSampler::new(seed, StreamKind::Pt);
+        let lanes = SceneLanes::new(scene);
         let mut wave = Wavefront::new(kernel);
         for pixel in 0..24 * 24u32 {
             for s in 0..2 {
@@ -332,8 +329,8 @@ mod tests {
                 wave.push(ray, tracer.intersect(&ray), smp);
             }
         }
-        wave.run(&PathContext::new(scene, limits), &tracer, true);
-        (0..wave.paths.len()).map(|i| (wave.radiance(i), *wave.first_hit(i))).collect()
+        wave.run(&PathContext::new(scene, limits), Some(&lanes), &tracer, true);
+        (0..wave.radiance.len()).map(|i| (wave.radiance(i), *wave.first_hit(i))).collect()
     }
 
     /// Each build of the lane kernel this CPU runs gives every path the scalar vertex's radiance
