@@ -8,7 +8,7 @@
 use crate::camera::CameraFrame;
 use crate::exact;
 use crate::film::{tiles, Tile, TileResult, TileStream, TILE_SIZE};
-use crate::integrator::{FirstHit, PathContext, PathLimits};
+use crate::integrator::{radiance_from_hit, FirstHit, PathContext, PathLimits};
 use crate::intersect::{Hit, Intersector, Ray};
 use crate::part::{StreamPart, StreamSums};
 use crate::sampler::{dims, SampleSampler, StreamKind, StreamSampler};
@@ -128,8 +128,8 @@ impl RenderSettings {
 /// Shared, read-only state of one render.
 struct Context<'a, T: Intersector> {
     scene: &'a Scene,
-    /// The scene as the wavefronts' lane kernel reads it.
-    lanes: SceneLanes,
+    /// The scene as the wavefronts' lane kernel reads it, if the kernel can shade any of it.
+    lanes: Option<SceneLanes>,
     tracer: &'a T,
     frame: CameraFrame,
     limits: PathLimits,
@@ -193,15 +193,29 @@ impl<T: Intersector> Context<'_, T> {
         batch.hits.clear();
         batch.hits.resize(batch.rays.len(), None);
         self.tracer.intersect_coherent(&batch.rays, &mut batch.hits);
-        batch.wave.clear();
-        for ((&(_, _, smp), &ray), &hit) in batch.paths.iter().zip(&batch.rays).zip(&batch.hits) {
-            batch.wave.push(ray, hit, smp);
-        }
-        batch.wave.run(&PathContext::new(self.scene, self.limits), Some(&self.lanes), self.tracer, features);
-        for (k, &(i, s, _)) in batch.paths.iter().enumerate() {
-            let v = batch.wave.radiance(k);
+        let mut report = |i, s, v: Vec3A, fh: &FirstHit| {
             let bad = !v.is_finite();
-            each(i, s, if bad { Vec3A::ZERO } else { v }, bad, batch.wave.first_hit(k));
+            each(i, s, if bad { Vec3A::ZERO } else { v }, bad, fh);
+        };
+        match self.lanes.as_ref().filter(|_| batch.wave.pays()) {
+            Some(lanes) => {
+                batch.wave.clear();
+                for ((&(_, _, smp), &ray), &hit) in batch.paths.iter().zip(&batch.rays).zip(&batch.hits) {
+                    batch.wave.push(ray, hit, smp);
+                }
+                batch.wave.run(&PathContext::new(self.scene, self.limits), Some(lanes), self.tracer, features);
+                for (k, &(i, s, _)) in batch.paths.iter().enumerate() {
+                    report(i, s, batch.wave.radiance(k), batch.wave.first_hit(k));
+                }
+            }
+            // Where the lane kernel shades too few vertices, each path on its own.
+            None => {
+                for ((&(i, s, smp), &ray), &hit) in batch.paths.iter().zip(&batch.rays).zip(&batch.hits) {
+                    let mut fh = FirstHit::default();
+                    let first = if features { Some(&mut fh) } else { None };
+                    report(i, s, radiance_from_hit(self.scene, self.tracer, self.limits, ray, hit, &smp, first), &fh);
+                }
+            }
         }
         batch.paths.clear();
         batch.rays.clear();
@@ -215,7 +229,7 @@ fn context<'a, T: Intersector>(scene: &'a Scene, tracer: &'a T, settings: &Rende
     }
     Ok(Context {
         scene,
-        lanes: SceneLanes::new(scene),
+        lanes: Some(SceneLanes::new(scene)).filter(SceneLanes::can_shade),
         tracer,
         frame: scene.camera().frame(settings.width, settings.height),
         limits: settings.limits(),

@@ -215,6 +215,14 @@ impl SceneLanes {
     }
 }
 
+impl SceneLanes {
+    /// Whether the kernel can shade a vertex of this scene at all: some material is its kind,
+    /// and so is some emitter (or there are none).
+    pub fn can_shade(&self) -> bool {
+        self.material_shaded.iter().any(|&m| m) && (self.light_sampled.is_empty() || self.light_sampled.iter().any(|&l| l))
+    }
+}
+
 /// The records of a chunk's lanes: `[lane][value]` as the caller copies them in, and after
 /// [`Transpose`] `[value][lane]` as the kernel reads them.
 #[derive(Clone, Copy)]
