@@ -19,7 +19,7 @@
 use crate::batch_stats::BatchCube;
 use crate::control_variate::combine;
 use crate::floor::{blend_towards_centre, Floor, FloorMode};
-use crate::panel::{Panel, Rows};
+use crate::panel::{Panel, Rows, System, MAX_SYSTEMS};
 use crate::penalty::Penalty;
 use crate::selection::{SelectScratch, Selector};
 use crate::simd::{Portable, Simd};
@@ -190,8 +190,8 @@ impl PassStats {
             Outcome::Degenerate => self.degenerate += 1,
             Outcome::Failed => {
                 self.failed += 1;
-                // Nothing to trust: the plain average of the two inputs when the centre is
-                // in the set, the CRN value otherwise.
+                // Nothing to trust: the plain average of the two inputs when the centre is in the
+                // set, the CRN value otherwise.
                 beta.fill(0.0);
                 if include_centre {
                     beta[0] = 0.5;
@@ -206,21 +206,23 @@ impl PassStats {
 
 /// Per-task buffers. `P = 0` means the general f64 workspace (shared coefficients, or at
 /// least as many batches as control variates).
-struct Scratch<const P: usize> {
+struct Scratch<'h, const P: usize> {
     select: SelectScratch,
     idx: [u32; MAX_K],
     gs: [f64; MAX_K],
     hs: [f64; MAX_K],
     gs3: [[f64; MAX_K]; 3],
     hs3: [[f64; MAX_K]; 3],
+    /// The joint solve's three channels, and the centre-free one's next to them.
     panel: Option<Box<Panel<P>>>,
-    /// The centre-free solve's panel (its weights and norms are gathered with the joint ones).
-    panel_free: Option<Box<Panel<P>>>,
+    /// The panel's rows, overwritten pixel by pixel (as far as each pixel's set reaches).
+    rows: Option<Box<Rows<'h, P>>>,
     ws: Option<Box<Workspace>>,
 }
 
-impl<const P: usize> Scratch<P> {
-    fn new(centre_free: bool) -> Self {
+impl<'h, const P: usize> Scratch<'h, P> {
+    /// `cube` is any cube of the pass; its first row fills the rows until a pixel sets them.
+    fn new(cube: &'h BatchCube) -> Self {
         Scratch {
             select: SelectScratch::new(),
             idx: [0; MAX_K],
@@ -229,7 +231,10 @@ impl<const P: usize> Scratch<P> {
             gs3: [[0.0; MAX_K]; 3],
             hs3: [[0.0; MAX_K]; 3],
             panel: (P > 0).then(Panel::<P>::boxed),
-            panel_free: (P > 0 && centre_free).then(Panel::<P>::boxed),
+            rows: (P > 0).then(|| {
+                let r = cube.row_padded::<P>(0, 0);
+                Box::new(Rows { d: [[r; MAX_K]; MAX_SYSTEMS], dc: [r; MAX_SYSTEMS] })
+            }),
             ws: (P == 0).then(Workspace::boxed),
         }
     }
@@ -369,7 +374,7 @@ impl CvPass<'_> {
                 .zip(rows.par_iter_mut())
                 .enumerate()
                 .for_each_init(
-                    || Scratch::<P>::new(fused),
+                    || Scratch::<P>::new(&halves[0].cube),
                     |sc, (y, (((image, variance), (free_image, free_variance)), st))| {
                         let out = RowOut { xs: xs.clone(), image, variance, free_image, free_variance };
                         #[cfg(target_arch = "x86_64")]
@@ -397,12 +402,26 @@ impl CvPass<'_> {
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn row_avx2<const P: usize>(&self, halves: &[Half], y: usize, out: RowOut, sc: &mut Scratch<P>, st: &mut [PassStats; 2]) {
+    unsafe fn row_avx2<'h, const P: usize>(
+        &self,
+        halves: &'h [Half],
+        y: usize,
+        out: RowOut,
+        sc: &mut Scratch<'h, P>,
+        st: &mut [PassStats; 2],
+    ) {
         self.row::<P, crate::simd::Avx2>(halves, y, out, sc, st);
     }
 
     #[inline(always)]
-    fn row<const P: usize, S: Simd>(&self, halves: &[Half], y: usize, out: RowOut, sc: &mut Scratch<P>, st: &mut [PassStats; 2]) {
+    fn row<'h, const P: usize, S: Simd>(
+        &self,
+        halves: &'h [Half],
+        y: usize,
+        out: RowOut,
+        sc: &mut Scratch<'h, P>,
+        st: &mut [PassStats; 2],
+    ) {
         let fused = self.centre_free.is_some();
         for x in out.xs.clone() {
             let [(value, variance), (free_value, free_variance)] = self.pixel::<P, S>(halves, x, y, sc, st);
@@ -481,12 +500,12 @@ impl CvPass<'_> {
     }
 
     #[inline(always)]
-    fn pixel<const P: usize, S: Simd>(
+    fn pixel<'h, const P: usize, S: Simd>(
         &self,
-        halves: &[Half],
+        halves: &'h [Half],
         x: usize,
         y: usize,
-        sc: &mut Scratch<P>,
+        sc: &mut Scratch<'h, P>,
         st: &mut [PassStats; 2],
     ) -> PixelOut {
         let c = y * self.set.width + x;
@@ -529,13 +548,9 @@ impl CvPass<'_> {
                 let plain = half.plain();
                 let target = half.mean;
                 let mut delta_c = [0.0f64; 3];
-                let centre: [&[f32; P]; 3] = std::array::from_fn(|ch| cube.row_padded::<P>(c, ch));
-                let mut rows = Rows { d: centre.map(|r| [r; MAX_K]), dc: centre };
-                let mut free_rows = free.map(|_| {
-                    let centre: [&[f32; P]; 3] = std::array::from_fn(|ch| plain.row_padded::<P>(c, ch));
-                    Rows { d: centre.map(|r| [r; MAX_K]), dc: centre }
-                });
-                let mut q = sc.panel_free.as_deref_mut().filter(|_| free.is_some());
+                // Systems 0–2 are the joint solve's channels, 3–5 the centre-free one's.
+                let rows = sc.rows.as_deref_mut().expect("panel rows");
+                rows.dc = std::array::from_fn(|q| if q < 3 { cube.row_padded::<P>(c, q) } else { plain.row_padded::<P>(c, q - 3) });
                 // One pass over the set gathers everything for both solves: rows, norms,
                 // weights and the values the combination needs.
                 for (j, &i) in idx.iter().enumerate() {
@@ -547,13 +562,15 @@ impl CvPass<'_> {
                         sc.gs3[ch][j] = gi[ch] as f64;
                         sc.hs3[ch][j] = hi[ch] as f64;
                     }
-                    p.w.iter_mut().enumerate().for_each(|(ch, w)| w[j] = self.weight(self.penalty, i, c, ch));
-                    if let (Some(f), Some(q), Some(fr)) = (free, q.as_deref_mut(), free_rows.as_mut()) {
+                    for ch in 0..3 {
+                        p.w[ch][j] = self.weight(self.penalty, i, c, ch);
+                    }
+                    if let Some(f) = free {
                         if j > 0 {
                             for ch in 0..3 {
-                                fr.d[ch][j - 1] = plain.row_padded::<P>(i, ch);
-                                q.sq[ch][j - 1] = plain.sq[i][ch];
-                                q.w[ch][j - 1] = if f.penalty == self.penalty { p.w[ch][j] } else { self.weight(f.penalty, i, c, ch) };
+                                rows.d[3 + ch][j - 1] = plain.row_padded::<P>(i, ch);
+                                p.sq[3 + ch][j - 1] = plain.sq[i][ch];
+                                p.w[3 + ch][j - 1] = if f.penalty == self.penalty { p.w[ch][j] } else { self.weight(f.penalty, i, c, ch) };
                             }
                         }
                     }
@@ -567,8 +584,12 @@ impl CvPass<'_> {
                         }
                     }
                 }
-                p.want_trace = self.variance && self.dof != Dof::None;
-                let outcomes = p.solve::<S>(&rows, n, s, self.ridge);
+                let joint = System { k: n, ridge: self.ridge, want_trace: self.variance && self.dof != Dof::None };
+                let mut systems = [joint; MAX_SYSTEMS];
+                if let Some(f) = free {
+                    systems[3..].fill(System { k: n - 1, ridge: f.ridge, want_trace: f.dof != Dof::None });
+                }
+                let outcomes = p.solve::<S>(rows, &systems[..if free.is_some() { 6 } else { 3 }], s);
                 // Observations per channel: B − 1 deviations, and the common floor's column.
                 let common = self.floor.is_some_and(|f| f.mode == FloorMode::Common);
                 let n_obs = (b - 1 + usize::from(common)) as f64;
@@ -585,20 +606,19 @@ impl CvPass<'_> {
                         var[ch] += factor * crn + self.pt_variance(idx, beta, ch);
                     }
                 }
-                if let (Some(f), Some(q), Some(fr)) = (free, q, free_rows.as_ref()) {
+                if let Some(f) = free {
                     // Without a floor there is nothing to blend towards the centre (and no centre).
                     let m = n - 1;
-                    q.want_trace = f.dof != Dof::None;
-                    let outcomes = q.solve::<S>(fr, m, s, f.ridge);
                     // No floor column: B − 1 observations per channel.
                     let n_obs = (b - 1) as f64;
                     for ch in 0..3 {
-                        let solved = matches!(outcomes[ch], Outcome::Solved | Outcome::Regularised);
-                        let factor = if solved { f.dof.factor(P as f64 - q.trace_inv[ch], n_obs) } else { 1.0 };
-                        let beta = &mut q.beta[ch][..m];
-                        st[1].record(outcomes[ch], beta, false);
+                        let q = 3 + ch;
+                        let solved = matches!(outcomes[q], Outcome::Solved | Outcome::Regularised);
+                        let factor = if solved { f.dof.factor(P as f64 - p.trace_inv[q], n_obs) } else { 1.0 };
+                        let beta = &mut p.beta[q][..m];
+                        st[1].record(outcomes[q], beta, false);
                         free_acc[ch] += combine(target[c][ch] as f64, &sc.gs3[ch][1..n], &sc.hs3[ch][1..n], beta);
-                        let crn = s * if solved { q.resid_sq[ch] } else { f64::from(plain.sq[c][ch]) };
+                        let crn = s * if solved { p.resid_sq[q] } else { f64::from(plain.sq[c][ch]) };
                         free_var[ch] += factor * crn + self.pt_variance(&idx[1..], beta, ch);
                     }
                 }

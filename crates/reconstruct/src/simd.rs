@@ -49,10 +49,13 @@ pub(crate) trait Simd {
     /// accumulator is a chain of `k` dependent additions, and eight independent chains keep
     /// the adder busy where four left it waiting on their latency.
     fn gram_block<const P: usize>(d: &[&[f32; P]], e: &[[f32; P]], a0: usize, b0: usize) -> [[f32; 8]; 8];
-    /// `y[l] += a · x[l]`.
-    fn axpy32<const P: usize>(y: &mut [f32; P], a: f32, x: &[f32; P]);
     /// `Σ a[l]·b[l]` with eight lane sums combined pairwise.
     fn dot32<const P: usize>(a: &[f32; P], b: &[f32; P]) -> f32;
+    /// [`Simd::dot32`] of eight rows with one vector, the same bits: the eight rows' lane sums
+    /// are combined side by side instead of one horizontal sum per row.
+    fn dot32x8<const P: usize>(rows: [&[f32; P]; 8], b: &[f32; P]) -> [f32; 8];
+    /// `out[l][r] = m[r][l]`.
+    fn transpose8(m: [&[f32; 8]; 8]) -> [[f32; 8]; 8];
     /// `(Σ e^(−γ·t_i)·d_i, Σ e^(−γ·t_i))`: element `i` goes to lane `i mod 8` of chunk-wise
     /// partial sums (the tail of fewer than 8 to lanes 0…), combined pairwise.
     fn exp_weighted(t: &[f32], d: &[f32], gamma: f32) -> (f32, f32);
@@ -290,13 +293,6 @@ impl Simd for Portable {
     }
 
     #[inline(always)]
-    fn axpy32<const P: usize>(y: &mut [f32; P], a: f32, x: &[f32; P]) {
-        for l in 0..P {
-            y[l] += a * x[l];
-        }
-    }
-
-    #[inline(always)]
     fn dot32<const P: usize>(a: &[f32; P], b: &[f32; P]) -> f32 {
         let mut acc = [0.0f32; 8];
         for i in (0..P).step_by(8) {
@@ -305,6 +301,16 @@ impl Simd for Portable {
             }
         }
         ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]))
+    }
+
+    #[inline(always)]
+    fn dot32x8<const P: usize>(rows: [&[f32; P]; 8], b: &[f32; P]) -> [f32; 8] {
+        rows.map(|r| Portable::dot32(r, b))
+    }
+
+    #[inline(always)]
+    fn transpose8(m: [&[f32; 8]; 8]) -> [[f32; 8]; 8] {
+        std::array::from_fn(|l| std::array::from_fn(|r| m[r][l]))
     }
 }
 
@@ -561,20 +567,6 @@ impl Simd for Avx2 {
     }
 
     #[inline(always)]
-    fn axpy32<const P: usize>(y: &mut [f32; P], a: f32, x: &[f32; P]) {
-        use std::arch::x86_64::*;
-        // SAFETY: AVX2 is available; P is a multiple of 8, so every load/store is in bounds.
-        unsafe {
-            let av = _mm256_set1_ps(a);
-            for i in (0..P).step_by(8) {
-                let yp = y.as_mut_ptr().add(i);
-                let t = _mm256_mul_ps(av, _mm256_loadu_ps(x.as_ptr().add(i)));
-                _mm256_storeu_ps(yp, _mm256_add_ps(_mm256_loadu_ps(yp), t));
-            }
-        }
-    }
-
-    #[inline(always)]
     fn dot32<const P: usize>(a: &[f32; P], b: &[f32; P]) -> f32 {
         use std::arch::x86_64::*;
         // SAFETY: AVX2 is available; P is a multiple of 8.
@@ -586,6 +578,75 @@ impl Simd for Avx2 {
             let mut l = [0.0f32; 8];
             _mm256_storeu_ps(l.as_mut_ptr(), acc);
             ((l[0] + l[1]) + (l[2] + l[3])) + ((l[4] + l[5]) + (l[6] + l[7]))
+        }
+    }
+
+    #[inline(always)]
+    fn dot32x8<const P: usize>(rows: [&[f32; P]; 8], b: &[f32; P]) -> [f32; 8] {
+        use std::arch::x86_64::*;
+        // SAFETY: AVX2 is available; P is a multiple of 8.
+        unsafe {
+            // Row r's eight lane sums, each started from zero as in `dot32`.
+            let mut v = [_mm256_setzero_ps(); 8];
+            for (acc, r) in v.iter_mut().zip(rows) {
+                for i in (0..P).step_by(8) {
+                    let p = _mm256_mul_ps(_mm256_loadu_ps(r.as_ptr().add(i)), _mm256_loadu_ps(b.as_ptr().add(i)));
+                    *acc = _mm256_add_ps(*acc, p);
+                }
+            }
+            // hadd(x, y) = [x0+x1, x2+x3, y0+y1, y2+y3 | x4+x5, x6+x7, y4+y5, y6+y7]: two levels
+            // give rows 0–3 (and 4–7) as [(l0+l1)+(l2+l3) per row | (l4+l5)+(l6+l7) per row],
+            // and the last addition joins the halves, in `dot32`'s order.
+            let q0 = _mm256_hadd_ps(_mm256_hadd_ps(v[0], v[1]), _mm256_hadd_ps(v[2], v[3]));
+            let q1 = _mm256_hadd_ps(_mm256_hadd_ps(v[4], v[5]), _mm256_hadd_ps(v[6], v[7]));
+            let lo = _mm256_permute2f128_ps::<0x20>(q0, q1);
+            let hi = _mm256_permute2f128_ps::<0x31>(q0, q1);
+            let mut out = [0.0f32; 8];
+            _mm256_storeu_ps(out.as_mut_ptr(), _mm256_add_ps(lo, hi));
+            out
+        }
+    }
+
+    #[inline(always)]
+    fn transpose8(m: [&[f32; 8]; 8]) -> [[f32; 8]; 8] {
+        use std::arch::x86_64::*;
+        // SAFETY: AVX2 is available; every row is eight values.
+        unsafe {
+            let mut r = [_mm256_setzero_ps(); 8];
+            for (v, row) in r.iter_mut().zip(m) {
+                *v = _mm256_loadu_ps(row.as_ptr());
+            }
+            let t0 = _mm256_unpacklo_ps(r[0], r[1]);
+            let t1 = _mm256_unpackhi_ps(r[0], r[1]);
+            let t2 = _mm256_unpacklo_ps(r[2], r[3]);
+            let t3 = _mm256_unpackhi_ps(r[2], r[3]);
+            let t4 = _mm256_unpacklo_ps(r[4], r[5]);
+            let t5 = _mm256_unpackhi_ps(r[4], r[5]);
+            let t6 = _mm256_unpacklo_ps(r[6], r[7]);
+            let t7 = _mm256_unpackhi_ps(r[6], r[7]);
+            let u0 = _mm256_shuffle_ps::<0x44>(t0, t2);
+            let u1 = _mm256_shuffle_ps::<0xee>(t0, t2);
+            let u2 = _mm256_shuffle_ps::<0x44>(t1, t3);
+            let u3 = _mm256_shuffle_ps::<0xee>(t1, t3);
+            let u4 = _mm256_shuffle_ps::<0x44>(t4, t6);
+            let u5 = _mm256_shuffle_ps::<0xee>(t4, t6);
+            let u6 = _mm256_shuffle_ps::<0x44>(t5, t7);
+            let u7 = _mm256_shuffle_ps::<0xee>(t5, t7);
+            let o = [
+                _mm256_permute2f128_ps::<0x20>(u0, u4),
+                _mm256_permute2f128_ps::<0x20>(u1, u5),
+                _mm256_permute2f128_ps::<0x20>(u2, u6),
+                _mm256_permute2f128_ps::<0x20>(u3, u7),
+                _mm256_permute2f128_ps::<0x31>(u0, u4),
+                _mm256_permute2f128_ps::<0x31>(u1, u5),
+                _mm256_permute2f128_ps::<0x31>(u2, u6),
+                _mm256_permute2f128_ps::<0x31>(u3, u7),
+            ];
+            let mut out = [[0.0f32; 8]; 8];
+            for (dst, v) in out.iter_mut().zip(o) {
+                _mm256_storeu_ps(dst.as_mut_ptr(), v);
+            }
+            out
         }
     }
 }
@@ -638,11 +699,14 @@ mod tests {
     use super::*;
     use crate::rng::{hash4, uniform};
 
+    type Kernels = ([[f32; 8]; 8], f32, [f32; 8], [f32; 8], [[f32; 8]; 8]);
+
     #[target_feature(enable = "avx2")]
-    fn avx_results(d: &[&[f32; 16]], c: &[[f32; 16]], y: &[f32; 16]) -> ([[f32; 8]; 8], [f32; 16], f32) {
-        let mut yy = *y;
-        Avx2::axpy32(&mut yy, -0.37, d[2]);
-        (Avx2::gram_block(d, c, 8, 0), yy, Avx2::dot32(d[0], d[1]))
+    fn avx_results(d: &[&[f32; 16]], c: &[[f32; 16]], y: &[f32; 16], e: &[&[f32; 32]], m: [&[f32; 8]; 8]) -> Kernels {
+        let rows: [&[f32; 16]; 8] = std::array::from_fn(|r| d[3 + r]);
+        let wide: [&[f32; 32]; 8] = std::array::from_fn(|r| e[r]);
+        let z: &[f32; 32] = e[8];
+        (Avx2::gram_block(d, c, 8, 0), Avx2::dot32(d[0], d[1]), Avx2::dot32x8(rows, y), Avx2::dot32x8(wide, z), Avx2::transpose8(m))
     }
 
     #[target_feature(enable = "avx2")]
@@ -712,13 +776,31 @@ mod tests {
         let c: Vec<[f32; 16]> = (0..25).map(|j| std::array::from_fn(|b| u(99, 16 * j + b as u64) as f32 + 1.0)).collect();
         let y: [f32; 16] = std::array::from_fn(|i| (u(8, i as u64) * 1e-3) as f32);
         let d: Vec<&[f32; 16]> = d.iter().collect();
+        // Rows of 32 (two chunks per lane sum), with exact zeros and a negative zero among them.
+        let mut e: Vec<[f32; 32]> = (0..9).map(|j| std::array::from_fn(|b| u(77 + j, b as u64) as f32)).collect();
+        e[2][5] = 0.0;
+        e[2][13] = -0.0;
+        e[8][13] = 0.0;
+        let e: Vec<&[f32; 32]> = e.iter().collect();
+        let m: Vec<[f32; 8]> = (0..8).map(|r| std::array::from_fn(|l| (8 * r + l) as f32)).collect();
+        let m: [&[f32; 8]; 8] = std::array::from_fn(|r| &m[r]);
         // SAFETY: AVX2 detected above.
-        let (g, yy, d32) = unsafe { avx_results(&d, &c, &y) };
-        let mut py = y;
-        Portable::axpy32(&mut py, -0.37, d[2]);
+        let (g, d32, dots, wide, t) = unsafe { avx_results(&d, &c, &y, &e, m) };
         assert_eq!(g, Portable::gram_block(&d, &c, 8, 0));
-        assert_eq!(yy.map(f32::to_bits), py.map(f32::to_bits));
         assert_eq!(d32.to_bits(), Portable::dot32(d[0], d[1]).to_bits());
+        // Eight dot products at once: each the bits of `dot32`, in both builds.
+        for r in 0..8 {
+            let one = Portable::dot32(d[3 + r], &y).to_bits();
+            assert_eq!((dots[r].to_bits(), Portable::dot32x8(std::array::from_fn(|q| d[3 + q]), &y)[r].to_bits()), (one, one), "row {r}");
+            let one = Portable::dot32(e[r], e[8]).to_bits();
+            assert_eq!(
+                (wide[r].to_bits(), Portable::dot32x8(std::array::from_fn(|q| e[q]), e[8])[r].to_bits()),
+                (one, one),
+                "wide row {r}"
+            );
+        }
+        let want: [[f32; 8]; 8] = std::array::from_fn(|l| std::array::from_fn(|r| (8 * r + l) as f32));
+        assert_eq!((t, Portable::transpose8(m)), (want, want));
         let t: Vec<f32> = (0..229).map(|i| (u(3, i) + 0.5) as f32 * 4.0).collect();
         let dd: Vec<f32> = (0..229).map(|i| u(4, i) as f32).collect();
         // SAFETY: AVX2 detected above.
