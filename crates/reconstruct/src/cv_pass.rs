@@ -557,6 +557,10 @@ impl CvPass<'_> {
                     let i = i as usize;
                     let (gi, hi) = (target[i], hm[i]);
                     for ch in 0..3 {
+                        crate::simd::prefetch(cube.row_padded::<P>(i, ch));
+                        crate::simd::prefetch(plain.row_padded::<P>(i, ch));
+                    }
+                    for ch in 0..3 {
                         rows.d[ch][j] = cube.row_padded::<P>(i, ch);
                         p.sq[ch][j] = cube.sq[i][ch];
                         sc.gs3[ch][j] = gi[ch] as f64;

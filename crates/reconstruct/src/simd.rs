@@ -42,6 +42,18 @@ pub(crate) fn force_portable<T>(f: impl FnOnce() -> T) -> T {
     f()
 }
 
+/// Asks for the cache line of `v` ahead of its use (a hint: no effect on results).
+#[inline(always)]
+pub(crate) fn prefetch<T>(v: &T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch never faults and SSE is part of x86_64.
+    unsafe {
+        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>((v as *const T).cast());
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = v;
+}
+
 /// Vector kernels over fixed-width rows (`P` a multiple of 8).
 pub(crate) trait Simd {
     /// For `q < 8`, `l < 8`: `Σ_j e_j[a0+q] · d_j[b0+l]` over the rows, summed in `j` order,
