@@ -184,23 +184,35 @@ impl PassStats {
     }
 
     fn record(&mut self, outcome: Outcome, beta: &mut [f64], include_centre: bool) {
-        match outcome {
-            Outcome::Solved => {}
-            Outcome::Regularised => self.regularised += 1,
-            Outcome::Degenerate => self.degenerate += 1,
-            Outcome::Failed => {
-                self.failed += 1;
-                // Nothing to trust: the plain average of the two inputs when the centre is in the
-                // set, the CRN value otherwise.
-                beta.fill(0.0);
-                if include_centre {
-                    beta[0] = 0.5;
-                }
+        PassStats::settle(outcome, beta, include_centre);
+        let centre = if include_centre { beta[0] } else { 0.0 };
+        self.count(outcome, centre, beta.iter().sum::<f64>());
+    }
+
+    /// What a solve's β is taken to be: as solved, except where the solve failed.
+    fn settle(outcome: Outcome, beta: &mut [f64], include_centre: bool) {
+        if outcome == Outcome::Failed {
+            // Nothing to trust: the plain average of the two inputs when the centre is in the
+            // set, the CRN value otherwise.
+            beta.fill(0.0);
+            if include_centre {
+                beta[0] = 0.5;
             }
         }
+    }
+
+    /// Counts a solve with its settled β: the centre's coefficient (0 without a centre) and
+    /// `Σ β`.
+    fn count(&mut self, outcome: Outcome, centre: f64, beta_sum: f64) {
+        match outcome {
+            Outcome::Solved | Outcome::Failed => {}
+            Outcome::Regularised => self.regularised += 1,
+            Outcome::Degenerate => self.degenerate += 1,
+        }
+        self.failed += u64::from(outcome == Outcome::Failed);
         self.solves += 1;
-        self.centre_weight += if include_centre { beta[0] } else { 0.0 };
-        self.beta_sum += beta.iter().sum::<f64>();
+        self.centre_weight += centre;
+        self.beta_sum += beta_sum;
     }
 }
 
@@ -472,6 +484,42 @@ impl CvPass<'_> {
         idx.iter().zip(beta).map(|(&i, &b)| b * b * e[i as usize][ch] as f64).sum()
     }
 
+    /// For the joint systems (0–2, control variates `idx`) and, when `free`, the centre-free
+    /// ones (3–5, control variates `idx[1..]`), with the panel's β: `[Σ β_j, Σ β_j·(g_j − h_j),
+    /// Σ β_j²·e_j]`, what [`PassStats::count`], [`combine`] and [`CvPass::pt_variance`] sum. Each
+    /// sum runs in `j` order from −0 as `Iterator::sum` does, so the bits are theirs; the
+    /// eighteen sums run side by side instead of one after the other.
+    #[inline(always)]
+    fn side_by_side_sums<const P: usize>(
+        &self,
+        p: &Panel<P>,
+        idx: &[u32],
+        gs: &[[f64; MAX_K]; 3],
+        hs: &[[f64; MAX_K]; 3],
+        free: bool,
+    ) -> [[f64; 3]; MAX_SYSTEMS] {
+        let mut sums = [[-0.0f64; 3]; MAX_SYSTEMS];
+        for (j, &i) in idx.iter().enumerate() {
+            let e = self.errors.map(|e| e[i as usize]);
+            for ch in 0..3 {
+                let d = gs[ch][j] - hs[ch][j];
+                let e = e.map_or(0.0, |e| e[ch] as f64);
+                let b = p.beta[ch][j];
+                let [bs, cs, ps] = &mut sums[ch];
+                (*bs, *cs, *ps) = (*bs + b, *cs + b * d, *ps + b * b * e);
+                if free && j > 0 {
+                    let b = p.beta[3 + ch][j - 1];
+                    let [bs, cs, ps] = &mut sums[3 + ch];
+                    (*bs, *cs, *ps) = (*bs + b, *cs + b * d, *ps + b * b * e);
+                }
+            }
+        }
+        if self.errors.is_none() {
+            sums.iter_mut().for_each(|s| s[2] = 0.0);
+        }
+        sums
+    }
+
     /// `W` for control variate `i` of centre `c` in channel `ch` (summed over channels when shared).
     #[inline(always)]
     fn weight(&self, penalty: Penalty, i: usize, c: usize, ch: usize) -> f64 {
@@ -594,36 +642,46 @@ impl CvPass<'_> {
                     systems[3..].fill(System { k: n - 1, ridge: f.ridge, want_trace: f.dof != Dof::None });
                 }
                 let outcomes = p.solve::<S>(rows, &systems[..if free.is_some() { 6 } else { 3 }], s);
+                let solved = outcomes.map(|o| matches!(o, Outcome::Solved | Outcome::Regularised));
+                let mut shrink = [1.0; 3];
+                for ch in 0..3 {
+                    if solved[ch] {
+                        let winv = p.centre_winv(ch);
+                        shrink[ch] = blend_towards_centre(&mut p.beta[ch][..n], delta_c[ch], winv);
+                    }
+                    PassStats::settle(outcomes[ch], &mut p.beta[ch][..n], self.include_centre);
+                    if free.is_some() {
+                        PassStats::settle(outcomes[3 + ch], &mut p.beta[3 + ch][..n - 1], false);
+                    }
+                }
+                // Per system, Σ β_j, Σ β_j·(ḡ_j − h̄_j) and Σ β_j²·e_j: each in j order as a
+                // sequential sum, all of them side by side.
+                let sums = self.side_by_side_sums(p, idx, &sc.gs3, &sc.hs3, free.is_some());
                 // Observations per channel: B − 1 deviations, and the common floor's column.
                 let common = self.floor.is_some_and(|f| f.mode == FloorMode::Common);
                 let n_obs = (b - 1 + usize::from(common)) as f64;
                 for ch in 0..3 {
-                    let solved = matches!(outcomes[ch], Outcome::Solved | Outcome::Regularised);
-                    let winv = p.centre_winv(ch);
-                    let shrink = if solved { blend_towards_centre(&mut p.beta[ch][..n], delta_c[ch], winv) } else { 1.0 };
-                    let beta = &mut p.beta[ch][..n];
-                    st[0].record(outcomes[ch], beta, self.include_centre);
-                    acc[ch] += combine(target[c][ch] as f64, &sc.gs3[ch][..n], &sc.hs3[ch][..n], beta);
+                    let [beta_sum, correction, pt] = sums[ch];
+                    st[0].count(outcomes[ch], if self.include_centre { p.beta[ch][0] } else { 0.0 }, beta_sum);
+                    acc[ch] += target[c][ch] as f64 - correction;
                     if self.variance {
-                        let factor = if solved { self.dof.factor(P as f64 - p.trace_inv[ch], n_obs) } else { 1.0 };
-                        let crn = s * if solved { shrink * shrink * p.resid_sq[ch] } else { f64::from(cube.sq[c][ch]) };
-                        var[ch] += factor * crn + self.pt_variance(idx, beta, ch);
+                        let factor = if solved[ch] { self.dof.factor(P as f64 - p.trace_inv[ch], n_obs) } else { 1.0 };
+                        let crn = s * if solved[ch] { shrink[ch] * shrink[ch] * p.resid_sq[ch] } else { f64::from(cube.sq[c][ch]) };
+                        var[ch] += factor * crn + pt;
                     }
                 }
                 if let Some(f) = free {
                     // Without a floor there is nothing to blend towards the centre (and no centre).
-                    let m = n - 1;
                     // No floor column: B − 1 observations per channel.
                     let n_obs = (b - 1) as f64;
                     for ch in 0..3 {
                         let q = 3 + ch;
-                        let solved = matches!(outcomes[q], Outcome::Solved | Outcome::Regularised);
-                        let factor = if solved { f.dof.factor(P as f64 - p.trace_inv[q], n_obs) } else { 1.0 };
-                        let beta = &mut p.beta[q][..m];
-                        st[1].record(outcomes[q], beta, false);
-                        free_acc[ch] += combine(target[c][ch] as f64, &sc.gs3[ch][1..n], &sc.hs3[ch][1..n], beta);
-                        let crn = s * if solved { p.resid_sq[q] } else { f64::from(plain.sq[c][ch]) };
-                        free_var[ch] += factor * crn + self.pt_variance(&idx[1..], beta, ch);
+                        let [beta_sum, correction, pt] = sums[q];
+                        let factor = if solved[q] { f.dof.factor(P as f64 - p.trace_inv[q], n_obs) } else { 1.0 };
+                        st[1].count(outcomes[q], 0.0, beta_sum);
+                        free_acc[ch] += target[c][ch] as f64 - correction;
+                        let crn = s * if solved[q] { p.resid_sq[q] } else { f64::from(plain.sq[c][ch]) };
+                        free_var[ch] += factor * crn + pt;
                     }
                 }
             }

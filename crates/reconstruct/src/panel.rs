@@ -114,13 +114,18 @@ impl<const P: usize> Panel<P> {
         let mut pending = [false; MAX_SYSTEMS];
         let mut lambda = [0.0; MAX_SYSTEMS];
         let mut scale = [0.0; MAX_SYSTEMS];
+        // The mean diagonal of each system: sums in j order, the systems' side by side.
+        let mut sums = [0.0; MAX_SYSTEMS];
+        for j in 0..systems.iter().map(|q| q.k).max().unwrap_or(0) {
+            for (q, sys) in systems.iter().enumerate() {
+                if j < sys.k {
+                    sums[q] += s * self.sq[q][j] as f64 + self.w[q][j];
+                }
+            }
+        }
         for (q, sys) in systems.iter().enumerate() {
             let k = sys.k;
-            let mut sc = 0.0;
-            for j in 0..k {
-                sc += s * self.sq[q][j] as f64 + self.w[q][j];
-            }
-            sc /= k.max(1) as f64;
+            let sc = sums[q] / k.max(1) as f64;
             if k == 0 || !(sc > 0.0 && sc.is_finite()) {
                 self.beta[q][..k].fill(0.0);
                 out[q] = if sc.is_finite() || k == 0 { Outcome::Degenerate } else { Outcome::Failed };
