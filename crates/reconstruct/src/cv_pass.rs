@@ -557,7 +557,7 @@ impl CvPass<'_> {
         st: &mut [PassStats; 2],
     ) -> PixelOut {
         let c = y * self.set.width + x;
-        let n = self.selector.select(x, y, &mut sc.select, &mut sc.idx);
+        let n = self.selector.select_with::<S>(x, y, &mut sc.select, &mut sc.idx);
         let idx = &sc.idx[..n];
         let hm = &self.set.pt.mean.pixels;
         let nh = halves.len();

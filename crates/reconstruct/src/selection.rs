@@ -5,6 +5,7 @@
 //! spatial distance and then by position, so the choice is deterministic.
 use crate::named::named_enum;
 use crate::rng::hash4;
+use crate::simd::{Portable, Simd, KNN_KEYS_SLACK};
 use crate::window::shifted_range;
 use cvtrace_streams::StreamSet;
 
@@ -26,9 +27,10 @@ named_enum! {
 pub const MAX_SEARCH_WINDOW: usize = 31;
 const MAX_CANDIDATES: usize = MAX_SEARCH_WINDOW * MAX_SEARCH_WINDOW;
 
-/// Per-thread candidate buffer, reused for every pixel.
+/// Per-thread candidate buffer, reused for every pixel (with room for the whole vectors the
+/// k-NN keys are written in).
 pub struct SelectScratch {
-    keys: Box<[u64; MAX_CANDIDATES]>,
+    keys: Box<[u64; MAX_CANDIDATES + KNN_KEYS_SLACK]>,
 }
 
 impl Default for SelectScratch {
@@ -39,7 +41,7 @@ impl Default for SelectScratch {
 
 impl SelectScratch {
     pub fn new() -> Self {
-        SelectScratch { keys: Box::new([0; MAX_CANDIDATES]) }
+        SelectScratch { keys: Box::new([0; MAX_CANDIDATES + KNN_KEYS_SLACK]) }
     }
 }
 
@@ -52,6 +54,8 @@ pub struct Selector<'a> {
     width: usize,
     height: usize,
     crn: &'a [[f32; 3]],
+    /// The CRN image as three planes (R, G, B), padded for whole-vector loads, for `Knn`.
+    crn_planes: Option<[Vec<f32>; 3]>,
     albedo: Option<&'a [[f32; 3]]>,
     normal: Option<&'a [[f32; 3]]>,
 }
@@ -69,6 +73,13 @@ impl<'a> Selector<'a> {
             width: set.width,
             height: set.height,
             crn: &set.crn.mean.pixels,
+            crn_planes: (kind == Selection::Knn).then(|| {
+                std::array::from_fn(|ch| {
+                    let mut plane: Vec<f32> = set.crn.mean.pixels.iter().map(|p| p[ch]).collect();
+                    plane.resize(plane.len() + KNN_KEYS_SLACK, 0.0);
+                    plane
+                })
+            }),
             albedo: set.features.as_ref().map(|f| f.albedo.pixels.as_slice()),
             normal: set.features.as_ref().map(|f| f.normal.pixels.as_slice()),
         }
@@ -77,33 +88,58 @@ impl<'a> Selector<'a> {
     /// Writes the chosen pixel indices to `out` (the centre first when included) and returns
     /// how many there are: `k`, or fewer when the image has fewer pixels.
     pub fn select(&self, x: usize, y: usize, scratch: &mut SelectScratch, out: &mut [u32]) -> usize {
+        self.select_with::<Portable>(x, y, scratch, out)
+    }
+
+    /// [`Selector::select`] with the k-NN keys built by the vector kernels `S` (the same keys,
+    /// so the same selection in the same order).
+    #[inline(always)]
+    pub(crate) fn select_with<S: Simd>(&self, x: usize, y: usize, scratch: &mut SelectScratch, out: &mut [u32]) -> usize {
         let (w, c) = (self.width, y * self.width + x);
         let xr = shifted_range(x, self.search, w);
         let yr = shifted_range(y, self.search, self.height);
         let span = xr.len();
         let mut n = 0;
-        for yy in yr.clone() {
-            for xx in xr.clone() {
-                let i = yy * w + xx;
-                if i == c {
-                    continue;
+        if let Some([r, g, b]) = &self.crn_planes {
+            // The keys of a window row in whole vectors; the centre's row then closes up over
+            // the centre, which is not a candidate.
+            let planes = [&r[..], &g[..], &b[..]];
+            for yy in yr.clone() {
+                let local0 = ((yy - yr.start) * span) as u32;
+                let (dx0, dy) = (xr.start as i32 - x as i32, yy as i32 - y as i32);
+                S::knn_keys(planes, self.crn[c], yy * w + xr.start, span, [dx0, dy], local0, &mut scratch.keys[n..]);
+                if yy == y {
+                    let at = n + x - xr.start;
+                    scratch.keys.copy_within(at + 1..n + span, at);
+                    n += span - 1;
+                } else {
+                    n += span;
                 }
-                let (dx, dy) = (xx as i64 - x as i64, yy as i64 - y as i64);
-                let spatial = (dx * dx + dy * dy) as u64;
-                let primary: u32 = match self.kind {
-                    Selection::Knn => dist2(&self.crn[c], &self.crn[i]).to_bits(),
-                    Selection::Window => 0,
-                    Selection::Random => (hash4(self.seed, c as u64, i as u64, 0x5e1) >> 32) as u32,
-                    Selection::Gbuffer => {
-                        let (a, nrm) = (self.albedo.unwrap_or(&[]), self.normal.unwrap_or(&[]));
-                        let g = 1.0 - (-dist2(&a[c], &a[i])).exp() * (-dist2(&nrm[c], &nrm[i])).exp();
-                        g.max(0.0).to_bits()
+            }
+        } else {
+            for yy in yr.clone() {
+                for xx in xr.clone() {
+                    let i = yy * w + xx;
+                    if i == c {
+                        continue;
                     }
-                };
-                // Non-negative f32 bits order like the floats; the local index makes keys unique.
-                let local = ((yy - yr.start) * span + (xx - xr.start)) as u64;
-                scratch.keys[n] = (primary as u64) << 32 | spatial.min(0xfff) << 20 | local;
-                n += 1;
+                    let (dx, dy) = (xx as i64 - x as i64, yy as i64 - y as i64);
+                    let spatial = (dx * dx + dy * dy) as u64;
+                    let primary: u32 = match self.kind {
+                        Selection::Knn => dist2(&self.crn[c], &self.crn[i]).to_bits(),
+                        Selection::Window => 0,
+                        Selection::Random => (hash4(self.seed, c as u64, i as u64, 0x5e1) >> 32) as u32,
+                        Selection::Gbuffer => {
+                            let (a, nrm) = (self.albedo.unwrap_or(&[]), self.normal.unwrap_or(&[]));
+                            let g = 1.0 - (-dist2(&a[c], &a[i])).exp() * (-dist2(&nrm[c], &nrm[i])).exp();
+                            g.max(0.0).to_bits()
+                        }
+                    };
+                    // Non-negative f32 bits order like the floats; the local index makes keys unique.
+                    let local = ((yy - yr.start) * span + (xx - xr.start)) as u64;
+                    scratch.keys[n] = knn_key(primary, spatial, local);
+                    n += 1;
+                }
             }
         }
         let mut count = 0;
@@ -125,8 +161,15 @@ impl<'a> Selector<'a> {
     }
 }
 
+/// A candidate's sort key: the primary distance's bits, then the squared spatial distance
+/// (capped), then the position in the window.
+#[inline(always)]
+pub(crate) fn knn_key(primary: u32, spatial: u64, local: u64) -> u64 {
+    (primary as u64) << 32 | spatial.min(0xfff) << 20 | local
+}
+
 #[inline]
-fn dist2(a: &[f32; 3], b: &[f32; 3]) -> f32 {
+pub(crate) fn dist2(a: &[f32; 3], b: &[f32; 3]) -> f32 {
     let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
     d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
 }
@@ -207,6 +250,51 @@ mod tests {
         let set = set_with(Image::new(2, 2), Image::new(2, 2));
         let sel = Selector::new(Selection::Knn, 25, 11, true, 0, &set);
         assert_eq!(chosen(&sel, 1, 1).len(), 4);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn chosen_avx2(sel: &Selector, x: usize, y: usize) -> Vec<u32> {
+        let mut out = [0u32; 64];
+        let n = sel.select_with::<crate::simd::Avx2>(x, y, &mut SelectScratch::new(), &mut out);
+        out[..n].to_vec()
+    }
+
+    /// The k-NN keys built by whole window rows (both builds of the kernel) give the selection,
+    /// in its order, that the per-candidate keys give: every pixel of images with ties (flat,
+    /// quantised) and narrower or shorter than the window, for several windows and k.
+    #[test]
+    fn knn_keys_by_rows_select_what_the_per_candidate_keys_select() {
+        use crate::synthetic::{RenderSpec, SoftShadowScene};
+        let avx2 = cfg!(target_arch = "x86_64") && std::is_x86_feature_detected!("avx2");
+        let mut compared = 0;
+        for (w, h) in [(37, 29), (9, 40), (40, 6)] {
+            let scene = SoftShadowScene::default().render(&RenderSpec { width: w, height: h, spp: 8, batches: 4, seed: 3 }).unwrap();
+            let mut quantised = scene.clone();
+            quantised.crn.mean.pixels.iter_mut().for_each(|p| *p = p.map(|v| (v * 4.0).round() / 4.0));
+            let mut flat = scene.clone();
+            flat.crn.mean.pixels.fill([0.5; 3]);
+            for set in [&scene, &quantised, &flat] {
+                for (k, search, centre) in [(49, 15, true), (48, 15, false), (25, 11, true), (9, 3, true), (40, 7, false), (64, 31, true)] {
+                    let rows = Selector::new(Selection::Knn, k, search, centre, 0, set);
+                    let mut per_candidate = Selector::new(Selection::Knn, k, search, centre, 0, set);
+                    per_candidate.crn_planes = None;
+                    for y in 0..h {
+                        for x in 0..w {
+                            let want = chosen(&per_candidate, x, y);
+                            assert_eq!(chosen(&rows, x, y), want, "portable, {w}x{h} k={k} search={search} at ({x}, {y})");
+                            #[cfg(target_arch = "x86_64")]
+                            if avx2 {
+                                // SAFETY: AVX2 detected above.
+                                assert_eq!(unsafe { chosen_avx2(&rows, x, y) }, want, "AVX2, {w}x{h} k={k} search={search} at ({x}, {y})");
+                            }
+                            compared += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(compared > 10_000);
     }
 
     /// The centre-free pass of `ours`' two-stage estimate reuses the joint selection minus the

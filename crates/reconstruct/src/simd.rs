@@ -68,6 +68,14 @@ pub(crate) trait Simd {
     fn dot32x8<const P: usize>(rows: [&[f32; P]; 8], b: &[f32; P]) -> [f32; 8];
     /// `out[l][r] = m[r][l]`.
     fn transpose8(m: [&[f32; 8]; 8]) -> [[f32; 8]; 8];
+    /// The k-NN selection keys of the `n` candidates `p0 … p0 + n − 1` of one window row, whose
+    /// offsets from the centre are `dx0 + l` and `dy` and whose window positions are
+    /// `local0 + l`: candidate `l`'s key, as [`crate::selection::knn_key`] builds it from the
+    /// squared CRN colour distance `dist2(centre, planes[·][p0 + l])`, goes to `out[l]`. Works
+    /// in whole vectors: the planes must hold and `out` must take [`KNN_KEYS_SLACK`] values
+    /// more than `n` (what lies beyond `n` in `out` is overwritten with unused keys).
+    #[allow(clippy::too_many_arguments)]
+    fn knn_keys(planes: [&[f32]; 3], centre: [f32; 3], p0: usize, n: usize, offset: [i32; 2], local0: u32, out: &mut [u64]);
     /// `(Σ e^(−γ·t_i)·d_i, Σ e^(−γ·t_i))`: element `i` goes to lane `i mod 8` of chunk-wise
     /// partial sums (the tail of fewer than 8 to lanes 0…), combined pairwise.
     fn exp_weighted(t: &[f32], d: &[f32], gamma: f32) -> (f32, f32);
@@ -172,6 +180,16 @@ fn check_row_bounds(
 #[inline(always)]
 fn check_pair_bounds(x: &[f32], y: &[f32], p0: usize, off: usize, n: usize, out: &[f32]) {
     assert!(p0 + off + n <= x.len().min(y.len()) && n <= out.len(), "IDUW pair outside the planes");
+}
+
+/// Extra values [`Simd::knn_keys`] may read from each plane and write to its output.
+pub(crate) const KNN_KEYS_SLACK: usize = 8;
+
+/// Checks the contract of [`Simd::knn_keys`] that keeps its loads and stores in bounds.
+#[inline(always)]
+fn check_knn_bounds(planes: &[&[f32]; 3], p0: usize, n: usize, out: &[u64]) {
+    let len = planes.iter().map(|p| p.len()).min().unwrap_or(0);
+    assert!(p0 + n + KNN_KEYS_SLACK <= len && n + KNN_KEYS_SLACK <= out.len(), "k-NN keys outside their planes");
 }
 
 #[inline(always)]
@@ -323,6 +341,17 @@ impl Simd for Portable {
     #[inline(always)]
     fn transpose8(m: [&[f32; 8]; 8]) -> [[f32; 8]; 8] {
         std::array::from_fn(|l| std::array::from_fn(|r| m[r][l]))
+    }
+
+    #[inline(always)]
+    fn knn_keys(planes: [&[f32]; 3], centre: [f32; 3], p0: usize, n: usize, [dx0, dy]: [i32; 2], local0: u32, out: &mut [u64]) {
+        check_knn_bounds(&planes, p0, n, out);
+        for (l, key) in out[..n].iter_mut().enumerate() {
+            let p = p0 + l;
+            let primary = crate::selection::dist2(&centre, &[planes[0][p], planes[1][p], planes[2][p]]).to_bits();
+            let (dx, dy) = ((dx0 + l as i32) as i64, dy as i64);
+            *key = crate::selection::knn_key(primary, (dx * dx + dy * dy) as u64, (local0 + l as u32) as u64);
+        }
     }
 }
 
@@ -659,6 +688,37 @@ impl Simd for Avx2 {
                 _mm256_storeu_ps(dst.as_mut_ptr(), v);
             }
             out
+        }
+    }
+
+    #[inline(always)]
+    fn knn_keys(planes: [&[f32]; 3], centre: [f32; 3], p0: usize, n: usize, [dx0, dy]: [i32; 2], local0: u32, out: &mut [u64]) {
+        use std::arch::x86_64::*;
+        check_knn_bounds(&planes, p0, n, out);
+        // SAFETY: AVX2 is available (see the type's contract); each chunk reads and writes 8
+        // values from `p0 + l` and `l < n`, in bounds by the check above.
+        unsafe {
+            let [r, g, b] = planes;
+            let (cr, cg, cb) = (_mm256_set1_ps(centre[0]), _mm256_set1_ps(centre[1]), _mm256_set1_ps(centre[2]));
+            let lanes = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+            let (dy2, cap) = (_mm256_set1_epi32(dy * dy), _mm256_set1_epi32(0xfff));
+            for l in (0..n).step_by(8) {
+                let p = p0 + l;
+                let dr = _mm256_sub_ps(cr, _mm256_loadu_ps(r.as_ptr().add(p)));
+                let dg = _mm256_sub_ps(cg, _mm256_loadu_ps(g.as_ptr().add(p)));
+                let db = _mm256_sub_ps(cb, _mm256_loadu_ps(b.as_ptr().add(p)));
+                let d2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(dr, dr), _mm256_mul_ps(dg, dg)), _mm256_mul_ps(db, db));
+                let dx = _mm256_add_epi32(_mm256_set1_epi32(dx0 + l as i32), lanes);
+                let spatial = _mm256_min_epu32(_mm256_add_epi32(_mm256_mullo_epi32(dx, dx), dy2), cap);
+                let local = _mm256_add_epi32(_mm256_set1_epi32((local0 + l as u32) as i32), lanes);
+                let low = _mm256_or_si256(_mm256_slli_epi32::<20>(spatial), local);
+                let high = _mm256_castps_si256(d2);
+                // (low, high) pairs as u64: keys 0, 1, 4, 5 and 2, 3, 6, 7, then in order.
+                let (a, c) = (_mm256_unpacklo_epi32(low, high), _mm256_unpackhi_epi32(low, high));
+                let dst = out.as_mut_ptr().add(l).cast::<__m256i>();
+                _mm256_storeu_si256(dst, _mm256_permute2x128_si256::<0x20>(a, c));
+                _mm256_storeu_si256(dst.add(1), _mm256_permute2x128_si256::<0x31>(a, c));
+            }
         }
     }
 }
