@@ -61,7 +61,7 @@ pub(crate) struct Panel<const P: usize> {
     c32: [f32; MAX_K],
     /// Rows of D scaled by `s/(w_j + λ)`.
     scaled: [[f32; P]; MAX_K],
-    /// Per system, `G` as [`Simd::gram_block`] forms it (only the blocks of the lower triangle).
+    /// Per system, `G` as [`Simd::gram_lower`] forms it (only the blocks of the lower triangle).
     blocks: [[[f32; P]; P]; MAX_SYSTEMS],
     /// Element `(a, b)`, `b ≤ a`, of every system's `G`, then of its Cholesky factor `L`.
     g: [[V; P]; P],
@@ -195,15 +195,7 @@ impl<const P: usize> Panel<P> {
                 let (c, r) = (self.c32[j], rows.d[q][j]);
                 self.scaled[j] = std::array::from_fn(|a| c * r[a]);
             }
-            let d = &rows.d[q][..k];
-            for a0 in (0..P).step_by(8) {
-                for b0 in (0..=a0).step_by(8) {
-                    let acc = S::gram_block(d, &self.scaled[..k], a0, b0);
-                    for (dst, src) in self.blocks[q][a0..a0 + 8].iter_mut().zip(&acc) {
-                        dst[b0..b0 + 8].copy_from_slice(src);
-                    }
-                }
-            }
+            S::gram_lower(&rows.d[q][..k], &self.scaled[..k], &mut self.blocks[q]);
         }
         // To the lane layout; the unused lanes repeat system 0, so that they stay finite.
         let from = |lane: usize| if lane < n { lane } else { 0 };

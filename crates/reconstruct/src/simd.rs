@@ -61,6 +61,20 @@ pub(crate) trait Simd {
     /// accumulator is a chain of `k` dependent additions, and eight independent chains keep
     /// the adder busy where four left it waiting on their latency.
     fn gram_block<const P: usize>(d: &[&[f32; P]], e: &[[f32; P]], a0: usize, b0: usize) -> [[f32; 8]; 8];
+    /// Every 8×8 block of `Σ_j e_j·d_jᵀ` that touches the lower triangle, as
+    /// [`Simd::gram_block`] forms it, into `out` (rows along `a`); the other blocks are left as
+    /// they are.
+    #[inline(always)]
+    fn gram_lower<const P: usize>(d: &[&[f32; P]], e: &[[f32; P]], out: &mut [[f32; P]; P]) {
+        for a0 in (0..P).step_by(8) {
+            for b0 in (0..=a0).step_by(8) {
+                let acc = Self::gram_block(d, e, a0, b0);
+                for (dst, src) in out[a0..a0 + 8].iter_mut().zip(&acc) {
+                    dst[b0..b0 + 8].copy_from_slice(src);
+                }
+            }
+        }
+    }
     /// `Σ a[l]·b[l]` with eight lane sums combined pairwise.
     fn dot32<const P: usize>(a: &[f32; P], b: &[f32; P]) -> f32;
     /// [`Simd::dot32`] of eight rows with one vector, the same bits: the eight rows' lane sums
@@ -584,6 +598,30 @@ impl Simd for Avx2 {
         }
     }
 
+    /// At `P = 16` on CPUs with AVX-512 the rows go through [`gram16_avx512`]: one
+    /// kernel with explicit AVX-512 loops, where compiling the whole pass for AVX-512 would let
+    /// the compiler turn plain loops into gathers and scatters.
+    #[inline(always)]
+    fn gram_lower<const P: usize>(d: &[&[f32; P]], e: &[[f32; P]], out: &mut [[f32; P]; P]) {
+        if P == 16 && has_avx512() {
+            // SAFETY: P is 16, so the casts only rename the types; AVX-512F/VL were detected.
+            unsafe {
+                let d16 = std::slice::from_raw_parts(d.as_ptr().cast::<&[f32; 16]>(), d.len());
+                let e16 = std::slice::from_raw_parts(e.as_ptr().cast::<[f32; 16]>(), e.len());
+                gram16_avx512(d16, e16, &mut *(out as *mut [[f32; P]; P]).cast::<[[f32; 16]; 16]>());
+            }
+            return;
+        }
+        for a0 in (0..P).step_by(8) {
+            for b0 in (0..=a0).step_by(8) {
+                let acc = Avx2::gram_block(d, e, a0, b0);
+                for (dst, src) in out[a0..a0 + 8].iter_mut().zip(&acc) {
+                    dst[b0..b0 + 8].copy_from_slice(src);
+                }
+            }
+        }
+    }
+
     #[inline(always)]
     fn gram_block<const P: usize>(d: &[&[f32; P]], e: &[[f32; P]], a0: usize, b0: usize) -> [[f32; 8]; 8] {
         use std::arch::x86_64::*;
@@ -723,6 +761,44 @@ impl Simd for Avx2 {
     }
 }
 
+/// Whether the CPU has the AVX-512 subsets [`gram16_avx512`] uses (unless a unit test has
+/// forced the portable build, which never calls it).
+#[cfg(target_arch = "x86_64")]
+#[inline]
+pub(crate) fn has_avx512() -> bool {
+    std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("avx512vl")
+}
+
+/// [`Simd::gram_lower`] at `P = 16` with AVX-512: rows 8–15 of both lower blocks are one
+/// 16-wide accumulator each, so every `e_j[8 + q]` is broadcast once for the two blocks, and
+/// the broadcasts fold into the multiplications. Each element is still `Σ_j e_j[a]·d_j[b]`
+/// in `j` order, no FMA: the bits of [`Simd::gram_block`]. A function of its own, so that
+/// only these explicit loops are compiled with AVX-512.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,avx512f,avx512vl")]
+#[inline(never)]
+unsafe fn gram16_avx512(d: &[&[f32; 16]], e: &[[f32; 16]], out: &mut [[f32; 16]; 16]) {
+    use std::arch::x86_64::*;
+    // SAFETY: AVX-512F/VL are available (the caller's contract); every load and store is one
+    // whole row of 8 or 16 values.
+    unsafe {
+        let mut lo = [_mm256_setzero_ps(); 8];
+        let mut hi = [_mm512_setzero_ps(); 8];
+        for (r, ej) in d.iter().zip(e) {
+            let r8 = _mm256_loadu_ps(r.as_ptr());
+            let r16 = _mm512_loadu_ps(r.as_ptr());
+            for q in 0..8 {
+                lo[q] = _mm256_add_ps(lo[q], _mm256_mul_ps(_mm256_set1_ps(ej[q]), r8));
+                hi[q] = _mm512_add_ps(hi[q], _mm512_mul_ps(_mm512_set1_ps(ej[8 + q]), r16));
+            }
+        }
+        for q in 0..8 {
+            _mm256_storeu_ps(out[q].as_mut_ptr(), lo[q]);
+            _mm512_storeu_ps(out[8 + q].as_mut_ptr(), hi[q]);
+        }
+    }
+}
+
 /// [`Simd::exp_weighted`] for `N` γ values at once (`gammas.len() == N`).
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
@@ -779,6 +855,11 @@ mod tests {
         let wide: [&[f32; 32]; 8] = std::array::from_fn(|r| e[r]);
         let z: &[f32; 32] = e[8];
         (Avx2::gram_block(d, c, 8, 0), Avx2::dot32(d[0], d[1]), Avx2::dot32x8(rows, y), Avx2::dot32x8(wide, z), Avx2::transpose8(m))
+    }
+
+    #[target_feature(enable = "avx2")]
+    fn avx_gram_lower(d: &[&[f32; 16]], c: &[[f32; 16]], out: &mut [[f32; 16]; 16]) {
+        Avx2::gram_lower(d, c, out);
     }
 
     #[target_feature(enable = "avx2")]
@@ -859,6 +940,21 @@ mod tests {
         // SAFETY: AVX2 detected above.
         let (g, d32, dots, wide, t) = unsafe { avx_results(&d, &c, &y, &e, m) };
         assert_eq!(g, Portable::gram_block(&d, &c, 8, 0));
+        // The whole lower triangle (with AVX-512 where the CPU has it) against the portable
+        // blocks; the blocks above the diagonal are not formed.
+        let (mut lower, mut want) = ([[0.0f32; 16]; 16], [[0.0f32; 16]; 16]);
+        // SAFETY: AVX2 detected above.
+        unsafe { avx_gram_lower(&d, &c, &mut lower) };
+        Portable::gram_lower(&d, &c, &mut want);
+        for a in 0..16 {
+            let formed = if a < 8 { 8 } else { 16 };
+            assert_eq!(
+                lower[a][..formed].iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                want[a][..formed].iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                "row {a} (AVX-512: {})",
+                has_avx512()
+            );
+        }
         assert_eq!(d32.to_bits(), Portable::dot32(d[0], d[1]).to_bits());
         // Eight dot products at once: each the bits of `dot32`, in both builds.
         for r in 0..8 {
