@@ -224,7 +224,7 @@ impl<const P: usize> Panel<P> {
             }
             for i in j + 1..P {
                 let a = neg(col[i]);
-                for m in j + 1..=i {
+                for m in j + 1..i + 1 {
                     self.g[i][m] = add(self.g[i][m], mul(a, col[m]));
                 }
                 self.g[i][j] = col[i];
@@ -237,22 +237,24 @@ impl<const P: usize> Panel<P> {
             let mut tr = [0.0f64; LANES];
             for i in 0..P {
                 let inv = self.inv_diag[i];
-                let mut row = [ZERO; P];
-                for l in 0..i {
-                    let mut r = ZERO;
-                    for t in l..i {
-                        r = add(r, mul(neg(self.g[i][t]), self.inv_rows[t][l]));
-                    }
-                    row[l] = mul(r, inv);
-                }
-                row[i] = mul([1.0; LANES], inv);
-                self.inv_rows[i] = row;
-                // ‖row‖² in f64, element l to partial sum l mod 4 (the zeros right of i add
-                // nothing, but keep the sums' shape fixed).
+                // ‖X_i‖² in f64, element l to partial sum l mod 4 (the zeros right of i would
+                // add nothing).
                 let mut acc = [[0.0f64; LANES]; 4];
-                for (l, v) in row.iter().enumerate() {
-                    for (a, x) in acc[l % 4].iter_mut().zip(v) {
-                        *a += f64::from(*x) * f64::from(*x);
+                for l0 in (0..=i).step_by(4) {
+                    for (m, a) in acc.iter_mut().enumerate() {
+                        let l = l0 + m;
+                        if l > i {
+                            break;
+                        }
+                        let mut r = if l < i { ZERO } else { [1.0; LANES] };
+                        for t in l..i {
+                            r = add(r, mul(neg(self.g[i][t]), self.inv_rows[t][l]));
+                        }
+                        let v = mul(r, inv);
+                        self.inv_rows[i][l] = v;
+                        for (a, x) in a.iter_mut().zip(v) {
+                            *a += f64::from(x) * f64::from(x);
+                        }
                     }
                 }
                 for (lane, t) in tr.iter_mut().enumerate() {
