@@ -174,56 +174,149 @@ unsafe fn cbf_row_avx2(p: &Planes, k: &Gains, spatial: &[f32], r: usize, exclude
 
 #[inline(always)]
 fn cbf_row<S: Simd>(p: &Planes, k: &Gains, spatial: &[f32], r: usize, exclude: bool, y: usize, row: &mut [[f32; 3]]) {
+    // Centres whose window lies whole within the row go eight at a time, one per lane (see
+    // `cbf_eight`); the others, near the left and right borders, one at a time.
+    let mut x = 0;
+    while x < p.w {
+        if x >= r && x + 8 + r <= p.w {
+            cbf_eight::<S>(p, k, spatial, r, exclude, y, x, (&mut row[x..x + 8]).try_into().expect("eight centres"));
+            x += 8;
+        } else {
+            row[x] = cbf_centre::<S>(p, k, spatial, r, exclude, y, x);
+            x += 1;
+        }
+    }
+}
+
+/// The filter's value at centre `(x, y)`.
+#[inline(always)]
+fn cbf_centre<S: Simd>(p: &Planes, k: &Gains, spatial: &[f32], r: usize, exclude: bool, y: usize, x: usize) -> [f32; 3] {
     let (w, h) = (p.w, p.h);
     let mut tbuf = [0.0f32; 2 * MAX_RADIUS + 1];
-    for (x, out) in row.iter_mut().enumerate() {
-        let c = y * w + x;
-        let (gc, g2c) = ([p.g[0][c], p.g[1][c], p.g[2][c]], p.g2[c]);
-        let mut acc = [[0.0f32; 8]; 4];
-        let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(w));
-        for yy in y.saturating_sub(r)..(y + r + 1).min(h) {
-            let dy2 = spatial[yy + r - y];
-            let (a, b) = (yy * w + x0, yy * w + x1);
-            let sp = &spatial[x0 + r - x..x1 + r - x];
-            let (g0, g1, g2, n2) = (&p.g[0][a..b], &p.g[1][a..b], &p.g[2][a..b], &p.g2[a..b]);
-            let (v0, v1, v2) = (&p.v[0][a..b], &p.v[1][a..b], &p.v[2][a..b]);
-            let n = b - a;
-            // Exponents first (element-wise, vectorises), then weights, then the sums.
-            let t = &mut tbuf[..n];
+    let c = y * w + x;
+    let (gc, g2c) = ([p.g[0][c], p.g[1][c], p.g[2][c]], p.g2[c]);
+    let mut acc = [[0.0f32; 8]; 4];
+    let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(w));
+    for yy in y.saturating_sub(r)..(y + r + 1).min(h) {
+        let dy2 = spatial[yy + r - y];
+        let (a, b) = (yy * w + x0, yy * w + x1);
+        let sp = &spatial[x0 + r - x..x1 + r - x];
+        let (g0, g1, g2, n2) = (&p.g[0][a..b], &p.g[1][a..b], &p.g[2][a..b], &p.g2[a..b]);
+        let (v0, v1, v2) = (&p.v[0][a..b], &p.v[1][a..b], &p.v[2][a..b]);
+        let n = b - a;
+        // Exponents first (element-wise, vectorises), then weights, then the sums.
+        let t = &mut tbuf[..n];
+        for j in 0..n {
+            t[j] = colour_exponent(p, k, gc, g2c, [g0[j], g1[j], g2[j]], n2[j]) + (sp[j] + dy2);
+        }
+        if let Some((al, nm)) = &p.features {
+            let (ac, nc) = ([al[0][c], al[1][c], al[2][c]], [nm[0][c], nm[1][c], nm[2][c]]);
             for j in 0..n {
-                let d = [gc[0] - g0[j], gc[1] - g1[j], gc[2] - g2[j]];
-                t[j] = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) / (p.eps + 0.5 * (g2c + n2[j])) * k.colour + (sp[j] + dy2);
+                t[j] += feature_exponent(k, ac, nc, [al[0][a + j], al[1][a + j], al[2][a + j]], [nm[0][a + j], nm[1][a + j], nm[2][a + j]]);
             }
-            if let Some((al, nm)) = &p.features {
-                let (ac, nc) = ([al[0][c], al[1][c], al[2][c]], [nm[0][c], nm[1][c], nm[2][c]]);
-                let (a0, a1, a2) = (&al[0][a..b], &al[1][a..b], &al[2][a..b]);
-                let (m0, m1, m2) = (&nm[0][a..b], &nm[1][a..b], &nm[2][a..b]);
-                for j in 0..n {
-                    let da = [ac[0] - a0[j], ac[1] - a1[j], ac[2] - a2[j]];
-                    let dn = [nc[0] - m0[j], nc[1] - m1[j], nc[2] - m2[j]];
-                    t[j] += (da[0] * da[0] + da[1] * da[1] + da[2] * da[2]) * k.albedo
-                        + (dn[0] * dn[0] + dn[1] * dn[1] + dn[2] * dn[2]) * k.normal;
+        }
+        S::exp_neg_in_place(t);
+        for j in 0..n {
+            let (l, wt) = (j % 8, t[j]);
+            acc[0][l] += wt;
+            acc[1][l] += wt * v0[j];
+            acc[2][l] += wt * v1[j];
+            acc[3][l] += wt * v2[j];
+        }
+    }
+    let sum = |a: &[f32; 8]| ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]));
+    finish(p, exclude, c, sum(&acc[0]), [sum(&acc[1]), sum(&acc[2]), sum(&acc[3])])
+}
+
+/// [`cbf_centre`] for the eight centres `x0 … x0 + 7` of row `y`, whose windows lie whole
+/// within the row (`x0 ≥ r`, `x0 + 7 + r < w`): lane `l` is centre `x0 + l`, so every window
+/// element is one vector operation for the eight, the exponentials run eight at a time, and
+/// the loads stream along the window's rows. Element `dx` of each window row goes to the
+/// centre's partial sum `dx mod 8`, in the order `cbf_centre` adds it: the same bits.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn cbf_eight<S: Simd>(p: &Planes, k: &Gains, spatial: &[f32], r: usize, exclude: bool, y: usize, x0: usize, out: &mut [[f32; 3]; 8]) {
+    let (w, h) = (p.w, p.h);
+    let c0 = y * w + x0;
+    let lanes = |plane: &[f32], at: usize| -> [f32; 8] { plane[at..at + 8].try_into().expect("eight lanes") };
+    let gc = [lanes(&p.g[0], c0), lanes(&p.g[1], c0), lanes(&p.g[2], c0)];
+    let g2c = lanes(&p.g2, c0);
+    let centre_features = p.features.as_ref().map(|(al, nm)| {
+        ([lanes(&al[0], c0), lanes(&al[1], c0), lanes(&al[2], c0)], [lanes(&nm[0], c0), lanes(&nm[1], c0), lanes(&nm[2], c0)])
+    });
+    // [partial][weight, three weighted values][lane]
+    let mut acc = [[[0.0f32; 8]; 4]; 8];
+    for yy in y.saturating_sub(r)..(y + r + 1).min(h) {
+        let dy2 = spatial[yy + r - y];
+        for dx in 0..=2 * r {
+            let a = yy * w + x0 + dx - r;
+            let (g, n2) = ([lanes(&p.g[0], a), lanes(&p.g[1], a), lanes(&p.g[2], a)], lanes(&p.g2, a));
+            let sp = spatial[dx] + dy2;
+            let mut t: [f32; 8] = std::array::from_fn(|l| {
+                colour_exponent(p, k, [gc[0][l], gc[1][l], gc[2][l]], g2c[l], [g[0][l], g[1][l], g[2][l]], n2[l]) + sp
+            });
+            if let (Some((al, nm)), Some((ac, nc))) = (&p.features, &centre_features) {
+                let (an, nn) =
+                    ([lanes(&al[0], a), lanes(&al[1], a), lanes(&al[2], a)], [lanes(&nm[0], a), lanes(&nm[1], a), lanes(&nm[2], a)]);
+                for l in 0..8 {
+                    t[l] += feature_exponent(
+                        k,
+                        [ac[0][l], ac[1][l], ac[2][l]],
+                        [nc[0][l], nc[1][l], nc[2][l]],
+                        [an[0][l], an[1][l], an[2][l]],
+                        [nn[0][l], nn[1][l], nn[2][l]],
+                    );
                 }
             }
-            S::exp_neg_in_place(t);
-            for j in 0..n {
-                let (l, wt) = (j % 8, t[j]);
-                acc[0][l] += wt;
-                acc[1][l] += wt * v0[j];
-                acc[2][l] += wt * v1[j];
-                acc[3][l] += wt * v2[j];
+            S::exp_neg_in_place(&mut t);
+            let (v0, v1, v2) = (lanes(&p.v[0], a), lanes(&p.v[1], a), lanes(&p.v[2], a));
+            let part = &mut acc[dx % 8];
+            for l in 0..8 {
+                part[0][l] += t[l];
+                part[1][l] += t[l] * v0[l];
+                part[2][l] += t[l] * v1[l];
+                part[3][l] += t[l] * v2[l];
             }
         }
-        let sum = |a: &[f32; 8]| ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]));
-        let (mut ws, mut s) = (sum(&acc[0]), [sum(&acc[1]), sum(&acc[2]), sum(&acc[3])]);
-        if exclude {
-            // The centre's own weight is exactly exp(0) = 1.
-            ws -= 1.0;
-            for ch in 0..3 {
-                s[ch] -= p.v[ch][c];
-            }
+    }
+    for (l, o) in out.iter_mut().enumerate() {
+        let sum = |q: usize| {
+            ((acc[0][q][l] + acc[1][q][l]) + (acc[2][q][l] + acc[3][q][l]))
+                + ((acc[4][q][l] + acc[5][q][l]) + (acc[6][q][l] + acc[7][q][l]))
+        };
+        *o = finish(p, exclude, c0 + l, sum(0), [sum(1), sum(2), sum(3)]);
+    }
+}
+
+/// The colour term of a weight's exponent, `δ_rgb·k_colour`.
+#[inline(always)]
+fn colour_exponent(p: &Planes, k: &Gains, gc: [f32; 3], g2c: f32, g: [f32; 3], n2: f32) -> f32 {
+    let d = [gc[0] - g[0], gc[1] - g[1], gc[2] - g[2]];
+    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) / (p.eps + 0.5 * (g2c + n2)) * k.colour
+}
+
+/// The feature terms of a weight's exponent.
+#[inline(always)]
+fn feature_exponent(k: &Gains, ac: [f32; 3], nc: [f32; 3], a: [f32; 3], n: [f32; 3]) -> f32 {
+    let da = [ac[0] - a[0], ac[1] - a[1], ac[2] - a[2]];
+    let dn = [nc[0] - n[0], nc[1] - n[1], nc[2] - n[2]];
+    (da[0] * da[0] + da[1] * da[1] + da[2] * da[2]) * k.albedo + (dn[0] * dn[0] + dn[1] * dn[1] + dn[2] * dn[2]) * k.normal
+}
+
+/// The filtered value from the weight sum `ws` and the weighted sums `s` of centre `c`.
+#[inline(always)]
+fn finish(p: &Planes, exclude: bool, c: usize, mut ws: f32, mut s: [f32; 3]) -> [f32; 3] {
+    if exclude {
+        // The centre's own weight is exactly exp(0) = 1.
+        ws -= 1.0;
+        for ch in 0..3 {
+            s[ch] -= p.v[ch][c];
         }
-        *out = if ws > 1e-6 { [s[0] / ws, s[1] / ws, s[2] / ws] } else { [p.v[0][c], p.v[1][c], p.v[2][c]] };
+    }
+    if ws > 1e-6 {
+        [s[0] / ws, s[1] / ws, s[2] / ws]
+    } else {
+        [p.v[0][c], p.v[1][c], p.v[2][c]]
     }
 }
 
@@ -241,6 +334,51 @@ mod tests {
             features: None,
             meta: StreamMeta::default(),
         }
+    }
+
+    /// The eight-centre path gives every centre the bits of the one-centre path: with and
+    /// without features, several radii, excluding the centre or not, images narrower than
+    /// eight centres plus the window, in both builds.
+    #[test]
+    fn eight_centres_at_once_give_the_bits_of_one_at_a_time() {
+        use crate::synthetic::{RenderSpec, SoftShadowScene};
+        let run = || {
+            for (w, h) in [(37, 23), (12, 9), (29, 3)] {
+                let set = SoftShadowScene::default().render(&RenderSpec { width: w, height: h, spp: 8, batches: 4, seed: 5 }).unwrap();
+                let mut plain = set.clone();
+                plain.features = None;
+                let values = variance_of_mean(&set.pt);
+                for s in [&set, &plain] {
+                    for (radius, exclude_centre) in [(3, false), (1, true), (5, false), (2, true)] {
+                        let o = CbfOptions { radius, exclude_centre, ..Default::default() };
+                        let got = cross_bilateral(&values, s, &o);
+                        let g = &s.crn.mean.pixels;
+                        let mean_sq = g.iter().map(|p| p.iter().map(|v| (*v as f64).powi(2)).sum::<f64>()).sum::<f64>() / g.len() as f64;
+                        let planes = Planes::new(&values, s, (1e-3 * mean_sq).max(1e-30) as f32);
+                        let k = Gains {
+                            colour: 0.5 / (o.sigma_colour * o.sigma_colour),
+                            albedo: 0.5 / (o.sigma_albedo * o.sigma_albedo),
+                            normal: 0.5 / (o.sigma_normal * o.sigma_normal),
+                        };
+                        let r = radius;
+                        let spatial: Vec<f32> = (0..=2 * r).map(|i| (i as f32 - r as f32).powi(2) * 0.5 / (r as f32 * r as f32)).collect();
+                        for y in 0..h {
+                            for x in 0..w {
+                                let want = cbf_centre::<Portable>(&planes, &k, &spatial, r, exclude_centre, y, x);
+                                let features = s.features.is_some();
+                                assert_eq!(
+                                    got[y * w + x].map(f32::to_bits),
+                                    want.map(f32::to_bits),
+                                    "{w}x{h} r={r} exclude={exclude_centre} features={features} at ({x}, {y})"
+                                );
+                            }
+                        }
+                    }
+                }
+            }
+        };
+        run();
+        crate::simd::force_portable(run);
     }
 
     #[test]
