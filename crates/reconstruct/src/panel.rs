@@ -29,9 +29,9 @@ use crate::solve::{Outcome, MAX_K};
 pub(crate) const MAX_SYSTEMS: usize = 6;
 /// Lanes of the vectors the systems share (the systems, then copies of system 0).
 const LANES: usize = 8;
-/// One element of every system.
-type V = [f32; LANES];
-const ZERO: V = [0.0; LANES];
+/// One element of every system, in memory.
+type Lane = [f32; LANES];
+const ZERO: Lane = [0.0; LANES];
 
 /// Per system, the zero-padded CRN batch deviations of its `k` control variates (borrowed
 /// from the batch cube: no copies) and of the centre.
@@ -64,11 +64,11 @@ pub(crate) struct Panel<const P: usize> {
     /// Per system, `G` as [`Simd::gram_lower`] forms it (only the blocks of the lower triangle).
     blocks: [[[f32; P]; P]; MAX_SYSTEMS],
     /// Element `(a, b)`, `b ≤ a`, of every system's `G`, then of its Cholesky factor `L`.
-    g: [[V; P]; P],
+    g: [[Lane; P]; P],
     /// 1 / L_ii, so that the substitutions multiply instead of divide.
-    inv_diag: [V; P],
+    inv_diag: [Lane; P],
     /// The rows of `L⁻¹` (scratch of the trace), lower triangle.
-    inv_rows: [[V; P]; P],
+    inv_rows: [[Lane; P]; P],
     /// Per system, `tr(G⁻¹)` of the last successful solve, when the system asks for it: the
     /// hat matrix in batch space is `I − G⁻¹`, so `P − tr(G⁻¹)` is the degrees of freedom the
     /// fit spent.
@@ -206,8 +206,10 @@ impl<const P: usize> Panel<P> {
                     self.g[a][b0 + l] = *v;
                 }
             }
-            self.g[a][a] = add(self.g[a][a], [1.0; LANES]);
+            let diagonal = S::add8(S::load8(&self.g[a][a]), S::splat8(1.0));
+            S::store8(&mut self.g[a][a], diagonal);
         }
+        let zero = S::splat8(0.0);
         // Right-looking Cholesky; L ends up in the lower triangle. The elements left of column
         // j would only receive ±0, which changes none of them.
         for j in 0..P {
@@ -215,46 +217,51 @@ impl<const P: usize> Panel<P> {
             for (o, p) in ok.iter_mut().zip(pivot) {
                 *o &= p > 0.5 && p.is_finite();
             }
-            let ljj = sqrt(pivot);
-            let inv = div([1.0; LANES], ljj);
-            self.inv_diag[j] = inv;
-            let mut col = [ZERO; P];
+            let ljj = S::sqrt8(S::load8(&pivot));
+            let inv = S::div8(S::splat8(1.0), ljj);
+            S::store8(&mut self.inv_diag[j], inv);
+            let mut col = [zero; P];
             for i in j + 1..P {
-                col[i] = mul(self.g[i][j], inv);
+                col[i] = S::mul8(S::load8(&self.g[i][j]), inv);
             }
             for i in j + 1..P {
-                let a = neg(col[i]);
+                let a = S::neg8(col[i]);
                 for m in j + 1..i + 1 {
-                    self.g[i][m] = add(self.g[i][m], mul(a, col[m]));
+                    let updated = S::add8(S::load8(&self.g[i][m]), S::mul8(a, col[m]));
+                    S::store8(&mut self.g[i][m], updated);
                 }
-                self.g[i][j] = col[i];
+                S::store8(&mut self.g[i][j], col[i]);
             }
-            self.g[j][j] = ljj;
+            S::store8(&mut self.g[j][j], ljj);
         }
         if systems.iter().any(|q| q.want_trace) {
-            // tr(G⁻¹) = ‖L⁻¹‖²_F. Row i of X = L⁻¹ is (e_i − Σ_{t<i} L_it·X_t) / L_ii; X_t is
-            // zero right of t, so element l of the row sums t = l … i − 1, in that order.
+            // tr(G⁻¹) = ‖L⁻¹‖²_F. Row i of X = L⁻¹ is (e_i − Σ_{t<i} L_it·X_t) / L_ii, each
+            // element summed in increasing t. X_t is zero right of t (those entries of
+            // `inv_rows` are never written), and adding its ±0 products to a +0 or a 1 changes
+            // nothing, so four consecutive elements run side by side over the terms from the
+            // first one's on: fixed-length steps, four independent chains.
             let mut tr = [0.0f64; LANES];
             for i in 0..P {
-                let inv = self.inv_diag[i];
+                let inv = S::load8(&self.inv_diag[i]);
                 // ‖X_i‖² in f64, element l to partial sum l mod 4 (the zeros right of i would
                 // add nothing).
                 let mut acc = [[0.0f64; LANES]; 4];
                 for l0 in (0..=i).step_by(4) {
-                    for (m, a) in acc.iter_mut().enumerate() {
-                        let l = l0 + m;
-                        if l > i {
-                            break;
+                    // No closure here: it would not inherit the vector build's target features.
+                    let mut r = [zero; 4];
+                    if i - l0 < 4 {
+                        r[i - l0] = S::splat8(1.0);
+                    }
+                    for t in l0..i {
+                        let a = S::neg8(S::load8(&self.g[i][t]));
+                        for (m, r) in r.iter_mut().enumerate() {
+                            *r = S::add8(*r, S::mul8(a, S::load8(&self.inv_rows[t][(l0 + m).min(P - 1)])));
                         }
-                        let mut r = if l < i { ZERO } else { [1.0; LANES] };
-                        for t in l..i {
-                            r = add(r, mul(neg(self.g[i][t]), self.inv_rows[t][l]));
-                        }
-                        let v = mul(r, inv);
-                        self.inv_rows[i][l] = v;
-                        for (a, x) in a.iter_mut().zip(v) {
-                            *a += f64::from(x) * f64::from(x);
-                        }
+                    }
+                    for (m, a) in acc.iter_mut().enumerate().take(i + 1 - l0) {
+                        let v = S::mul8(r[m], inv);
+                        S::store8(&mut self.inv_rows[i][l0 + m], v);
+                        S::square_add8(a, v);
                     }
                 }
                 for (lane, t) in tr.iter_mut().enumerate() {
@@ -265,38 +272,41 @@ impl<const P: usize> Panel<P> {
         }
         // L·y = d_c, then Lᵀ·z = y. Each y_i is d_c,i minus the dot product of row i of L with
         // y in eight lane sums combined pairwise, where the elements from i on are zero.
-        let mut dc = [ZERO; P];
+        let mut dc = [zero; P];
         for b0 in (0..P).step_by(8) {
             let t = S::transpose8(std::array::from_fn(|lane| block8(rows.dc[from(lane)], b0)));
-            dc[b0..b0 + 8].copy_from_slice(&t);
+            for (d, v) in dc[b0..b0 + 8].iter_mut().zip(&t) {
+                *d = S::load8(v);
+            }
         }
-        let mut y = [ZERO; P];
+        let mut y = [zero; P];
         for i in 0..P {
-            let mut acc = [ZERO; 8];
+            let mut acc = [zero; 8];
             for c0 in (0..P).step_by(8) {
                 for (l, a) in acc.iter_mut().enumerate() {
                     let m = c0 + l;
-                    *a = add(*a, if m < i { mul(self.g[i][m], y[m]) } else { ZERO });
+                    *a = S::add8(*a, if m < i { S::mul8(S::load8(&self.g[i][m]), y[m]) } else { zero });
                 }
             }
-            let dot = add(add(add(acc[0], acc[1]), add(acc[2], acc[3])), add(add(acc[4], acc[5]), add(acc[6], acc[7])));
-            y[i] = mul(sub(dc[i], dot), self.inv_diag[i]);
+            let dot = S::add8(
+                S::add8(S::add8(acc[0], acc[1]), S::add8(acc[2], acc[3])),
+                S::add8(S::add8(acc[4], acc[5]), S::add8(acc[6], acc[7])),
+            );
+            y[i] = S::mul8(S::sub8(dc[i], dot), S::load8(&self.inv_diag[i]));
         }
         let mut z = [ZERO; P];
         for i in (0..P).rev() {
-            let zi = mul(y[i], self.inv_diag[i]);
-            z[i] = zi;
-            let a = neg(zi);
+            let zi = S::mul8(y[i], S::load8(&self.inv_diag[i]));
+            S::store8(&mut z[i], zi);
+            let a = S::neg8(zi);
             for m in 0..i {
-                y[m] = add(y[m], mul(a, self.g[i][m]));
+                y[m] = S::add8(y[m], S::mul8(a, S::load8(&self.g[i][m])));
             }
         }
         // ‖z‖² in f64, element m to partial sum m mod 4.
         let mut acc = [[0.0f64; LANES]; 4];
         for (m, v) in z.iter().enumerate() {
-            for (a, x) in acc[m % 4].iter_mut().zip(v) {
-                *a += f64::from(*x) * f64::from(*x);
-            }
+            S::square_add8(&mut acc[m % 4], S::load8(v));
         }
         // β_j = s·w_j⁻¹·D_jᵀz, eight rows at a time, with z back along the batches.
         let mut zs = [[0.0f32; P]; LANES];
@@ -329,38 +339,6 @@ impl<const P: usize> Panel<P> {
 #[inline(always)]
 fn block8<const P: usize>(row: &[f32; P], b0: usize) -> &[f32; 8] {
     row[b0..b0 + 8].try_into().expect("P is a multiple of 8")
-}
-
-// Lane-wise IEEE operations on every system's element at once (plain loops, which the compiler
-// turns into one vector instruction each in both builds).
-#[inline(always)]
-fn add(a: V, b: V) -> V {
-    std::array::from_fn(|l| a[l] + b[l])
-}
-
-#[inline(always)]
-fn sub(a: V, b: V) -> V {
-    std::array::from_fn(|l| a[l] - b[l])
-}
-
-#[inline(always)]
-fn mul(a: V, b: V) -> V {
-    std::array::from_fn(|l| a[l] * b[l])
-}
-
-#[inline(always)]
-fn div(a: V, b: V) -> V {
-    std::array::from_fn(|l| a[l] / b[l])
-}
-
-#[inline(always)]
-fn neg(a: V) -> V {
-    a.map(|x| -x)
-}
-
-#[inline(always)]
-fn sqrt(a: V) -> V {
-    a.map(f32::sqrt)
 }
 
 #[cfg(test)]
@@ -703,29 +681,29 @@ mod tests {
             Systems { data, centre, systems, w, sq, s }
         }
 
-        fn panel(&self) -> (Box<Panel<P>>, Rows<'_, P>) {
-            let mut p = Panel::<P>::boxed();
+        /// Loads the draw's weights and norms into `p` (which may hold an earlier draw's
+        /// state, as a pass's panel does from pixel to pixel) and returns its rows.
+        fn load(&self, p: &mut Panel<P>) -> Rows<'_, P> {
             for q in 0..self.systems.len() {
                 p.w[q][..self.w[q].len()].copy_from_slice(&self.w[q]);
                 p.sq[q][..self.sq[q].len()].copy_from_slice(&self.sq[q]);
             }
             let n = self.systems.len();
-            let rows = Rows {
+            Rows {
                 d: std::array::from_fn(|q| std::array::from_fn(|j| &self.data[q.min(n - 1)][j])),
                 dc: std::array::from_fn(|q| &self.centre[q.min(n - 1)]),
-            };
-            (p, rows)
+            }
         }
     }
 
     /// The panel of `draw` against each system alone, bit for bit; returns the outcomes seen.
-    fn lanes_equal_alone<const P: usize>(draw: &Systems<P>, avx2: bool) -> Vec<Outcome> {
-        let (mut p, rows) = draw.panel();
+    fn lanes_equal_alone<const P: usize>(p: &mut Panel<P>, draw: &Systems<P>, avx2: bool) -> Vec<Outcome> {
+        let rows = draw.load(p);
         let got = if avx2 {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: the caller checked that the CPU has AVX2.
             unsafe {
-                solve_avx2(&mut p, &rows, &draw.systems, draw.s)
+                solve_avx2(p, &rows, &draw.systems, draw.s)
             }
             #[cfg(not(target_arch = "x86_64"))]
             unreachable!("AVX2 only on x86_64")
@@ -750,12 +728,13 @@ mod tests {
         seen
     }
 
-    /// [`lanes_equal_alone`] over sixty draws of one to six systems.
+    /// [`lanes_equal_alone`] over sixty draws of one to six systems, on one panel.
     fn every_draw<const P: usize>(avx2: bool) -> Vec<Outcome> {
         let mut seen = vec![];
+        let mut p = Panel::<P>::boxed();
         for seed in 0..60 {
             let count = 1 + seed as usize % MAX_SYSTEMS;
-            seen.extend(lanes_equal_alone(&Systems::<P>::draw(seed, count), avx2));
+            seen.extend(lanes_equal_alone(&mut p, &Systems::<P>::draw(seed, count), avx2));
         }
         seen
     }

@@ -90,6 +90,22 @@ pub(crate) trait Simd {
     /// more than `n` (what lies beyond `n` in `out` is overwritten with unused keys).
     #[allow(clippy::too_many_arguments)]
     fn knn_keys(planes: [&[f32]; 3], centre: [f32; 3], p0: usize, n: usize, offset: [i32; 2], local0: u32, out: &mut [u64]);
+
+    /// Eight f32 lanes (the panel's systems side by side), for the element-wise operations
+    /// below; each is one IEEE operation per lane, so the builds agree bit for bit.
+    type V: Copy;
+    fn load8(a: &[f32; 8]) -> Self::V;
+    fn store8(a: &mut [f32; 8], v: Self::V);
+    fn splat8(x: f32) -> Self::V;
+    fn add8(a: Self::V, b: Self::V) -> Self::V;
+    fn sub8(a: Self::V, b: Self::V) -> Self::V;
+    fn mul8(a: Self::V, b: Self::V) -> Self::V;
+    fn div8(a: Self::V, b: Self::V) -> Self::V;
+    fn sqrt8(a: Self::V) -> Self::V;
+    /// `−a` (the sign flipped, exactly).
+    fn neg8(a: Self::V) -> Self::V;
+    /// `acc[l] += f64(v[l])²`.
+    fn square_add8(acc: &mut [f64; 8], v: Self::V);
     /// `(Σ e^(−γ·t_i)·d_i, Σ e^(−γ·t_i))`: element `i` goes to lane `i mod 8` of chunk-wise
     /// partial sums (the tail of fewer than 8 to lanes 0…), combined pairwise.
     fn exp_weighted(t: &[f32], d: &[f32], gamma: f32) -> (f32, f32);
@@ -214,6 +230,60 @@ fn lane_sum(a: [f32; 8]) -> f32 {
 pub(crate) struct Portable;
 
 impl Simd for Portable {
+    type V = [f32; 8];
+
+    #[inline(always)]
+    fn load8(a: &[f32; 8]) -> [f32; 8] {
+        *a
+    }
+
+    #[inline(always)]
+    fn store8(a: &mut [f32; 8], v: [f32; 8]) {
+        *a = v;
+    }
+
+    #[inline(always)]
+    fn splat8(x: f32) -> [f32; 8] {
+        [x; 8]
+    }
+
+    #[inline(always)]
+    fn add8(a: [f32; 8], b: [f32; 8]) -> [f32; 8] {
+        std::array::from_fn(|l| a[l] + b[l])
+    }
+
+    #[inline(always)]
+    fn sub8(a: [f32; 8], b: [f32; 8]) -> [f32; 8] {
+        std::array::from_fn(|l| a[l] - b[l])
+    }
+
+    #[inline(always)]
+    fn mul8(a: [f32; 8], b: [f32; 8]) -> [f32; 8] {
+        std::array::from_fn(|l| a[l] * b[l])
+    }
+
+    #[inline(always)]
+    fn div8(a: [f32; 8], b: [f32; 8]) -> [f32; 8] {
+        std::array::from_fn(|l| a[l] / b[l])
+    }
+
+    #[inline(always)]
+    fn sqrt8(a: [f32; 8]) -> [f32; 8] {
+        a.map(f32::sqrt)
+    }
+
+    #[inline(always)]
+    fn neg8(a: [f32; 8]) -> [f32; 8] {
+        a.map(|x| -x)
+    }
+
+    #[inline(always)]
+    fn square_add8(acc: &mut [f64; 8], v: [f32; 8]) {
+        for (a, x) in acc.iter_mut().zip(v) {
+            *a += f64::from(x) * f64::from(x);
+        }
+    }
+
     #[inline(always)]
     fn exp_weighted(t: &[f32], d: &[f32], gamma: f32) -> (f32, f32) {
         let (mut acc, mut wacc) = ([0.0f32; 8], [0.0f32; 8]);
@@ -376,6 +446,68 @@ pub(crate) struct Avx2;
 
 #[cfg(target_arch = "x86_64")]
 impl Simd for Avx2 {
+    type V = std::arch::x86_64::__m256;
+
+    // SAFETY (all lane operations): AVX2 is available (see the type's contract); loads and
+    // stores are of whole `[f32; 8]`s.
+    #[inline(always)]
+    fn load8(a: &[f32; 8]) -> Self::V {
+        unsafe { std::arch::x86_64::_mm256_loadu_ps(a.as_ptr()) }
+    }
+
+    #[inline(always)]
+    fn store8(a: &mut [f32; 8], v: Self::V) {
+        unsafe { std::arch::x86_64::_mm256_storeu_ps(a.as_mut_ptr(), v) }
+    }
+
+    #[inline(always)]
+    fn splat8(x: f32) -> Self::V {
+        unsafe { std::arch::x86_64::_mm256_set1_ps(x) }
+    }
+
+    #[inline(always)]
+    fn add8(a: Self::V, b: Self::V) -> Self::V {
+        unsafe { std::arch::x86_64::_mm256_add_ps(a, b) }
+    }
+
+    #[inline(always)]
+    fn sub8(a: Self::V, b: Self::V) -> Self::V {
+        unsafe { std::arch::x86_64::_mm256_sub_ps(a, b) }
+    }
+
+    #[inline(always)]
+    fn mul8(a: Self::V, b: Self::V) -> Self::V {
+        unsafe { std::arch::x86_64::_mm256_mul_ps(a, b) }
+    }
+
+    #[inline(always)]
+    fn div8(a: Self::V, b: Self::V) -> Self::V {
+        unsafe { std::arch::x86_64::_mm256_div_ps(a, b) }
+    }
+
+    #[inline(always)]
+    fn sqrt8(a: Self::V) -> Self::V {
+        unsafe { std::arch::x86_64::_mm256_sqrt_ps(a) }
+    }
+
+    #[inline(always)]
+    fn neg8(a: Self::V) -> Self::V {
+        use std::arch::x86_64::*;
+        unsafe { _mm256_xor_ps(a, _mm256_set1_ps(-0.0)) }
+    }
+
+    #[inline(always)]
+    fn square_add8(acc: &mut [f64; 8], v: Self::V) {
+        use std::arch::x86_64::*;
+        unsafe {
+            let lo = _mm256_cvtps_pd(_mm256_castps256_ps128(v));
+            let hi = _mm256_cvtps_pd(_mm256_extractf128_ps::<1>(v));
+            let (a0, a1) = (acc.as_mut_ptr(), acc.as_mut_ptr().add(4));
+            _mm256_storeu_pd(a0, _mm256_add_pd(_mm256_loadu_pd(a0), _mm256_mul_pd(lo, lo)));
+            _mm256_storeu_pd(a1, _mm256_add_pd(_mm256_loadu_pd(a1), _mm256_mul_pd(hi, hi)));
+        }
+    }
+
     #[inline(always)]
     fn exp_weighted(t: &[f32], d: &[f32], gamma: f32) -> (f32, f32) {
         use std::arch::x86_64::*;
