@@ -390,7 +390,8 @@ struct Draws {
 fn draws(c: &Chunk) -> Draws {
     let mut d = Draws { bsdf: [[0.0; W]; 2], light: [[0.0; W]; 2], roulette: [0.0; W] };
     for l in 0..std::hint::black_box(W).min(W) {
-        let (key, vertex) = (c.key[l], c.depth[l].wrapping_sub(1));
+        // Idle lanes hold depth 0; their draws are never read, but must not overflow.
+        let (key, vertex) = (c.key[l], c.depth[l].saturating_sub(1));
         (d.bsdf[0][l], d.bsdf[1][l]) = get2d(key, dims::at(vertex, dims::BSDF_DIR));
         (d.light[0][l], d.light[1][l]) = get2d(key, dims::at(vertex, dims::LIGHT_POS));
         d.roulette[l] = get1d(key, dims::at(vertex, dims::RUSSIAN_ROULETTE));
