@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Per scene, from finished studies: the image-mean offset of each estimator against the
-reference (mean over seeds ± standard error, per channel, in %) and, for estimators that write a
-predicted-variance layer, predicted ÷ measured variance (both weighted like relMSE).
+reference (mean over seeds ± standard error, per channel, in %), whether `ours` is
+mean-preserving (every channel's offset within 0.2% or within 3 standard errors of its own seed
+noise, whichever is larger) and, for estimators that write a predicted-variance layer, predicted ÷
+measured variance (both weighted like relMSE).
 
     python3 scripts/mean_and_calibration.py out/study/32 out/study/96
 
@@ -10,6 +12,7 @@ Prints one Markdown table per study root: the numbers of docs/estimators.md.
 import glob, json, os, sys
 
 METHODS = ["pt", "iduw", "cv", "ours"]
+MEAN_TOLERANCE = 0.002
 
 
 def main():
@@ -23,14 +26,20 @@ def main():
                     off, se = m[k].get("image_mean_offset"), m[k].get("image_mean_offset_se") or [0, 0, 0]
                     cells.append(" ".join(f"{100 * a:+.2f}±{100 * b:.2f}" for a, b in zip(off, se)) if off else "–")
                 o = m["ours"]
+                off, se = o.get("image_mean_offset"), o.get("image_mean_offset_se")
+                if off and se:
+                    ok = all(abs(a) <= max(MEAN_TOLERANCE, 3 * b) for a, b in zip(off, se))
+                    cells.append("yes" if ok else "**no**")
+                else:
+                    cells.append("–")
                 cal = o["predicted_variance"] / o["variance"] if o.get("predicted_variance") and o.get("variance") else None
                 cells.append(f"{cal:.3f}" if cal else "–")
                 rows.append((sc["name"], sc["spp_per_stream"], sc["seeds"], cells))
         if not rows:
             continue
         print(f"\n{root}: image mean − reference (% per channel R G B, ± standard error over seeds); ours' predicted ÷ measured variance\n")
-        print("| scene | spp | seeds | " + " | ".join(METHODS) + " | ours: predicted ÷ measured variance |")
-        print("|---|---|---|" + "---|" * (len(METHODS) + 1))
+        print("| scene | spp | seeds | " + " | ".join(METHODS) + " | ours within max(0.2%, 3 SE) | ours: predicted ÷ measured variance |")
+        print("|---|---|---|" + "---|" * (len(METHODS) + 2))
         for name, spp, seeds, cells in rows:
             print(f"| {name} | {spp} + {spp} | {seeds} | " + " | ".join(cells) + " |")
 
