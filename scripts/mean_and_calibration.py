@@ -3,7 +3,9 @@
 reference (mean over seeds ± standard error, per channel, in %), whether `ours` is
 mean-preserving (every channel's offset within 0.2% or within 3 standard errors of its own seed
 noise, whichever is larger) and, for estimators that write a predicted-variance layer, predicted ÷
-measured variance (both weighted like relMSE).
+measured variance (both weighted like relMSE), with the largest single seed's share of the
+predicted sum (near 1/seeds when no seed dominates; studies written before the per-seed figures
+were recorded show –).
 
     python3 scripts/mean_and_calibration.py out/study/32 out/study/96
 
@@ -34,12 +36,14 @@ def main():
                     cells.append("–")
                 cal = o["predicted_variance"] / o["variance"] if o.get("predicted_variance") and o.get("variance") else None
                 cells.append(f"{cal:.3f}" if cal else "–")
+                per_seed = o.get("predicted_variance_per_seed") or []
+                cells.append(f"{max(per_seed) / sum(per_seed):.2f}" if len(per_seed) > 1 and sum(per_seed) > 0 else "–")
                 rows.append((sc["name"], sc["spp_per_stream"], sc["seeds"], cells))
         if not rows:
             continue
         print(f"\n{root}: image mean − reference (% per channel R G B, ± standard error over seeds); ours' predicted ÷ measured variance\n")
-        print("| scene | spp | seeds | " + " | ".join(METHODS) + " | ours within max(0.2%, 3 SE) | ours: predicted ÷ measured variance |")
-        print("|---|---|---|" + "---|" * (len(METHODS) + 2))
+        print("| scene | spp | seeds | " + " | ".join(METHODS) + " | ours within max(0.2%, 3 SE) | ours: predicted ÷ measured variance | largest seed's share of the predicted |")
+        print("|---|---|---|" + "---|" * (len(METHODS) + 3))
         for name, spp, seeds, cells in rows:
             print(f"| {name} | {spp} + {spp} | {seeds} | " + " | ".join(cells) + " |")
 

@@ -53,8 +53,14 @@ fn ours_keeps_the_image_mean_and_predicts_its_variance_at_32_spp() {
     }
     let calibration = ours.predicted_variance.expect("ours predicts its variance") / ours.variance.unwrap();
     assert!((0.8..=1.25).contains(&calibration), "predicted ÷ measured variance {calibration:.3}");
+    // The per-seed figures are in results.json too, and average to the reported one.
+    let per_seed = &ours.predicted_variance_per_seed;
+    assert_eq!(per_seed.len(), ours.relmse_per_seed.len());
+    let mean = per_seed.iter().sum::<f64>() / per_seed.len() as f64;
+    assert!((mean - ours.predicted_variance.unwrap()).abs() <= 1e-9 * mean);
     // Methods without a variance layer record none.
-    assert!(results.scenes[0].method("pt").unwrap().predicted_variance.is_none());
+    let pt = results.scenes[0].method("pt").unwrap();
+    assert!(pt.predicted_variance.is_none() && pt.predicted_variance_per_seed.is_empty());
 }
 
 #[test]

@@ -134,6 +134,9 @@ pub struct MethodResult {
     /// `variance` is the calibration of the prediction.
     #[serde(default)]
     pub predicted_variance: Option<f64>,
+    /// `predicted_variance` per seed, in seed order (empty when none is predicted).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub predicted_variance_per_seed: Vec<f64>,
     /// Per channel, the image mean over seeds relative to the reference's, minus 1.
     #[serde(default)]
     pub image_mean_offset: Option<[f64; 3]>,
@@ -231,6 +234,7 @@ impl MethodResult {
             bias2: stats.bias2,
             variance: stats.variance,
             predicted_variance: stats.predicted_variance,
+            predicted_variance_per_seed: stats.predicted_variance_per_seed.clone(),
             image_mean_offset: Some(stats.image_mean_offset),
             image_mean_offset_se: stats.image_mean_offset_se,
             mse_mean: stats.mse_mean,

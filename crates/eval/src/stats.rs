@@ -48,6 +48,10 @@ pub struct SeedStats {
     /// The estimator's own predicted variance, weighted like `variance` and averaged over
     /// seeds; `None` when it predicts none.
     pub predicted_variance: Option<f64>,
+    /// The same per seed, in seed order (empty when it predicts none): where rare fireflies
+    /// carry the error, one seed can hold most of the sum, and the ratio to `variance` then
+    /// says more about that seed than about the calibration.
+    pub predicted_variance_per_seed: Vec<f64>,
     /// Per channel, the image mean over seeds relative to the reference's, minus 1.
     pub image_mean_offset: [f64; 3],
     /// Standard error of `image_mean_offset` over seeds; `None` for one seed.
@@ -175,6 +179,7 @@ impl<'r> SeedAccumulator<'r> {
             bias2,
             variance,
             predicted_variance,
+            predicted_variance_per_seed: self.predicted.clone(),
             image_mean_offset,
             image_mean_offset_se,
         })
@@ -350,6 +355,33 @@ mod tests {
         let s = acc.finish().unwrap();
         assert_eq!((s.seeds, s.relmse_se, s.bias2, s.variance), (1, None, None, None));
         assert_eq!(s.relmse_mean, 0.0);
+    }
+
+    #[test]
+    fn predicted_variance_is_kept_per_seed_and_averaged() {
+        let t = truth(6, 5);
+        let reference = Reference::new(t.clone(), "truth").unwrap();
+        let mean_weight = reference.weights().iter().sum::<f64>() / t.len() as f64;
+        let mut acc = SeedAccumulator::new(&reference, "ours");
+        // One seed whose layer is forty times the others', as a firefly makes it.
+        let layers = [0.5f32, 20.0, 0.25];
+        for v in layers {
+            acc.add(&t).unwrap();
+            acc.add_predicted_variance(&Image::from_fn(6, 5, |_, _| [v, v, v]), "layer").unwrap();
+        }
+        let s = acc.finish().unwrap();
+        assert_eq!(s.predicted_variance_per_seed.len(), 3);
+        for (got, v) in s.predicted_variance_per_seed.iter().zip(layers) {
+            assert!((got - v as f64 * mean_weight).abs() <= 1e-12 * got.abs(), "{got} against {}", v as f64 * mean_weight);
+        }
+        let mean = s.predicted_variance_per_seed.iter().sum::<f64>() / 3.0;
+        assert!((s.predicted_variance.unwrap() - mean).abs() <= 1e-12 * mean);
+        let err = acc.add_predicted_variance(&truth(5, 5), "seed-003.exr").unwrap_err().to_string();
+        assert!(err.contains("seed-003.exr"), "{err}");
+        let mut pt = SeedAccumulator::new(&reference, "pt");
+        pt.add(&t).unwrap();
+        let s = pt.finish().unwrap();
+        assert!(s.predicted_variance.is_none() && s.predicted_variance_per_seed.is_empty());
     }
 
     #[test]

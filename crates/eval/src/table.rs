@@ -493,6 +493,7 @@ mod tests {
                     bias2: None,
                     variance: None,
                     predicted_variance: None,
+                    predicted_variance_per_seed: Vec::new(),
                     image_mean_offset: None,
                     image_mean_offset_se: None,
                     mse_mean: v,
