@@ -157,14 +157,26 @@ mod floor_tests {
 
 /// The estimated variance of each pixel mean, `Σ_b (x^b − x̄)² / (B(B−1))`; zero for `B < 2`.
 pub fn variance_of_mean(stream: &Stream) -> Vec<[f32; 3]> {
+    batch_variance(stream, false)
+}
+
+/// As [`variance_of_mean`], but per pixel and channel without the batch farthest from the
+/// mean: `Σ_{b≠k} (x^b − x̄')² / (B(B−2))`, `x̄'` the mean of the other `B − 1`. One batch that
+/// caught a firefly then does not set the estimate; zero for `B < 3`.
+pub fn trimmed_variance_of_mean(stream: &Stream) -> Vec<[f32; 3]> {
+    batch_variance(stream, true)
+}
+
+fn batch_variance(stream: &Stream, trim: bool) -> Vec<[f32; 3]> {
     const CHUNK: usize = 4096;
     let b = stream.batches.len();
     let n = stream.mean.pixels.len();
     let mut out = vec![[0.0f32; 3]; n];
-    if b < 2 {
+    if b < 2 + usize::from(trim) {
         return out;
     }
-    let norm = 1.0 / (b * (b - 1)) as f64;
+    let bf = b as f64;
+    let norm = if trim { 1.0 / (bf * (bf - 2.0)) } else { 1.0 / (bf * (bf - 1.0)) };
     // Two passes over each task's pixel range, streaming through every batch image in turn.
     out.par_chunks_mut(CHUNK).enumerate().for_each(|(chunk, out)| {
         let range = chunk * CHUNK..chunk * CHUNK + out.len();
@@ -176,17 +188,25 @@ pub fn variance_of_mean(stream: &Stream) -> Vec<[f32; 3]> {
                 }
             }
         }
-        mean.iter_mut().for_each(|m| m.iter_mut().for_each(|v| *v /= b as f64));
+        mean.iter_mut().for_each(|m| m.iter_mut().for_each(|v| *v /= bf));
         let mut ss = vec![[0.0f64; 3]; out.len()];
+        let mut largest = vec![[0.0f64; 3]; out.len()];
         for im in &stream.batches {
-            for ((s, m), p) in ss.iter_mut().zip(&mean).zip(&im.pixels[range.clone()]) {
+            for (((s, l), m), p) in ss.iter_mut().zip(&mut largest).zip(&mean).zip(&im.pixels[range.clone()]) {
                 for ch in 0..3 {
-                    s[ch] += (p[ch] as f64 - m[ch]).powi(2);
+                    let d2 = (p[ch] as f64 - m[ch]).powi(2);
+                    s[ch] += d2;
+                    l[ch] = l[ch].max(d2);
                 }
             }
         }
-        for (o, s) in out.iter_mut().zip(&ss) {
-            *o = std::array::from_fn(|ch| (s[ch] * norm) as f32);
+        for ((o, s), l) in out.iter_mut().zip(&ss).zip(&largest) {
+            // Leaving batch k out moves the mean by (x̄ − x^k)/(B − 1), which takes
+            // (x^k − x̄)²·B/(B − 1) out of the sum of squares in all.
+            *o = std::array::from_fn(|ch| {
+                let s = if trim { (s[ch] - l[ch] * bf / (bf - 1.0)).max(0.0) } else { s[ch] };
+                (s * norm) as f32
+            });
         }
     });
     out
@@ -220,5 +240,34 @@ mod tests {
         );
         assert_eq!(g[0].pixels[0][0], 1.5);
         assert_eq!(g[1].pixels[0][0], 6.0);
+    }
+
+    #[test]
+    fn the_trimmed_variance_leaves_the_farthest_batch_out() {
+        // R: batches 1, 2, 3, 1000 — without 1000: mean 2, Σd² = 2, 2 / (4·2) = 0.25.
+        // G: all equal, 0. B: 4, 0, 0, 0 — without 4: 0.
+        let values = [[1.0f32, 5.0, 4.0], [2.0, 5.0, 0.0], [3.0, 5.0, 0.0], [1000.0, 5.0, 0.0]];
+        let s = Stream::from_batches(values.iter().map(|&v| Image::from_fn(1, 1, |_, _| v)).collect());
+        let t = trimmed_variance_of_mean(&s);
+        assert!((t[0][0] - 0.25).abs() < 1e-5, "{:?}", t[0]);
+        assert!(t[0][1] == 0.0 && t[0][2].abs() < 1e-6, "{:?}", t[0]);
+        // Against leaving each batch out by hand on random data: always the farthest one.
+        use crate::rng::{hash4, uniform};
+        let batches: Vec<Image> = (0..16u64)
+            .map(|b| Image::from_fn(5, 3, |x, y| std::array::from_fn(|ch| uniform(hash4(7, b, (y * 5 + x) as u64, ch as u64)) as f32)))
+            .collect();
+        let s = Stream::from_batches(batches);
+        let t = trimmed_variance_of_mean(&s);
+        for (i, got) in t.iter().enumerate() {
+            for ch in 0..3 {
+                let x: Vec<f64> = s.batches.iter().map(|im| im.pixels[i][ch] as f64).collect();
+                let m = x.iter().sum::<f64>() / 16.0;
+                let k = (0..16).max_by(|&a, &b| (x[a] - m).abs().total_cmp(&(x[b] - m).abs())).unwrap();
+                let rest: Vec<f64> = x.iter().enumerate().filter(|&(j, _)| j != k).map(|(_, v)| *v).collect();
+                let mr = rest.iter().sum::<f64>() / 15.0;
+                let want = rest.iter().map(|v| (v - mr).powi(2)).sum::<f64>() / (16.0 * 14.0);
+                assert!((got[ch] as f64 - want).abs() <= 1e-5 * want.max(1e-6), "pixel {i} ch {ch}: {} vs {want}", got[ch]);
+            }
+        }
     }
 }

@@ -48,6 +48,10 @@ named_enum! {
         Pt => "pt",
         /// The CRN batch variance of the mean, smoothed by the cross-bilateral filter.
         Crn => "crn",
+        /// The PT batch variance of the mean without each pixel's farthest batch, smoothed by
+        /// the cross-bilateral filter: a PT firefly, one batch far from the rest, does not
+        /// raise the floor of its neighbourhood.
+        PtTrimmed => "pt-trimmed",
     }
 }
 

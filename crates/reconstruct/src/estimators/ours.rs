@@ -10,7 +10,7 @@
 //! their average measured lower relMSE on the bundled scenes than either. See
 //! docs/estimators.md for the defaults and their measurements.
 use super::cv::{centre_free, combine_with_centre, two_stage, ClassicCvOptions, Estimate, Solve};
-use crate::batch_stats::variance_of_mean;
+use crate::batch_stats::{trimmed_variance_of_mean, variance_of_mean};
 use crate::cv_pass::{CvPass, Dof, Folds};
 use crate::demodulate::{self, Demodulation};
 use crate::floor::{Floor, FloorMode, FloorSource};
@@ -51,7 +51,7 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
         param("seed", ParamKind::Int { min: 0, max: i64::MAX }, "0", "Seed of `select = random`.", None),
         param("crn_floor", ParamKind::Float(Bounds::at_least(0.0)), "0.05", "τ of the floor on the CRN covariance, as a fraction of the floor's variance (0 = off).", Some("crn-floor")),
         param("crn_floor_mode", ParamKind::Choice(FloorMode::NAMES), "common", "Shape of the floor: common (noise shared by the set) or independent (diagonal).", Some("crn-floor-mode")),
-        param("crn_floor_source", ParamKind::Choice(FloorSource::NAMES), "pt", "The floor's variance: pt (the PT error estimates) or crn (filtered CRN variance).", Some("crn-floor-source")),
+        param("crn_floor_source", ParamKind::Choice(FloorSource::NAMES), "pt", "The floor's variance: pt (the PT error estimates), crn (filtered CRN variance) or pt-trimmed (filtered PT variance without each pixel's farthest batch).", Some("crn-floor-source")),
         param("low_pass_sigma", ParamKind::Float(Bounds::at_least(0.0)), "8", "σ in pixels of the Gaussian below which the output's frequencies are taken from the PT mean, which removes the estimator's bias at coarser scales (0 = off).", Some("low-pass-sigma")),
         param("two_stage_weight", ParamKind::Float(Bounds::between(0.0, 1.0)), "0.5", "Weight of the two-stage estimate (cv without the centre, then the centre's PT mean by inverse variance) averaged into the joint one (0 = the joint solve alone; needs k ≥ 2).", Some("two-stage-weight")),
         param("variance_dof", ParamKind::Choice(Dof::NAMES), "mallows", "How the predicted variance allows for β fitted to the batches it is judged on: none, gcv (RSS/(1 − df/n)²) or mallows (RSS·(n + df)/(n − df)), df the trace of the hat matrix; weights the two-stage estimate and fills the variance layer.", Some("variance-dof")),
@@ -290,12 +290,16 @@ impl ImperfectCv {
         let set = input.streams;
         o.folds.check(input.streams_name, SPEC.name, set.batch_count())?;
         let errors = pt_errors(o.errors, set, input.reference, &o.cbf);
-        let crn_variance = (o.crn_floor > 0.0 && o.crn_floor_source == FloorSource::Crn)
-            .then(|| cross_bilateral(&variance_of_mean(&set.crn), set, &o.cbf));
+        let floor_variance = match o.crn_floor_source {
+            _ if o.crn_floor <= 0.0 => None,
+            FloorSource::Pt => None,
+            FloorSource::Crn => Some(cross_bilateral(&variance_of_mean(&set.crn), set, &o.cbf)),
+            FloorSource::PtTrimmed => Some(cross_bilateral(&trimmed_variance_of_mean(&set.pt), set, &o.cbf)),
+        };
         let floor = (o.crn_floor > 0.0).then(|| Floor {
             tau: o.crn_floor,
             mode: o.crn_floor_mode,
-            values: crn_variance.as_deref().unwrap_or(&errors),
+            values: floor_variance.as_deref().unwrap_or(&errors),
         });
         let t_prepare = start.elapsed().as_secs_f64();
         let two_stage_ridge = ClassicCvOptions::default().ridge;
@@ -428,6 +432,7 @@ mod tests {
             (40, 33, 16, 16, ImperfectCvOptions { crn_floor_mode: FloorMode::Independent, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { crn_floor: 0.0, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { crn_floor_source: FloorSource::Crn, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { crn_floor_source: FloorSource::PtTrimmed, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { penalty: Penalty::None, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { penalty: Penalty::Residual, shared_coefficients: true, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { errors: ErrorEstimate::Variance, ..d() }),
