@@ -190,21 +190,24 @@ fn batch_variance(stream: &Stream, trim: bool) -> Vec<[f32; 3]> {
         }
         mean.iter_mut().for_each(|m| m.iter_mut().for_each(|v| *v /= bf));
         let mut ss = vec![[0.0f64; 3]; out.len()];
-        let mut largest = vec![[0.0f64; 3]; out.len()];
+        // The largest squared deviation per pixel, kept only when trimming.
+        let mut largest = vec![[0.0f64; 3]; if trim { out.len() } else { 0 }];
         for im in &stream.batches {
-            for (((s, l), m), p) in ss.iter_mut().zip(&mut largest).zip(&mean).zip(&im.pixels[range.clone()]) {
+            for (i, ((s, m), p)) in ss.iter_mut().zip(&mean).zip(&im.pixels[range.clone()]).enumerate() {
                 for ch in 0..3 {
                     let d2 = (p[ch] as f64 - m[ch]).powi(2);
                     s[ch] += d2;
-                    l[ch] = l[ch].max(d2);
+                    if trim {
+                        largest[i][ch] = largest[i][ch].max(d2);
+                    }
                 }
             }
         }
-        for ((o, s), l) in out.iter_mut().zip(&ss).zip(&largest) {
+        for (i, (o, s)) in out.iter_mut().zip(&ss).enumerate() {
             // Leaving batch k out moves the mean by (x̄ − x^k)/(B − 1), which takes
             // (x^k − x̄)²·B/(B − 1) out of the sum of squares in all.
             *o = std::array::from_fn(|ch| {
-                let s = if trim { (s[ch] - l[ch] * bf / (bf - 1.0)).max(0.0) } else { s[ch] };
+                let s = if trim { (s[ch] - largest[i][ch] * bf / (bf - 1.0)).max(0.0) } else { s[ch] };
                 (s * norm) as f32
             });
         }
