@@ -27,7 +27,11 @@
 //! identity gives `β = (1 − a)·β' + a·e_c`, `a = δ_c / (w_c + λ)` with `w_c` the centre's full
 //! diagonal weight. At a pixel whose batches are all zero, `β = e_c·τ/(1+τ)`: with `τ = 1` the
 //! inverse-variance blend of PT and CRN, which both have variance `ṽ_c`.
+use crate::batch_stats::variance_of_mean;
 use crate::named::named_enum;
+use crate::pt_error::{cross_bilateral, CbfOptions};
+use cvtrace_streams::StreamSet;
+use rayon::prelude::*;
 
 named_enum! {
     /// The shape of the floor's extra covariance, `δ_i = max(0, τ·ṽ_i − V_g,ii)` on the diagonal.
@@ -52,7 +56,44 @@ named_enum! {
         /// the cross-bilateral filter: a PT firefly, one batch far from the rest, does not
         /// raise the floor of its neighbourhood.
         PtTrimmed => "pt-trimmed",
+        /// The PT error estimates, each at most `cap` times the cross-bilateral filtered 3×3
+        /// median of the PT batch variance. An isolated PT firefly, whose variance its
+        /// neighbours do not share, then does not raise the floor of its neighbourhood by
+        /// orders of magnitude, while variance that neighbouring pixels share keeps it.
+        PtCapped => "pt-capped",
     }
+}
+
+/// Each pixel's value replaced, per channel, by the median of its 3×3 window (clipped at the
+/// image border; of an even count, the lower of the two middle values).
+pub fn median_3x3(values: &[[f32; 3]], width: usize, height: usize) -> Vec<[f32; 3]> {
+    let mut out = vec![[0.0f32; 3]; values.len()];
+    out.par_chunks_mut(width.max(1)).enumerate().for_each(|(y, row)| {
+        for (x, o) in row.iter_mut().enumerate() {
+            let mut window = [[0.0f32; 9]; 3];
+            let mut n = 0;
+            for wy in y.saturating_sub(1)..(y + 2).min(height) {
+                for wx in x.saturating_sub(1)..(x + 2).min(width) {
+                    for ch in 0..3 {
+                        window[ch][n] = values[wy * width + wx][ch];
+                    }
+                    n += 1;
+                }
+            }
+            *o = std::array::from_fn(|ch| {
+                let w = &mut window[ch][..n];
+                *w.select_nth_unstable_by(n.saturating_sub(1) / 2, f32::total_cmp).1
+            });
+        }
+    });
+    out
+}
+
+/// `min(errors_i, cap·m_i)` per pixel and channel, with `m` the cross-bilateral filtered 3×3
+/// median of the PT batch variance of the mean (the `pt-capped` floor variance).
+pub fn capped_errors(errors: &[[f32; 3]], set: &StreamSet, cbf: &CbfOptions, cap: f64) -> Vec<[f32; 3]> {
+    let median = cross_bilateral(&median_3x3(&variance_of_mean(&set.pt), set.width, set.height), set, cbf);
+    errors.iter().zip(&median).map(|(e, m)| std::array::from_fn(|ch| (e[ch] as f64).min(cap * m[ch] as f64) as f32)).collect()
 }
 
 /// The floor of one pass: `τ`, the mode and the per-pixel `ṽ`.
@@ -102,6 +143,87 @@ mod tests {
         assert_eq!("COMMON".parse::<FloorMode>().unwrap(), FloorMode::Common);
         assert!("max".parse::<FloorMode>().unwrap_err().to_string().contains("common, independent"));
         assert_eq!("crn".parse::<FloorSource>().unwrap(), FloorSource::Crn);
+    }
+
+    /// An isolated spike goes, an edge between two flat regions stays where it is, and the
+    /// border windows take the lower middle of their even counts.
+    #[test]
+    fn median_3x3_by_hand() {
+        let (w, h) = (5, 4);
+        let mut v = vec![[0.0f32; 3]; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                v[y * w + x] = [if x >= 3 { 2.0 } else { 1.0 }, (y * w + x) as f32, 0.0];
+            }
+        }
+        v[w + 1][0] = 1e6;
+        v[2 * w + 2][2] = 7.0;
+        let m = median_3x3(&v, w, h);
+        for y in 0..h {
+            for x in 0..w {
+                // Channel 0: the spike is gone and the edge between x = 2 and x = 3 stays.
+                assert_eq!(m[y * w + x][0], if x >= 3 { 2.0 } else { 1.0 }, "({x},{y})");
+                assert_eq!(m[y * w + x][2], 0.0);
+            }
+        }
+        // Channel 1 is the pixel index: an interior median is the centre, a corner's window
+        // {0, 1, 5, 6} gives 1, an edge's {0, 1, 2, 5, 6, 7} gives 2.
+        assert_eq!(m[2 * w + 2][1], (2 * w + 2) as f32);
+        assert_eq!(m[0][1], 1.0);
+        assert_eq!(m[1][1], 2.0);
+    }
+
+    /// An isolated PT firefly lifts the filtered PT errors of its neighbourhood by orders of
+    /// magnitude; the capped floor variance stays within `cap` times the background, while a
+    /// 5×5 block of pixels that share a high variance keeps its floor.
+    #[test]
+    fn the_cap_removes_an_isolated_firefly_and_keeps_shared_variance() {
+        use crate::batch_stats::variance_of_mean;
+        use crate::pt_error::{cross_bilateral, CbfOptions};
+        use cvtrace_streams::{Image, Stream, StreamMeta, StreamSet};
+        let (w, h, b) = (32usize, 24usize, 16usize);
+        let firefly = 6 * w + 6;
+        let in_block = |i: usize| (20..25).contains(&(i % w)) && (12..17).contains(&(i / w));
+        let pt: Vec<Image> = (0..b)
+            .map(|k| {
+                Image::from_fn(w, h, |x, y| {
+                    let i = y * w + x;
+                    let mut v = if k % 2 == 0 { 1.1 } else { 0.9 };
+                    if k == 0 && i == firefly {
+                        v += 1e4;
+                    }
+                    if k == 0 && in_block(i) {
+                        v += 30.0;
+                    }
+                    [v; 3]
+                })
+            })
+            .collect();
+        let crn = vec![Image::from_fn(w, h, |_, _| [0.0; 3]); b];
+        let set = StreamSet {
+            width: w,
+            height: h,
+            pt: Stream::from_batches(pt),
+            crn: Stream::from_batches(crn),
+            features: None,
+            meta: StreamMeta { spp: 64, ..Default::default() },
+        };
+        let cbf = CbfOptions::default();
+        let errors = cross_bilateral(&variance_of_mean(&set.pt), &set, &cbf);
+        let background = variance_of_mean(&set.pt)[0][0] as f64;
+        let cap = 100.0;
+        let capped = capped_errors(&errors, &set, &cbf, cap);
+        // The firefly's neighbourhood (the block is more than a filter radius away).
+        let near = |i: usize| (i % w).abs_diff(6) <= 5 && (i / w).abs_diff(6) <= 5;
+        let worst = |v: &[[f32; 3]]| v.iter().enumerate().filter(|(i, _)| near(*i)).map(|(_, e)| e[1] as f64).fold(0.0, f64::max);
+        assert!(worst(&errors) > 1e3 * background, "the firefly lifts its neighbourhood: {} vs {background}", worst(&errors));
+        assert!(worst(&capped) <= cap * background * (1.0 + 1e-5), "{} vs {background}", worst(&capped));
+        // Far from the firefly and the block nothing changes; the block's centre keeps its
+        // floor, which is ~10³ times the background.
+        assert_eq!(capped[h - 1], errors[h - 1]);
+        let centre = 14 * w + 22;
+        assert!(errors[centre][0] as f64 > 500.0 * background);
+        assert_eq!(capped[centre], errors[centre]);
     }
 
     /// The closed form equals a direct solve of `(W + Δ + s·D·Dᵀ) β = s·D·d_c + δ_c·e_c`.

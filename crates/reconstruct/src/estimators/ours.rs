@@ -13,7 +13,7 @@ use super::cv::{centre_free, combine_with_centre, two_stage, ClassicCvOptions, E
 use crate::batch_stats::{trimmed_variance_of_mean, variance_of_mean};
 use crate::cv_pass::{CvPass, Dof, Folds};
 use crate::demodulate::{self, Demodulation};
-use crate::floor::{Floor, FloorMode, FloorSource};
+use crate::floor::{capped_errors, Floor, FloorMode, FloorSource};
 use crate::input::BatchNeed;
 use crate::low_pass::{low_pass_variance, restore_low_frequencies};
 use crate::penalty::Penalty;
@@ -51,7 +51,8 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
         param("seed", ParamKind::Int { min: 0, max: i64::MAX }, "0", "Seed of `select = random`.", None),
         param("crn_floor", ParamKind::Float(Bounds::at_least(0.0)), "0.05", "τ of the floor on the CRN covariance, as a fraction of the floor's variance (0 = off).", Some("crn-floor")),
         param("crn_floor_mode", ParamKind::Choice(FloorMode::NAMES), "common", "Shape of the floor: common (noise shared by the set) or independent (diagonal).", Some("crn-floor-mode")),
-        param("crn_floor_source", ParamKind::Choice(FloorSource::NAMES), "pt", "The floor's variance: pt (the PT error estimates), crn (filtered CRN variance) or pt-trimmed (filtered PT variance without each pixel's farthest batch).", Some("crn-floor-source")),
+        param("crn_floor_source", ParamKind::Choice(FloorSource::NAMES), "pt-capped", "The floor's variance: pt (the PT error estimates), pt-capped (the PT error estimates, at most crn_floor_cap times the filtered 3×3 median of the PT variance), crn (filtered CRN variance) or pt-trimmed (filtered PT variance without each pixel's farthest batch).", Some("crn-floor-source")),
+        param("crn_floor_cap", ParamKind::Float(Bounds::positive()), "100", "pt-capped: how many times the filtered 3×3 median of the PT variance a pixel's floor variance may be.", Some("crn-floor-cap")),
         param("low_pass_sigma", ParamKind::Float(Bounds::at_least(0.0)), "8", "σ in pixels of the Gaussian below which the output's frequencies are taken from the PT mean, which removes the estimator's bias at coarser scales (0 = off).", Some("low-pass-sigma")),
         param("two_stage_weight", ParamKind::Float(Bounds::between(0.0, 1.0)), "0.5", "Weight of the two-stage estimate (cv without the centre, then the centre's PT mean by inverse variance) averaged into the joint one (0 = the joint solve alone; needs k ≥ 2).", Some("two-stage-weight")),
         param("variance_dof", ParamKind::Choice(Dof::NAMES), "mallows", "How the predicted variance allows for β fitted to the batches it is judged on: none, gcv (RSS/(1 − df/n)²) or mallows (RSS·(n + df)/(n − df)), df the trace of the hat matrix; weights the two-stage estimate and fills the variance layer.", Some("variance-dof")),
@@ -101,6 +102,9 @@ pub struct ImperfectCvOptions {
     pub crn_floor_mode: FloorMode,
     /// Where the floor's per-pixel variance comes from.
     pub crn_floor_source: FloorSource,
+    /// `pt-capped`: the floor variance is at most this many times the filtered 3×3 median of
+    /// the PT variance.
+    pub crn_floor_cap: f64,
     /// Which CRN batches β is estimated from and applied to ([`Folds`]): with `halves` the
     /// coefficients are independent of the CRN values they weight.
     pub folds: Folds,
@@ -157,6 +161,7 @@ impl ImperfectCvOptions {
             crn_floor: p.float("crn_floor"),
             crn_floor_mode: p.choice("crn_floor_mode"),
             crn_floor_source: p.choice("crn_floor_source"),
+            crn_floor_cap: p.float("crn_floor_cap"),
             folds: p.choice("folds"),
             low_pass_sigma: p.float("low_pass_sigma"),
             two_stage_weight: p.float("two_stage_weight"),
@@ -295,6 +300,7 @@ impl ImperfectCv {
             FloorSource::Pt => None,
             FloorSource::Crn => Some(cross_bilateral(&variance_of_mean(&set.crn), set, &o.cbf)),
             FloorSource::PtTrimmed => Some(cross_bilateral(&trimmed_variance_of_mean(&set.pt), set, &o.cbf)),
+            FloorSource::PtCapped => Some(capped_errors(&errors, set, &o.cbf, o.crn_floor_cap)),
         };
         let floor = (o.crn_floor > 0.0).then(|| Floor {
             tau: o.crn_floor,
@@ -433,6 +439,8 @@ mod tests {
             (40, 33, 16, 16, ImperfectCvOptions { crn_floor: 0.0, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { crn_floor_source: FloorSource::Crn, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { crn_floor_source: FloorSource::PtTrimmed, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { crn_floor_source: FloorSource::Pt, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { crn_floor_cap: 2.0, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { penalty: Penalty::None, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { penalty: Penalty::Residual, shared_coefficients: true, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { errors: ErrorEstimate::Variance, ..d() }),
