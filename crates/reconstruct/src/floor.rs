@@ -1,4 +1,4 @@
-//! The noise floor of `ours` on the CRN covariance (issue 5).
+//! The noise floor of `ours` on the CRN covariance.
 //!
 //! With `B` batches of a stream whose radiance comes from rare bright paths (indirect light),
 //! most pixels' CRN batches are ≈ 0 in a given render, and those pixels' batch covariance says
@@ -20,7 +20,10 @@
 //!
 //! `ṽ` (`source`): `pt`, the PT error estimates `V_h` before the penalty (both streams sample
 //! the same integrand, so `Var(ḡ_i) = Var(h̄_i)`, and the PT estimate is independent of the CRN
-//! stream), or `crn`, the CRN batch variance smoothed by the same cross-bilateral filter.
+//! stream); `pt-capped` (the default), the same capped where a PT firefly makes one pixel's
+//! estimate stand far above its neighbourhood's, because a firefly's inflated estimate would
+//! otherwise claim shared CRN noise around it that is not there; `crn`, the CRN batch variance
+//! smoothed by the same cross-bilateral filter; or `pt-trimmed`.
 //!
 //! For `independent`, solving `(V_g + Δ + V_h' + λ) β = V_fg + δ_c·e_c` needs no second solve: with
 //! `β'` the solution without the extra right-hand side (and `Δ` in the diagonal), the Woodbury
@@ -178,9 +181,7 @@ mod tests {
     /// 5×5 block of pixels that share a high variance keeps its floor.
     #[test]
     fn the_cap_removes_an_isolated_firefly_and_keeps_shared_variance() {
-        use crate::batch_stats::variance_of_mean;
-        use crate::pt_error::{cross_bilateral, CbfOptions};
-        use cvtrace_streams::{Image, Stream, StreamMeta, StreamSet};
+        use cvtrace_streams::{Image, Stream, StreamMeta};
         let (w, h, b) = (32usize, 24usize, 16usize);
         let firefly = 6 * w + 6;
         let in_block = |i: usize| (20..25).contains(&(i % w)) && (12..17).contains(&(i / w));
