@@ -54,14 +54,19 @@ pub struct CvPass<'a> {
 
 /// The centre-free solve that [`CvPass`] can run next to its joint one: the control variates of
 /// `cv` (`F̂_c = ḡ_c − Σ_{i≠c} β_i (ḡ_i − h̄_i)`) over the joint selection without the centre,
-/// from the CRN batches without the floor, always with its predicted variance. It gives what a
-/// separate pass with `include_centre = false`, `k − 1`, no floor and [`Folds::All`] gives.
+/// always with its predicted variance, from the CRN batches with the joint pass's `common` floor
+/// (`floored`) or without any. It gives what a separate pass with `include_centre = false`,
+/// `k − 1`, that floor and [`Folds::All`] gives.
 /// Needs the centre first in the set, PT error estimates, [`Folds::All`] and the same solver as
 /// the joint system (see [`CvPass::fuses`]).
 #[derive(Clone, Copy, Debug)]
 pub struct CentreFree {
     pub penalty: Penalty,
     pub ridge: f64,
+    /// Solve on the joint pass's batch cube with its `common` floor column, so that the
+    /// centre-free solve, like the joint one, does not read all-zero CRN batches as an exact
+    /// CRN value. Without a `common` floor it makes no difference.
+    pub floored: bool,
     /// The degrees-of-freedom allowance of its predicted variance.
     pub dof: Dof,
 }
@@ -343,7 +348,7 @@ impl CvPass<'_> {
                     let mut cube = BatchCube::deviations(st, stride);
                     let mut plain = None;
                     if let Some(f) = self.floor.filter(|f| f.mode == FloorMode::Common) {
-                        if self.centre_free.is_some() {
+                        if self.centre_free.is_some_and(|f| !f.floored) {
                             plain = Some(cube.clone());
                         }
                         cube.rotate_and_floor(f.values, f.tau, s);
@@ -568,7 +573,7 @@ impl CvPass<'_> {
         let free = self.centre_free.map(|f| Stage {
             penalty: f.penalty,
             ridge: f.ridge,
-            floor: None,
+            floor: self.floor.filter(|fl| f.floored && fl.mode == FloorMode::Common),
             include_centre: false,
             variance: true,
             dof: f.dof,
@@ -582,7 +587,8 @@ impl CvPass<'_> {
         if n == 0 {
             return [crn_only; 2];
         }
-        debug_assert!(self.floor.is_none() || (self.include_centre && idx[0] as usize == c));
+        // The independent floor blends towards the centre, which must come first.
+        debug_assert!(self.floor.filter(|f| f.mode == FloorMode::Independent).is_none() || (self.include_centre && idx[0] as usize == c));
         debug_assert!(free.is_none() || (nh == 1 && idx[0] as usize == c));
         let free = free.filter(|_| n >= 2);
         let mut acc = [0.0f64; 3];
@@ -671,9 +677,9 @@ impl CvPass<'_> {
                     }
                 }
                 if let Some(f) = free {
-                    // Without a floor there is nothing to blend towards the centre (and no centre).
-                    // No floor column: B − 1 observations per channel.
-                    let n_obs = (b - 1) as f64;
+                    // No centre to blend towards; B − 1 observations per channel, and the
+                    // common floor's column when the solve has it.
+                    let n_obs = (b - 1 + usize::from(f.floor.is_some())) as f64;
                     for ch in 0..3 {
                         let q = 3 + ch;
                         let [beta_sum, correction, pt] = sums[q];

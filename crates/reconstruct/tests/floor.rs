@@ -71,6 +71,30 @@ fn common_floor_averages_the_neighbours_pt_values() {
 }
 
 #[test]
+fn the_two_stage_estimate_has_the_common_floor_too() {
+    // The two-stage estimate alone (weight 1): its centre-free solve over the 24 neighbours, then
+    // the centre's PT mean by inverse variance. Without the floor the all-zero CRN batches say
+    // "CRN is exact", so the first stage returns CRN (0) with variance 0 and the combination keeps
+    // it. With the common floor (τ = 1) the first stage is β = c·1 over the neighbours, from
+    // (τe·1·1ᵀ + e·I + λ·I)·β = τe·1 with the two-stage ridge λ = 0.3·(e + τe) relative to the
+    // mean diagonal: c = τ/(24τ + 1 + 0.3·(1 + τ)), the neighbours' PT mean shrunk to
+    // 24c·M = 0.9375·M, with a variance > 0; the combination with the centre's PT value M lies
+    // between the two.
+    let two_stage = |floored: bool| {
+        ours(|o| {
+            o.crn_floor = 1.0;
+            o.two_stage_weight = 1.0;
+            o.two_stage_floor = floored;
+        })
+    };
+    let v = centre_value(&two_stage(false), &degenerate_set());
+    assert!(v.abs() < 1e-6, "{v}");
+    let v = centre_value(&two_stage(true), &degenerate_set());
+    let first_stage = M * 24.0 / (24.0 + 1.0 + 0.3 * 2.0);
+    assert!(v >= first_stage * (1.0 - 1e-4) && v <= M * (1.0 + 1e-6), "{v} not in [{first_stage}, {M}]");
+}
+
+#[test]
 fn floor_leaves_pixels_with_enough_batch_variance_alone() {
     // CRN with real batch variance (4× the PT variance): a floor of τ ≤ 1 lifts nothing, the
     // output is bit-identical to no floor, in both shapes and with either source.

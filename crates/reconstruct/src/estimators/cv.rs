@@ -18,6 +18,7 @@
 //! is singular, so the ridge is essential. See docs/estimators.md for both, measured.
 use super::ours::check_selection;
 use crate::cv_pass::{CentreFree, CvPass, Dof, Folds, PassStats};
+use crate::floor::Floor;
 use crate::input::BatchNeed;
 use crate::low_pass::restore_low_frequencies;
 use crate::penalty::Penalty;
@@ -230,7 +231,7 @@ impl Estimator for ClassicCv {
         let selector = Selector::new(o.select, o.neighbours, o.search_window, false, o.seed, set);
         let (image, stats) = match (o.centre, errors.as_deref()) {
             (Centre::InverseVariance, Some(e)) => {
-                let (two, stats) = two_stage(set, selector, o.solve(), e, Dof::None);
+                let (two, stats) = two_stage(set, selector, o.solve(), e, Dof::None, None);
                 (two.image, stats)
             }
             _ => {
@@ -294,8 +295,8 @@ fn cv_pass<'a>(
 
 /// The control-variate solve of [`two_stage`] as the centre-free part of a joint pass with the
 /// same selection (PT errors modelled, so the `avg` penalty of [`cv_pass`]).
-pub(crate) fn centre_free(ridge: f64, dof: Dof) -> CentreFree {
-    CentreFree { penalty: Penalty::Avg, ridge, dof }
+pub(crate) fn centre_free(ridge: f64, dof: Dof, floored: bool) -> CentreFree {
+    CentreFree { penalty: Penalty::Avg, ridge, dof, floored }
 }
 
 /// An estimate and its predicted variance per pixel and channel.
@@ -308,8 +309,15 @@ pub(crate) struct Estimate {
 /// then combined with the centre's PT mean by inverse variance. `errors` are the PT error
 /// estimates (variances of the PT means); `dof` is the allowance of the first stage's variance,
 /// which weights the two.
-pub(crate) fn two_stage(set: &StreamSet, selector: Selector<'_>, solve: Solve, errors: &[[f32; 3]], dof: Dof) -> (Estimate, PassStats) {
-    let out = cv_pass(set, selector, solve, Some(errors), Some(dof)).run();
+pub(crate) fn two_stage(
+    set: &StreamSet,
+    selector: Selector<'_>,
+    solve: Solve,
+    errors: &[[f32; 3]],
+    dof: Dof,
+    floor: Option<Floor<'_>>,
+) -> (Estimate, PassStats) {
+    let out = CvPass { floor, ..cv_pass(set, selector, solve, Some(errors), Some(dof)) }.run();
     let v_f = out.variance.expect("asked for the variance");
     (combine_with_centre(&out.image, &v_f, &set.pt.mean, errors), out.stats)
 }

@@ -55,6 +55,7 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
         param("crn_floor_cap", ParamKind::Float(Bounds::positive()), "100", "pt-capped: how many times the filtered 3×3 median of the PT variance a pixel's floor variance may be.", Some("crn-floor-cap")),
         param("low_pass_sigma", ParamKind::Float(Bounds::at_least(0.0)), "8", "σ in pixels of the Gaussian below which the output's frequencies are taken from the PT mean, which removes the estimator's bias at coarser scales (0 = off).", Some("low-pass-sigma")),
         param("two_stage_weight", ParamKind::Float(Bounds::between(0.0, 1.0)), "0.5", "Weight of the two-stage estimate (cv without the centre, then the centre's PT mean by inverse variance) averaged into the joint one (0 = the joint solve alone; needs k ≥ 2).", Some("two-stage-weight")),
+        param("two_stage_floor", ParamKind::Bool, "true", "Give the two-stage estimate's centre-free solve the joint solve's common CRN floor, so that it too does not take all-zero CRN batches for an exact CRN value.", Some("two-stage-floor")),
         param("variance_dof", ParamKind::Choice(Dof::NAMES), "mallows", "How the predicted variance allows for β fitted to the batches it is judged on: none, gcv (RSS/(1 − df/n)²) or mallows (RSS·(n + df)/(n − df)), df the trace of the hat matrix; weights the two-stage estimate and fills the variance layer.", Some("variance-dof")),
         param("mix_correlation", ParamKind::Choice(MixCorrelation::NAMES), "bound", "The correlation of the joint and two-stage estimates in the variance layer of their mix: bound (1, the largest variance) or local (estimated from their squared differences, smoothed by the PT error filter). The image does not depend on it.", Some("mix-correlation")),
         param("folds", ParamKind::Choice(Folds::NAMES), "all", "Which CRN batches β is estimated from and applied to: all, or halves (each half's β applied to the other half's mean; even batch count ≥ 4).", Some("folds")),
@@ -112,6 +113,8 @@ pub struct ImperfectCvOptions {
     pub low_pass_sigma: f64,
     /// Weight of the two-stage estimate in the output (0 = the joint solve alone).
     pub two_stage_weight: f64,
+    /// Whether the two-stage estimate's centre-free solve has the joint solve's `common` floor.
+    pub two_stage_floor: bool,
     /// The degrees-of-freedom allowance of the variance layer's CRN part.
     pub variance_dof: Dof,
     /// The correlation of the two mixed estimates that the variance layer assumes.
@@ -165,6 +168,7 @@ impl ImperfectCvOptions {
             folds: p.choice("folds"),
             low_pass_sigma: p.float("low_pass_sigma"),
             two_stage_weight: p.float("two_stage_weight"),
+            two_stage_floor: p.bool("two_stage_floor"),
             variance_dof: p.choice("variance_dof"),
             mix_correlation: p.choice("mix_correlation"),
             demodulate: p.choice("demodulate"),
@@ -322,7 +326,7 @@ impl ImperfectCv {
             folds: o.folds,
             variance: true,
             dof: o.variance_dof,
-            centre_free: (o.two_stage_weight > 0.0).then(|| centre_free(two_stage_ridge, o.variance_dof)),
+            centre_free: (o.two_stage_weight > 0.0).then(|| centre_free(two_stage_ridge, o.variance_dof, o.two_stage_floor)),
         };
         if how == Pass::Separate || !pass.fuses() {
             pass.centre_free = None;
@@ -336,7 +340,8 @@ impl ImperfectCv {
                 None => {
                     let neighbours = Selector::new(o.select, o.k - 1, o.search_window, false, o.seed, set);
                     let solve = Solve { neighbours: o.k - 1, ridge: two_stage_ridge, shared: o.shared_coefficients, folds: Folds::All };
-                    two_stage(set, neighbours, solve, &errors, o.variance_dof).0
+                    let floor = floor.filter(|f| o.two_stage_floor && f.mode == FloorMode::Common);
+                    two_stage(set, neighbours, solve, &errors, o.variance_dof, floor).0
                 }
             };
             estimate = match o.mix_correlation {
@@ -441,6 +446,8 @@ mod tests {
             (40, 33, 16, 16, ImperfectCvOptions { crn_floor_source: FloorSource::PtTrimmed, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { crn_floor_source: FloorSource::Pt, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { crn_floor_cap: 2.0, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { two_stage_floor: false, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { two_stage_floor: false, crn_floor_mode: FloorMode::Independent, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { penalty: Penalty::None, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { penalty: Penalty::Residual, shared_coefficients: true, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { errors: ErrorEstimate::Variance, ..d() }),
