@@ -112,6 +112,10 @@ crate::named::named_enum! {
         Gcv => "gcv",
         /// Mallows' Cp: `RSS·(n + df)/(n − df)`.
         Mallows => "mallows",
+        /// Leave-one-batch-out: `Σ_b (r_b / (1 − H_bb))²`, each batch's residual as the fit
+        /// without it would leave it; unlike the two above it weighs a batch that carries the fit
+        /// (a firefly in one batch) by its own leverage.
+        Press => "press",
     }
 }
 
@@ -141,14 +145,27 @@ impl Folds {
 }
 
 impl Dof {
-    /// The factor on the residual for `df` of `n`.
-    fn factor(self, df: f64, n: f64) -> f64 {
+    /// The factor on the in-sample residual `rss` for `df` of `n`, or the leave-one-out
+    /// residual `press` relative to it.
+    fn factor(self, df: f64, n: f64, rss: f64, press: f64) -> f64 {
         let df = df.clamp(0.0, n - 0.5);
         match self {
             Dof::None => 1.0,
             Dof::Gcv => 1.0 / (1.0 - df / n).powi(2),
             Dof::Mallows => (n + df) / (n - df),
+            Dof::Press if rss > 0.0 && press.is_finite() => press / rss,
+            Dof::Press => 1.0,
         }
+    }
+
+    /// Whether the solve must find the trace of its hat matrix.
+    fn wants_trace(self) -> bool {
+        matches!(self, Dof::Gcv | Dof::Mallows)
+    }
+
+    /// Whether the solve must find its leave-one-out residual.
+    fn wants_press(self) -> bool {
+        self == Dof::Press
     }
 }
 
@@ -642,10 +659,20 @@ impl CvPass<'_> {
                         }
                     }
                 }
-                let joint = System { k: n, ridge: self.ridge, want_trace: self.variance && self.dof != Dof::None };
+                let joint = System {
+                    k: n,
+                    ridge: self.ridge,
+                    want_trace: self.variance && self.dof.wants_trace(),
+                    want_press: self.variance && self.dof.wants_press(),
+                };
                 let mut systems = [joint; MAX_SYSTEMS];
                 if let Some(f) = free {
-                    systems[3..].fill(System { k: n - 1, ridge: f.ridge, want_trace: f.dof != Dof::None });
+                    systems[3..].fill(System {
+                        k: n - 1,
+                        ridge: f.ridge,
+                        want_trace: f.dof.wants_trace(),
+                        want_press: f.dof.wants_press(),
+                    });
                 }
                 let outcomes = p.solve::<S>(rows, &systems[..if free.is_some() { 6 } else { 3 }], s);
                 let solved = outcomes.map(|o| matches!(o, Outcome::Solved | Outcome::Regularised));
@@ -671,7 +698,8 @@ impl CvPass<'_> {
                     st[0].count(outcomes[ch], if self.include_centre { p.beta[ch][0] } else { 0.0 }, beta_sum);
                     acc[ch] += target[c][ch] as f64 - correction;
                     if self.variance {
-                        let factor = if solved[ch] { self.dof.factor(P as f64 - p.trace_inv[ch], n_obs) } else { 1.0 };
+                        let factor =
+                            if solved[ch] { self.dof.factor(P as f64 - p.trace_inv[ch], n_obs, p.resid_sq[ch], p.press[ch]) } else { 1.0 };
                         let crn = s * if solved[ch] { shrink[ch] * shrink[ch] * p.resid_sq[ch] } else { f64::from(cube.sq[c][ch]) };
                         var[ch] += factor * crn + pt;
                     }
@@ -683,7 +711,8 @@ impl CvPass<'_> {
                     for ch in 0..3 {
                         let q = 3 + ch;
                         let [beta_sum, correction, pt] = sums[q];
-                        let factor = if solved[q] { f.dof.factor(P as f64 - p.trace_inv[q], n_obs) } else { 1.0 };
+                        let factor =
+                            if solved[q] { f.dof.factor(P as f64 - p.trace_inv[q], n_obs, p.resid_sq[q], p.press[q]) } else { 1.0 };
                         st[1].count(outcomes[q], 0.0, beta_sum);
                         free_acc[ch] += target[c][ch] as f64 - correction;
                         let crn = s * if solved[q] { p.resid_sq[q] } else { f64::from(plain.sq[c][ch]) };
@@ -754,12 +783,13 @@ impl CvPass<'_> {
             for (dst, v) in ws.dc[..m].iter_mut().zip(source(c)) {
                 *dst = *v as f64;
             }
-            ws.want_df = stage.variance && stage.dof != Dof::None;
+            ws.want_df = stage.variance && stage.dof.wants_trace();
+            ws.want_press = stage.variance && stage.dof.wants_press();
             let outcome = ws.solve(n, m, s, stage.ridge, Form::Auto);
             let solved = matches!(outcome, Outcome::Solved | Outcome::Regularised);
             let common = stage.floor.is_some_and(|f| f.mode == FloorMode::Common);
             let n_obs = (m / b * (b - 1 + usize::from(common))) as f64;
-            let factor = if solved && ws.want_df { stage.dof.factor(ws.df, n_obs) } else { 1.0 };
+            let factor = if solved && (ws.want_df || ws.want_press) { stage.dof.factor(ws.df, n_obs, ws.rss, ws.press) } else { 1.0 };
             if matches!(outcome, Outcome::Solved | Outcome::Regularised) {
                 blend_towards_centre(&mut ws.beta[..n], delta_c, 1.0 / (ws.w[0] + ws.lambda));
             }

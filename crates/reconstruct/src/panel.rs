@@ -49,6 +49,8 @@ pub(crate) struct System {
     pub ridge: f64,
     /// Whether the solve also computes `trace_inv`.
     pub want_trace: bool,
+    /// Whether the solve also computes `press`.
+    pub want_press: bool,
 }
 
 pub(crate) struct Panel<const P: usize> {
@@ -77,6 +79,12 @@ pub(crate) struct Panel<const P: usize> {
     /// `‖d_c − Σ_j β_j D_j‖²` of the fit, because `Σ_j β_j D_j = s·Dᵀ·W⁻¹·D·z = (G − I)·z`, so
     /// the predicted variance needs no pass over the rows.
     pub resid_sq: [f64; MAX_SYSTEMS],
+    /// Per system, `Σ_b (z_b / (G⁻¹)_bb)²` of the last successful solve, when the system asks
+    /// for it: the residual of each batch as a fit without that batch would leave it, because
+    /// `I − H = G⁻¹` (see [`crate::solve::Workspace::press`]).
+    pub press: [f64; MAX_SYSTEMS],
+    /// The diagonal of `G⁻¹`, `‖column b of L⁻¹‖²` (scratch of `press`), in f64 per lane.
+    inv_diag_g: [[f64; LANES]; P],
 }
 
 impl<const P: usize> Panel<P> {
@@ -94,6 +102,8 @@ impl<const P: usize> Panel<P> {
             inv_rows: [[ZERO; P]; P],
             trace_inv: [0.0; MAX_SYSTEMS],
             resid_sq: [0.0; MAX_SYSTEMS],
+            press: [0.0; MAX_SYSTEMS],
+            inv_diag_g: [[0.0; LANES]; P],
         })
     }
 
@@ -234,7 +244,11 @@ impl<const P: usize> Panel<P> {
             }
             S::store8(&mut self.g[j][j], ljj);
         }
-        if systems.iter().any(|q| q.want_trace) {
+        let want_press = systems.iter().any(|q| q.want_press);
+        if want_press {
+            self.inv_diag_g = [[0.0; LANES]; P];
+        }
+        if want_press || systems.iter().any(|q| q.want_trace) {
             // tr(G⁻¹) = ‖L⁻¹‖²_F. Row i of X = L⁻¹ is (e_i − Σ_{t<i} L_it·X_t) / L_ii, each
             // element summed in increasing t. X_t is zero right of t (those entries of
             // `inv_rows` are never written), and adding its ±0 products to a +0 or a 1 changes
@@ -262,6 +276,10 @@ impl<const P: usize> Panel<P> {
                         let v = S::mul8(r[m], inv);
                         S::store8(&mut self.inv_rows[i][l0 + m], v);
                         S::square_add8(a, v);
+                        if want_press {
+                            // (G⁻¹)_ll = Σ_i X_il², summed down the rows.
+                            S::square_add8(&mut self.inv_diag_g[l0 + m], v);
+                        }
                     }
                 }
                 for (lane, t) in tr.iter_mut().enumerate() {
@@ -328,6 +346,10 @@ impl<const P: usize> Panel<P> {
                 }
             }
             self.resid_sq[q] = (acc[0][q] + acc[1][q]) + (acc[2][q] + acc[3][q]);
+            if sys.want_press {
+                // Padded batches have z_b = 0 and (G⁻¹)_bb = 1: they add nothing.
+                self.press[q] = z.iter().zip(&self.inv_diag_g).map(|(z, g)| (f64::from(z[q]) / g[q]).powi(2)).sum();
+            }
         }
         let mut out = [false; MAX_SYSTEMS];
         out.copy_from_slice(&ok[..MAX_SYSTEMS]);
@@ -368,8 +390,8 @@ mod tests {
         data: Vec<[[f32; P]; MAX_K]>,
         w: [[f64; MAX_K]; 3],
         want: Vec<(Outcome, Vec<f64>)>,
-        /// Per channel, the f64 solver's degrees of freedom.
-        df: Vec<f64>,
+        /// Per channel, the f64 solver's degrees of freedom and PRESS.
+        df: Vec<(f64, f64)>,
     }
 
     impl<const P: usize> Case<P> {
@@ -395,9 +417,10 @@ mod tests {
                 for c in 0..b {
                     ws.dc[c] = data[ch][0][c] as f64;
                 }
+                ws.want_press = true;
                 let o = ws.solve(k, b, s, ridge, Form::Woodbury);
                 want.push((o, ws.beta[..k].to_vec()));
-                df.push(ws.df);
+                df.push((ws.df, ws.press));
             }
             Case { k, s, ridge, data, w, want, df }
         }
@@ -422,7 +445,7 @@ mod tests {
         }
 
         fn systems(&self) -> [System; 3] {
-            [System { k: self.k, ridge: self.ridge, want_trace: true }; 3]
+            [System { k: self.k, ridge: self.ridge, want_trace: true, want_press: true }; 3]
         }
     }
 
@@ -438,8 +461,11 @@ mod tests {
                 assert_eq!(got[ch], c.want[ch].0, "P={P} {case:?} ch={ch}");
                 if matches!(got[ch], Outcome::Solved | Outcome::Regularised) {
                     // Padded columns add 1 each to tr(G⁻¹) and nothing to df.
+                    let (want_df, want_press) = c.df[ch];
                     let df = P as f64 - p.trace_inv[ch];
-                    assert!((df - c.df[ch]).abs() < 1e-4 * (1.0 + c.df[ch]), "P={P} {case:?} ch={ch}: df {df} against {}", c.df[ch]);
+                    assert!((df - want_df).abs() < 1e-4 * (1.0 + want_df), "P={P} {case:?} ch={ch}: df {df} against {want_df}");
+                    let gap = (p.press[ch] - want_press).abs() / want_press.max(1e-12);
+                    assert!(gap < 1e-3, "P={P} {case:?} ch={ch}: PRESS {} against {want_press}", p.press[ch]);
                 }
                 for j in 0..c.k {
                     let d = (p.beta[ch][j] - c.want[ch].1[j]).abs();
@@ -509,11 +535,12 @@ mod tests {
         winv0: f64,
         trace_inv: f64,
         resid_sq: f64,
+        press: f64,
     }
 
     fn alone<const P: usize>(d: &[&[f32; P]], dc: &[f32; P], w: &[f64], sq: &[f32], s: f64, sys: System) -> (Outcome, Alone<P>) {
         let k = sys.k;
-        let mut out = Alone { beta: vec![0.0; k], winv0: 0.0, trace_inv: 0.0, resid_sq: 0.0 };
+        let mut out = Alone { beta: vec![0.0; k], winv0: 0.0, trace_inv: 0.0, resid_sq: 0.0, press: 0.0 };
         let mut sc = 0.0;
         for j in 0..k {
             sc += s * sq[j] as f64 + w[j];
@@ -524,7 +551,7 @@ mod tests {
         }
         let mut lambda = sys.ridge * sc;
         for attempt in 0..8 {
-            if let Some(r) = alone_once(d, dc, w, s, k, lambda, sys.want_trace) {
+            if let Some(r) = alone_once(d, dc, w, s, k, lambda, sys.want_trace || sys.want_press) {
                 out = r;
                 return (if attempt == 0 { Outcome::Solved } else { Outcome::Regularised }, out);
             }
@@ -597,6 +624,7 @@ mod tests {
             (acc[0] + acc[1]) + (acc[2] + acc[3])
         };
         let mut trace_inv = 0.0;
+        let mut diag_g = [0.0f64; P];
         if want_trace {
             let mut x = vec![[0.0f32; P]; P];
             for i in 0..P {
@@ -607,6 +635,9 @@ mod tests {
                 }
                 row.iter_mut().for_each(|v| *v *= inv_diag[i]);
                 trace_inv += norm_sq(&row);
+                for (d, v) in diag_g.iter_mut().zip(&row[..=i]) {
+                    *d += f64::from(*v) * f64::from(*v);
+                }
                 x[i] = row;
             }
         }
@@ -621,7 +652,8 @@ mod tests {
             axpy(&mut y, -zi, &g[i]);
         }
         let beta = (0..k).map(|j| s * winv[j] * Portable::dot32(d[j], &z) as f64).collect();
-        Some(Alone { beta, winv0: winv[0], trace_inv, resid_sq: norm_sq(&z) })
+        let press = z.iter().zip(&diag_g).map(|(z, g)| (f64::from(*z) / g).powi(2)).sum();
+        Some(Alone { beta, winv0: winv[0], trace_inv, resid_sq: norm_sq(&z), press })
     }
 
     /// Six systems of random shapes: the joint and centre-free layout of the pass (k and k − 1
@@ -674,7 +706,7 @@ mod tests {
                     _ => {}
                 }
                 let sqq = (0..kq).map(|j| if kind(q) == 7 { 1.0 } else { data[q][j].iter().map(|v| v * v).sum() }).collect();
-                systems.push(System { k: kq, ridge, want_trace: kind(q) != 4 });
+                systems.push(System { k: kq, ridge, want_trace: kind(q) != 4, want_press: kind(q) % 2 == 0 });
                 w.push(wq);
                 sq.push(sqq);
             }
@@ -721,6 +753,9 @@ mod tests {
                 assert_eq!(p.resid_sq[q].to_bits(), one.resid_sq.to_bits(), "P={P} system {q}: ‖z‖²");
                 if sys.want_trace {
                     assert_eq!(p.trace_inv[q].to_bits(), one.trace_inv.to_bits(), "P={P} system {q}: tr(G⁻¹)");
+                }
+                if sys.want_press {
+                    assert_eq!(p.press[q].to_bits(), one.press.to_bits(), "P={P} system {q}: PRESS");
                 }
             }
             seen.push(want);

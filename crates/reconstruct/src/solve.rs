@@ -64,6 +64,15 @@ pub struct Workspace {
     /// The degrees of freedom `tr(H)` of the last successful solve, when `want_df`: `H` is the
     /// hat matrix in batch space, `s·Dᵀ·(s·D·Dᵀ + W + λ)⁻¹·D`.
     pub df: f64,
+    /// Whether a solve also computes `rss` and `press`.
+    pub want_press: bool,
+    /// The in-sample squared residual `‖r‖²`, `r = d_c − Dᵀβ`, of the last successful solve,
+    /// when `want_press`.
+    pub rss: f64,
+    /// Its leave-one-column-out counterpart `Σ_b (r_b / (1 − H_bb))²`, when `want_press`: each
+    /// column's residual as a fit without that column would leave it (exact for this linear
+    /// fit at a fixed λ), so a column that carries the fit by itself weighs as much as it should.
+    pub press: f64,
     mat: [f64; MAX_K * MAX_K],
     vec: [f64; MAX_COLS],
     winv: [f64; MAX_K],
@@ -80,6 +89,9 @@ impl Workspace {
             lambda: 0.0,
             want_df: false,
             df: 0.0,
+            want_press: false,
+            rss: 0.0,
+            press: 0.0,
             mat: [0.0; MAX_K * MAX_K],
             vec: [0.0; MAX_COLS],
             winv: [0.0; MAX_K],
@@ -125,6 +137,12 @@ impl Workspace {
                             inverse_diagonal(&self.mat[..k * k], k, &mut diag[..k]);
                             k as f64 - (0..k).map(|j| (self.w[j] + lambda) * diag[j]).sum::<f64>()
                         }
+                    };
+                }
+                if self.want_press {
+                    (self.rss, self.press) = match form {
+                        Form::Woodbury => self.woodbury_press(m),
+                        _ => self.direct_press(k, m, s),
                     };
                 }
                 return if attempt == 0 { Outcome::Solved } else { Outcome::Regularised };
@@ -184,6 +202,42 @@ impl Workspace {
             self.beta[j] = s * self.winv[j] * dot(&self.d[j * m..(j + 1) * m], z);
         }
         true
+    }
+}
+
+impl Workspace {
+    /// In the Woodbury form the residual is `z = G⁻¹·d_c` (the solved vector still in `vec`)
+    /// and `I − H = G⁻¹`, so `1 − H_bb = (G⁻¹)_bb`.
+    fn woodbury_press(&self, m: usize) -> (f64, f64) {
+        let mut diag = [0.0; MAX_SIDE];
+        inverse_diagonal(&self.mat[..m * m], m, &mut diag[..m]);
+        let z = &self.vec[..m];
+        (dot(z, z), z.iter().zip(&diag[..m]).map(|(r, g)| (r / g) * (r / g)).sum())
+    }
+
+    /// In the direct form `H_bb = s·D_bᵀ·A⁻¹·D_b = s·‖L⁻¹·D_b‖²`, `D_b` column `b` of `D` and
+    /// `A = L·Lᵀ` the factorised `k×k` matrix.
+    fn direct_press(&self, k: usize, m: usize, s: f64) -> (f64, f64) {
+        let (l, d) = (&self.mat[..k * k], &self.d);
+        let (mut rss, mut press) = (0.0, 0.0);
+        let mut x = [0.0f64; MAX_K];
+        for b in 0..m {
+            let mut r = self.dc[b];
+            for (j, beta) in self.beta[..k].iter().enumerate() {
+                r -= beta * d[j * m + b];
+            }
+            // Forward substitution L·x = D_b.
+            let mut h = 0.0;
+            for i in 0..k {
+                let v = (d[i * m + b] - dot(&l[i * k..i * k + i], &x[..i])) / l[i * k + i];
+                x[i] = v;
+                h += v * v;
+            }
+            let keep = 1.0 - s * h;
+            rss += r * r;
+            press += (r / keep) * (r / keep);
+        }
+        (rss, press)
     }
 }
 
@@ -328,6 +382,39 @@ mod tests {
                 assert_eq!(ws.solve(k, m, s, 0.0, form), Outcome::Solved);
                 assert!((ws.df - trace).abs() < 1e-9 * (1.0 + trace), "{form:?} k={k} m={m}: df {} against {trace}", ws.df);
                 assert!(ws.df > 0.0 && ws.df <= k.min(m) as f64 + 1e-9, "{form:?} k={k} m={m}: df {}", ws.df);
+            }
+        }
+    }
+
+    #[test]
+    fn press_is_the_residual_of_fits_that_leave_each_column_out() {
+        for (k, m) in [(25, 16), (25, 48), (10, 3), (7, 7)] {
+            let s = 1.0 / (m * (m - 1).max(1)) as f64;
+            // Leaving column b out is fitting to the data with that column zeroed (it then adds
+            // nothing to D·Dᵀ or D·d_c); its residual there is d_c,b − Σ_j β_j·d_j,b.
+            let mut press = 0.0;
+            for b in 0..m {
+                let mut ws = Workspace::boxed();
+                fill(&mut ws, k, m, 11, 0.01);
+                let full = ws.d;
+                let dcb = ws.dc[b];
+                for j in 0..k {
+                    ws.d[j * m + b] = 0.0;
+                }
+                ws.dc[b] = 0.0;
+                assert_eq!(ws.solve(k, m, s, 0.0, Form::Direct), Outcome::Solved);
+                let r = dcb - (0..k).map(|j| ws.beta[j] * full[j * m + b]).sum::<f64>();
+                press += r * r;
+            }
+            for form in [Form::Direct, Form::Woodbury] {
+                let mut ws = Workspace::boxed();
+                fill(&mut ws, k, m, 11, 0.01);
+                ws.want_press = true;
+                assert_eq!(ws.solve(k, m, s, 0.0, form), Outcome::Solved);
+                let rss: f64 = (0..m).map(|b| (ws.dc[b] - (0..k).map(|j| ws.beta[j] * ws.d[j * m + b]).sum::<f64>()).powi(2)).sum();
+                assert!((ws.rss - rss).abs() < 1e-9 * (1.0 + rss), "{form:?} k={k} m={m}: rss {} against {rss}", ws.rss);
+                assert!((ws.press - press).abs() < 1e-8 * (1.0 + press), "{form:?} k={k} m={m}: press {} against {press}", ws.press);
+                assert!(ws.press > ws.rss, "{form:?} k={k} m={m}: leaving columns out must cost");
             }
         }
     }

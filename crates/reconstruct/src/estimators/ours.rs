@@ -56,7 +56,7 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
         param("low_pass_sigma", ParamKind::Float(Bounds::at_least(0.0)), "8", "σ in pixels of the Gaussian below which the output's frequencies are taken from the PT mean, which removes the estimator's bias at coarser scales (0 = off).", Some("low-pass-sigma")),
         param("two_stage_weight", ParamKind::Float(Bounds::between(0.0, 1.0)), "0.5", "Weight of the two-stage estimate (cv without the centre, then the centre's PT mean by inverse variance) averaged into the joint one (0 = the joint solve alone; needs k ≥ 2).", Some("two-stage-weight")),
         param("two_stage_floor", ParamKind::Bool, "true", "Give the two-stage estimate's centre-free solve the joint solve's common CRN floor, so that it too does not take all-zero CRN batches for an exact CRN value.", None),
-        param("variance_dof", ParamKind::Choice(Dof::NAMES), "mallows", "How the predicted variance allows for β fitted to the batches it is judged on: none, gcv (RSS/(1 − df/n)²) or mallows (RSS·(n + df)/(n − df)), df the trace of the hat matrix; weights the two-stage estimate and fills the variance layer.", Some("variance-dof")),
+        param("variance_dof", ParamKind::Choice(Dof::NAMES), "mallows", "How the predicted variance allows for β fitted to the batches it is judged on: none, gcv (RSS/(1 − df/n)²), mallows (RSS·(n + df)/(n − df)), df the trace of the hat matrix, or press (Σ_b (r_b/(1 − H_bb))², each batch's residual as the fit without it would leave it); weights the two-stage estimate and fills the variance layer.", Some("variance-dof")),
         param("mix_correlation", ParamKind::Choice(MixCorrelation::NAMES), "bound", "The correlation of the joint and two-stage estimates in the variance layer of their mix: bound (1, the largest variance) or local (estimated from their squared differences, smoothed by the PT error filter). The image does not depend on it.", Some("mix-correlation")),
         param("folds", ParamKind::Choice(Folds::NAMES), "all", "Which CRN batches β is estimated from and applied to: all, or halves (each half's β applied to the other half's mean; even batch count ≥ 4).", Some("folds")),
         param("demodulate", ParamKind::Choice(Demodulation::NAMES), "auto", "Reconstruct illumination: both streams divided by the first-hit albedo (each channel at least 0.05), the output multiplied back; auto where the input has features, on (needs them) or off (radiance, as in the paper).", Some("demodulate")),
@@ -459,6 +459,8 @@ mod tests {
             (40, 33, 16, 16, ImperfectCvOptions { variance_dof: Dof::None, ..d() }),
             (40, 33, 16, 16, ImperfectCvOptions { variance_dof: Dof::Gcv, shared_coefficients: true, ..d() }),
             (40, 33, 32, 32, ImperfectCvOptions { variance_dof: Dof::Gcv, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { variance_dof: Dof::Press, ..d() }),
+            (40, 33, 16, 16, ImperfectCvOptions { variance_dof: Dof::Press, shared_coefficients: true, ..d() }),
             (3, 2, 16, 16, d()),
             (5, 1, 16, 16, d()),
         ];
