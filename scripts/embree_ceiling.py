@@ -3,7 +3,7 @@
 
     python3 scripts/embree_ceiling.py [--runs N]
 
-Runs `cargo bench --bench render` for the one-thread render loop of the Cornell box (256², max
+Runs `cargo bench -p cvtrace-embree --bench render` for the one-thread render loop of the Cornell box (256², max
 depth 8) and for the bare Embree calls the renderer makes on the same scene (incoherent
 nearest-hit and shadow rays one call each, camera rays in batches of 64), with both traversals.
 The ceiling is the rate the rays alone would allow at the render's mix per sample; each run's
@@ -37,7 +37,7 @@ def main():
     ap.add_argument("--runs", type=int, default=1)
     args = ap.parse_args()
     for run in range(1, args.runs + 1):
-        bench = subprocess.run(["cargo", "bench", "--bench", "render", "--locked", "--", FILTER],
+        bench = subprocess.run(["cargo", "bench", "-p", "cvtrace-embree", "--bench", "render", "--locked", "--", FILTER],
                                capture_output=True, text=True)
         if bench.returncode != 0:
             sys.exit(f"embree_ceiling: cargo bench failed:\n{bench.stderr[-2000:]}")

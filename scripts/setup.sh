@@ -4,7 +4,7 @@
 # Idempotent and quiet: each package is checked with dpkg-query, and apt runs
 # (update + install) only when something is missing. Pass -v for details; further arguments
 # are extra packages to ensure (scripts/compare_mitsuba.sh adds its own).
-#   libembree-dev       Embree headers + library (ray casting; build.rs needs it)
+#   libembree-dev       Embree headers + library (ray casting; crates/embree-sys finds it)
 #   clang libclang-dev  bindgen's parser for the Embree headers
 #   pkg-config          Embree discovery where a .pc file exists
 #   embree-tools        ships the Cornell box source model (scenes/cornell-box/SOURCE.md)
@@ -12,13 +12,21 @@
 #   assimp-utils        model conversion for new scenes
 #   chromium            headless browser for the viewer test
 #   slurm-wlm munge     a real Slurm cluster on this machine (scripts/slurm_local.sh) for the farm tests
+#
+# Then the native libraries Debian 12 lacks, from their PyPI wheels, into .deps/ (shared
+# libraries only, no Python code runs):
+#   .deps/oidn/lib      Intel Open Image Denoise 2.5.1 (wheel pyoidn): the library, its core and
+#                       CPU device modules and the TBB they need; the build finds it through
+#                       OIDN_DIR in .cargo/config.toml and puts the folder into the binaries' rpath
+#   .deps/embree4/lib   Embree 4.4.0 (wheel embreex), for `make test`'s Embree 4 build
+#                       (EMBREE_DIR=.deps/embree4)
 set -euo pipefail
 
 verbose=0
 [[ "${1:-}" == "-v" ]] && { verbose=1; shift; }
 say() { if (( verbose )); then echo "setup: $*"; fi; }
 
-packages=(libembree-dev embree-tools openimageio-tools clang libclang-dev pkg-config assimp-utils chromium slurm-wlm munge "$@")
+packages=(libembree-dev embree-tools openimageio-tools clang libclang-dev pkg-config assimp-utils chromium slurm-wlm munge unzip "$@")
 
 missing=()
 for p in "${packages[@]}"; do
@@ -51,4 +59,36 @@ if ! command -v cargo >/dev/null 2>&1 && [[ ! -x "$HOME/.cargo/bin/cargo" ]]; th
     exit 1
 fi
 say "cargo: $(command -v cargo || echo "$HOME/.cargo/bin/cargo")"
+
+root=$(cd "$(dirname "$0")/.." && pwd)
+
+# wheel_libraries NAME==VERSION DEST PATTERN...: the files of the wheel matching the patterns
+# (unzip's wildcards), flattened into DEST/lib. A stamp names the wheel, so a new pin reinstalls.
+wheel_libraries() {
+    local pin=$1 dest=$2; shift 2
+    local stamp="$dest/.installed-${pin/==/-}"
+    if [[ -f "$stamp" ]]; then
+        say "$pin: in ${dest#"$root"/}"
+        return
+    fi
+    echo "setup: installing $pin into ${dest#"$root"/} (from PyPI)" >&2
+    local tmp
+    tmp=$(mktemp -d)
+    if ! python3 -m pip download --quiet --no-deps --only-binary=:all: --dest "$tmp" "$pin" >"$tmp/log" 2>&1; then
+        cat "$tmp/log" >&2
+        rm -rf "$tmp"
+        echo "setup: could not download $pin from PyPI" >&2
+        exit 1
+    fi
+    rm -rf "$dest"
+    mkdir -p "$dest/lib"
+    unzip -q -j -o "$tmp"/*.whl "$@" -d "$dest/lib"
+    rm -rf "$tmp"
+    touch "$stamp"
+}
+
+wheel_libraries pyoidn==2.5.1.0 "$root/.deps/oidn" \
+    'pyoidn/oidn/lib/libOpenImageDenoise.so*' 'pyoidn/oidn/lib/libOpenImageDenoise_core.so*' \
+    'pyoidn/oidn/lib/libOpenImageDenoise_device_cpu.so*' 'pyoidn/oidn/lib/libtbb.so*'
+wheel_libraries embreex==4.4.0.post1 "$root/.deps/embree4" 'embreex.libs/*.so*'
 say "all dependencies present"

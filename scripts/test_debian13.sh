@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Runs the README's test command (.ci/run) inside a Debian 13 (trixie) root, where Debian's
-# Embree is 4.x, so the Embree 4 half of build.rs and src/embree/shim.c is built and tested too
+# Embree is 4.x, so the Embree 4 side of crates/embree-sys (bindgen on its headers) is built and tested too
 # (Debian 12, the CI machine, only has Embree 3). Needs root, network access to
 # deb.debian.org and a Rust toolchain in ~/.cargo and ~/.rustup, which is bind-mounted.
 #

@@ -1,9 +1,9 @@
 //! Render throughput on the shipped Cornell box (256×256, max depth 8) and bare Embree ray
-//! rates against its BVH. Run with `cargo bench --bench render`.
+//! rates against its BVH. Run with `cargo bench -p cvtrace-embree --bench render`.
 //!
 //! Target: ≥ 1.5 M path samples per CPU-second (so ≥ 3 M/s wall on 2 cores).
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
-use cvtrace::{set_flush_denormals, BuildOptions, BuildQuality, Device, EmbreeScene};
+use cvtrace_embree::{set_flush_denormals, BuildOptions, BuildQuality, Device, EmbreeScene};
 use cvtrace_render::{render_reference_pass, render_streams, Intersector, Ray, ReferenceAccum, RenderSettings, Scene};
 use glam::{Vec2, Vec3A};
 use std::hint::black_box;
@@ -15,9 +15,10 @@ const SIDE: u32 = 256;
 const SPP: u32 = 4;
 
 fn cornell() -> (Scene, EmbreeScene) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box/scene.gltf");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box/scene.gltf");
     let scene = Scene::load(&path).expect("the shipped Cornell box loads");
-    let tracer = EmbreeScene::build(scene.positions(), scene.triangles()).expect("Embree builds it");
+    let robust = BuildOptions { robust: true, ..BuildOptions::default() };
+    let tracer = Device::new().and_then(|d| d.build_scene(scene.positions(), scene.triangles(), &robust)).expect("Embree builds it");
     (scene, tracer)
 }
 

@@ -1,6 +1,6 @@
 //! Embree wrapper basics: exact hits on a single triangle, misses, ray-interval limits,
 //! occlusion, and sharing one committed scene between threads.
-use cvtrace::{BuildOptions, BuildQuality, Device, EmbreeScene};
+use cvtrace_embree::{BuildOptions, BuildQuality, Device, EmbreeScene};
 use cvtrace_render::{Hit, Intersector, Ray};
 use glam::Vec3A;
 
@@ -301,7 +301,7 @@ fn quads_give_the_same_hits_as_triangles() {
 /// room in every direction, so they hit walls and boxes from all sides.
 #[test]
 fn quads_give_the_same_hits_as_triangles_in_the_cornell_box() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box/scene.gltf");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box/scene.gltf");
     let scene = cvtrace_render::Scene::load(&path).expect("the shipped Cornell box loads");
     let (lo, hi) = scene.bounds();
     let mut state = 7u64;
@@ -325,7 +325,7 @@ fn quads_give_the_same_hits_as_triangles_in_the_cornell_box() {
 /// the room.
 #[test]
 fn coherent_batches_give_the_same_hits_as_single_rays() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box/scene.gltf");
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box/scene.gltf");
     let scene = cvtrace_render::Scene::load(&path).expect("the shipped Cornell box loads");
     let (w, h) = (48u32, 40u32);
     let frame = scene.camera().frame(w, h);

@@ -1,13 +1,17 @@
-//! The Embree backend: the only place in cvtrace with `unsafe` Embree calls.
+//! Embree as cvtrace's ray caster: the safe wrapper of `cvtrace-embree-sys`, and the only
+//! crate with `unsafe` Embree calls.
 //!
 //! A [`Device`] wraps `RTCDevice` with an error callback installed once. Errors are
 //! collected there and checked after each build step, never per ray: a committed
-//! [`EmbreeScene`] is immutable, `Send + Sync`, and answers rays through the C shim
-//! (`shim.c`), which hides the Embree 3 / Embree 4 API differences.
+//! [`EmbreeScene`] is immutable, `Send + Sync`, and implements
+//! [`cvtrace_render::Intersector`] through the sys crate's calls that hide the Embree 3 /
+//! Embree 4 differences. [`traversal_check`] compares fast and robust traversal ray by ray.
+#![warn(clippy::undocumented_unsafe_blocks)]
 mod denormals;
-mod ffi;
 mod quads;
+pub mod traversal_check;
 
+use cvtrace_embree_sys as ffi;
 pub use denormals::{flush_denormals_enabled, set_flush_denormals};
 
 use cvtrace_render::{Hit, Intersector, Ray};
@@ -51,9 +55,10 @@ pub struct BuildOptions {
     pub quads: bool,
 }
 
+/// Embree's defaults, and cvtrace's: high quality, fast (not watertight) traversal, quads.
 impl Default for BuildOptions {
     fn default() -> Self {
-        BuildOptions { quality: BuildQuality::High, robust: true, compact: false, quads: true }
+        BuildOptions { quality: BuildQuality::High, robust: false, compact: false, quads: true }
     }
 }
 
@@ -99,6 +104,7 @@ struct DeviceInner {
 
 // SAFETY: Embree devices are thread-safe; the sink is behind a Mutex.
 unsafe impl Send for DeviceInner {}
+// SAFETY: as for Send: the device handle may be used from any thread at once.
 unsafe impl Sync for DeviceInner {}
 
 impl Drop for DeviceInner {
@@ -144,13 +150,12 @@ impl Device {
         // SAFETY: valid device; the property is a plain integer query.
         let version = unsafe { ffi::rtcGetDeviceProperty(raw, ffi::RTCDeviceProperty::RTC_DEVICE_PROPERTY_VERSION) };
         tracing::debug!(
-            "Embree {}.{}.{} device ({}; shim built for Embree {})",
+            "Embree {}.{}.{} device ({}; bindings for Embree {})",
             version / 10000,
             version / 100 % 100,
             version % 100,
-            env!("CVTRACE_EMBREE_ORIGIN"),
-            // SAFETY: a constant-returning C function.
-            unsafe { ffi::cvt_embree_major() }
+            ffi::ORIGIN,
+            ffi::MAJOR
         );
         Ok(device)
     }
@@ -379,6 +384,7 @@ pub struct EmbreeScene {
 
 // SAFETY: after rtcCommitScene, Embree scenes are read-only and safe to query from any thread.
 unsafe impl Send for EmbreeScene {}
+// SAFETY: as for Send: concurrent queries of a committed scene are what Embree is made for.
 unsafe impl Sync for EmbreeScene {}
 
 impl EmbreeScene {
@@ -428,7 +434,7 @@ impl Intersector for EmbreeScene {
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
         let mut rh = to_rtc_rayhit(ray);
         // SAFETY: committed scene; `rh` is a properly initialised, 16-byte aligned RTCRayHit.
-        unsafe { ffi::cvt_intersect1(self.raw, &mut rh.0) };
+        unsafe { ffi::intersect1(self.raw, &mut rh.0) };
         self.hit_of(&rh)
     }
 
@@ -443,7 +449,7 @@ impl Intersector for EmbreeScene {
             }
             // SAFETY: committed scene; the first `rays.len()` entries of `buf` are initialised,
             // 16-byte aligned RTCRayHits, `size_of::<AlignedRayHit>()` bytes apart.
-            unsafe { ffi::cvt_intersect_coherent(self.raw, &mut buf[0].0, rays.len() as u32, std::mem::size_of::<AlignedRayHit>()) };
+            unsafe { ffi::intersect_coherent(self.raw, &mut buf[0].0, rays.len() as u32, std::mem::size_of::<AlignedRayHit>()) };
             for (hit, rh) in hits.iter_mut().zip(&buf) {
                 *hit = self.hit_of(rh);
             }
@@ -454,7 +460,7 @@ impl Intersector for EmbreeScene {
     fn occluded(&self, ray: &Ray) -> bool {
         let mut r = AlignedRay(to_rtc_ray(ray));
         // SAFETY: committed scene; `r` is a properly initialised, 16-byte aligned RTCRay.
-        unsafe { ffi::cvt_occluded1(self.raw, &mut r.0) };
+        unsafe { ffi::occluded1(self.raw, &mut r.0) };
         // Embree marks an occluded ray by setting tfar to -inf.
         r.0.tfar == f32::NEG_INFINITY
     }
@@ -493,9 +499,40 @@ mod tests {
     }
 
     #[test]
-    fn shim_matches_bindings_major() {
-        // SAFETY: constant-returning C function.
-        let major = unsafe { ffi::cvt_embree_major() } as u32;
-        assert_eq!(major, ffi::RTC_VERSION_MAJOR);
+    fn the_library_writes_no_further_than_the_bindings_ray_structures_reach() {
+        // A library built with more instance fields than the bindings declare would write past
+        // the end of a ray: the bytes after it must come back untouched.
+        const SENTINEL: u8 = 0xa5;
+        let s = EmbreeScene::build(&[Vec3A::ZERO, Vec3A::X, Vec3A::Y], &[[0, 1, 2]]).unwrap();
+        let ray = Ray { origin: Vec3A::new(0.25, 0.25, 1.0), dir: -Vec3A::Z, tmin: 0.0, tmax: f32::INFINITY };
+        #[repr(C)]
+        struct Guarded<T> {
+            value: T,
+            after: [u8; 64],
+        }
+        let mut rh = Guarded { value: to_rtc_rayhit(&ray), after: [SENTINEL; 64] };
+        // SAFETY: committed scene; an initialised, aligned ray-hit record.
+        unsafe { ffi::intersect1(s.raw, &mut rh.value.0) };
+        assert_eq!((rh.value.0.hit.geomID, rh.value.0.hit.primID), (0, 0));
+        assert!(rh.after.iter().all(|&b| b == SENTINEL), "Embree wrote past RTCRayHit");
+        let mut r = Guarded { value: AlignedRay(to_rtc_ray(&ray)), after: [SENTINEL; 64] };
+        // SAFETY: committed scene; an initialised, aligned ray.
+        unsafe { ffi::occluded1(s.raw, &mut r.value.0) };
+        assert_eq!(r.value.0.tfar, f32::NEG_INFINITY);
+        assert!(r.after.iter().all(|&b| b == SENTINEL), "Embree wrote past RTCRay");
+        let mut batch = Guarded { value: [to_rtc_rayhit(&ray), to_rtc_rayhit(&ray)], after: [SENTINEL; 64] };
+        // SAFETY: committed scene; two initialised, aligned records one record apart.
+        unsafe { ffi::intersect_coherent(s.raw, &mut batch.value[0].0, 2, std::mem::size_of::<AlignedRayHit>()) };
+        assert!(batch.value.iter().all(|rh| rh.0.hit.geomID == 0));
+        assert!(batch.after.iter().all(|&b| b == SENTINEL), "Embree wrote past the coherent batch");
+    }
+
+    #[test]
+    fn the_library_is_the_major_version_of_the_bindings() {
+        let device = Device::new().unwrap();
+        // SAFETY: a valid device; the property is a plain integer query.
+        let version = unsafe { ffi::rtcGetDeviceProperty(device.inner.raw, ffi::RTCDeviceProperty::RTC_DEVICE_PROPERTY_VERSION) };
+        assert_eq!(version / 10000, ffi::MAJOR as isize, "Embree {version} loaded, bindings for {} ({})", ffi::MAJOR, ffi::ORIGIN);
+        assert_eq!(ffi::RTC_VERSION_MAJOR, ffi::MAJOR);
     }
 }

@@ -6,7 +6,7 @@
 //! is not watertight, so a ray can slip between two triangles that share an edge. Whether the
 //! default should pay for robust traversal depends on how often that happens on real scenes,
 //! which a synthetic edge test cannot say.
-use crate::embree::{BuildOptions, Device, EmbreeError, EmbreeScene};
+use crate::{BuildOptions, Device, EmbreeError, EmbreeScene};
 use cvtrace_render::{Hit, Intersector, Ray};
 use glam::Vec3A;
 use std::collections::HashMap;

@@ -1,6 +1,6 @@
 //! Embree against the render crate's brute-force Möller–Trumbore, ray by ray: a random
 //! triangle soup (nearest hit and occlusion) and the camera rays of the shipped Cornell box.
-use cvtrace::EmbreeScene;
+use cvtrace_embree::{BuildOptions, Device, EmbreeScene};
 use cvtrace_render::testing::BruteForce;
 use cvtrace_render::{Hit, Intersector, Material, Ray, Scene, SceneParts};
 use glam::Vec3A;
@@ -39,8 +39,10 @@ fn soup(rng: &mut Rng, count: usize) -> Scene {
     Scene::from_parts(parts).expect("soup is a valid scene")
 }
 
+/// Robust (watertight) traversal, the one whose edge handling Möller–Trumbore is compared with.
 fn embree_for(scene: &Scene) -> EmbreeScene {
-    EmbreeScene::build(scene.positions(), scene.triangles()).expect("Embree builds the scene")
+    let robust = BuildOptions { robust: true, ..BuildOptions::default() };
+    Device::new().and_then(|d| d.build_scene(scene.positions(), scene.triangles(), &robust)).expect("Embree builds the scene")
 }
 
 /// Tallies how two intersectors disagree. Exact agreement is not expected everywhere:
@@ -128,7 +130,7 @@ fn random_soup_matches_brute_force_ray_by_ray() {
 
 #[test]
 fn cornell_box_camera_rays_match_brute_force() {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box/scene.gltf");
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/cornell-box/scene.gltf");
     let scene = Scene::load(&path).expect("the shipped Cornell box loads");
     let embree = embree_for(&scene);
     assert_eq!(embree.triangle_count(), scene.triangles().len());
