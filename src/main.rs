@@ -1,5 +1,7 @@
-//! The `cvtrace` command line: render, merge, reconstruct, study, compare, report (and farm).
+//! The `cvtrace` command line: render, merge, reconstruct, study, compare, report (and farm),
+//! one file each in `commands/`, over the library crates; `cli/` holds what they share.
 mod cli;
+mod commands;
 
 use clap::{Parser, Subcommand};
 use std::io::{IsTerminal, Write};
@@ -24,21 +26,21 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Render a glTF scene into a PT/CRN stream file (or a reference image with --reference).
-    Render(cli::render::RenderArgs),
+    Render(commands::render::RenderArgs),
     /// Reconstruct an image from a stream file with one or all estimators.
-    Reconstruct(cli::reconstruct::ReconstructArgs),
+    Reconstruct(commands::reconstruct::ReconstructArgs),
     /// Render in parts on a Slurm cluster: job folders, submission, status.
-    Farm(cli::farm::FarmArgs),
+    Farm(commands::farm::FarmArgs),
     /// Join the parts of a render (`render --part`) into the file one render writes.
-    Merge(cli::merge::MergeArgs),
+    Merge(commands::merge::MergeArgs),
     /// Render, reconstruct and score every estimator over seeds (the paper's protocol).
-    Study(cli::study::StudyArgs),
+    Study(cli::study_setup::StudyArgs),
     /// Score finished images against a reference: a table, CSV or JSON.
-    Compare(cli::compare::CompareArgs),
+    Compare(commands::compare::CompareArgs),
     /// Write the static HTML comparison viewer from study folders (images, relMSE and signed
     /// difference maps, a readout of every image's linear values under the cursor, sortable
     /// tables, relMSE against spp and against time).
-    Report(cli::report::ReportArgs),
+    Report(commands::report::ReportArgs),
 }
 
 const MAX_THREADS: usize = 1024;
@@ -121,7 +123,7 @@ fn main() -> std::process::ExitCode {
     // interrupted run leaves no half files (finished outputs and checkpoints stay).
     if let Err(e) = ctrlc::set_handler(|| {
         cvtrace_streams::atomic::remove_pending_temporaries();
-        match cli::interrupt_note() {
+        match cli::files::interrupt_note() {
             Some(note) => {
                 let _ = writeln!(std::io::stderr(), "interrupted: {note}");
             }
@@ -134,13 +136,13 @@ fn main() -> std::process::ExitCode {
         tracing::warn!("no signal handler: an interrupted run may leave temporary files ({e})");
     }
     let result = match cli.command {
-        Command::Render(a) => cli::render::run(a),
-        Command::Reconstruct(a) => cli::reconstruct::run(a),
-        Command::Merge(a) => cli::merge::run(a),
-        Command::Farm(a) => cli::farm::run(a),
-        Command::Study(a) => cli::study::run(a),
-        Command::Compare(a) => cli::compare::run(a),
-        Command::Report(a) => cli::report::run(a),
+        Command::Render(a) => commands::render::run(a),
+        Command::Reconstruct(a) => commands::reconstruct::run(a),
+        Command::Merge(a) => commands::merge::run(a),
+        Command::Farm(a) => commands::farm::run(a),
+        Command::Study(a) => commands::study::run(a),
+        Command::Compare(a) => commands::compare::run(a),
+        Command::Report(a) => commands::report::run(a),
     };
     // Interrupted: the signal handler is ending the process with its own code; an error that
     // came from its removing a file under a write is not this run's result.

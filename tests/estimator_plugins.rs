@@ -40,7 +40,7 @@ fn every_parameter_of_every_estimator_is_recorded_in_its_output() {
         args.extend(["--param", a]);
     }
     ok(&cvtrace(d, &args));
-    let registry = cvtrace::registry();
+    let registry = cvtrace_lineup::registry();
     assert!(registry.specs().iter().any(|s| s.name == "ivw"), "the example estimator is registered");
     for spec in registry.specs() {
         let file = ExrChannels::read(&d.join(format!("out/{}.exr", spec.name))).unwrap();

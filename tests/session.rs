@@ -5,7 +5,7 @@
 mod common;
 
 use common::{cvtrace, ok, scene, stderr, SMALL};
-use cvtrace::session::{Job, NoProgress, ReferenceJob, RenderSession, SessionOptions, StreamJob, View};
+use cvtrace_session::{Job, NoProgress, ReferenceJob, RenderSession, SessionOptions, StreamJob, View};
 use cvtrace_streams::exr_io::{AttrValue, ExrChannels};
 use cvtrace_streams::Provenance;
 use std::path::Path;

@@ -27,13 +27,13 @@ pub struct CompareArgs {
 pub fn run(args: CompareArgs) -> Result<()> {
     if let (Some(c), Some(j)) = (&args.csv, &args.json) {
         // Any two spellings of one file: the JSON would replace the CSV.
-        if crate::cli::same_output(c, j) {
+        if crate::cli::files::same_output(c, j) {
             bail!("{} and {}: --csv and --json name the same file", c.display(), j.display());
         }
     }
     let inputs: Vec<&std::path::Path> = std::iter::once(args.reference.as_path()).chain(args.images.iter().map(PathBuf::as_path)).collect();
     for p in args.csv.iter().chain(args.json.iter()) {
-        crate::cli::refuse_overwriting_inputs(p, &inputs)?;
+        crate::cli::files::refuse_overwriting_inputs(p, &inputs)?;
         cvtrace_streams::atomic::check_writable(p, args.force)?;
     }
     // A PNG preview next to an EXR is an easy slip with `out/*`: skip it with a note.
@@ -46,10 +46,11 @@ pub fn run(args: CompareArgs) -> Result<()> {
         bail!("no EXR images to compare among the {} paths given", args.images.len());
     }
     for p in std::iter::once(&args.reference).chain(&images) {
-        crate::cli::check_input_file(p)?;
+        crate::cli::files::check_input_file(p)?;
     }
     // `compare --reference ref.exr out/*.exr` with the reference inside `out/`: it is no estimate.
-    let (references, images): (Vec<PathBuf>, Vec<PathBuf>) = images.into_iter().partition(|p| crate::cli::same_file(p, &args.reference));
+    let (references, images): (Vec<PathBuf>, Vec<PathBuf>) =
+        images.into_iter().partition(|p| crate::cli::files::same_file(p, &args.reference));
     for p in &references {
         tracing::info!("{}: the reference itself, not scored", p.display());
     }

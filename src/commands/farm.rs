@@ -1,8 +1,9 @@
 //! `cvtrace farm`: a render as parts, or a study as cells, on a Slurm cluster (a job folder, its
 //! submission, its status). The bookkeeping is `cvtrace-farm`'s; this file maps flags to a plan
 //! and prints.
-use crate::cli::render::{default_batches, spp_parser, ViewArgs};
-use crate::cli::study::StudyArgs;
+use crate::cli::args::{default_batches, spp_parser, ViewArgs};
+use crate::cli::say;
+use crate::cli::study_setup::{prepare, StudyArgs};
 use anyhow::{bail, Context, Result};
 use cvtrace_farm::{JobFolder, MergeState, PartState, Plan, Slurm, StudyCells};
 use cvtrace_render::part::PartSpec;
@@ -101,7 +102,7 @@ fn default_dir(output: &Path) -> PathBuf {
 }
 
 fn render(a: FarmRenderArgs) -> Result<()> {
-    crate::cli::check_input_file(&a.scene)?;
+    crate::cli::files::check_input_file(&a.scene)?;
     cvtrace_streams::atomic::check_extension(&a.output, "exr")?;
     if a.parts == 0 {
         bail!("--parts 0: there must be at least one part");
@@ -117,7 +118,7 @@ fn render(a: FarmRenderArgs) -> Result<()> {
         render_args.extend(["--reference".into(), "--pass-spp".into(), a.pass_spp.to_string()]);
         (a.spp.div_ceil(a.pass_spp), "passes", Some(a.pass_spp))
     } else {
-        let b = a.batches.unwrap_or_else(|| default_batches(Some(a.spp)));
+        let b = a.batches.unwrap_or_else(|| default_batches(&[a.spp]));
         let settings = cvtrace_render::RenderSettings { spp: a.spp, batches: b, width: 1, height: 1, ..Default::default() };
         settings.validate().context("--spp and --batches")?;
         render_args.extend(["--batches".into(), b.to_string()]);
@@ -144,7 +145,7 @@ fn render(a: FarmRenderArgs) -> Result<()> {
     }
     // Checked now rather than on every node.
     v.session_options()?;
-    render_args.extend(["--traversal".into(), v.traversal.name().into()]);
+    render_args.extend(["--traversal".into(), cvtrace_session::Traversal::from(v.traversal).name().into()]);
 
     let dir = a.job.dir.clone().unwrap_or_else(|| default_dir(&a.output));
     let plan = Plan {
@@ -162,9 +163,9 @@ fn render(a: FarmRenderArgs) -> Result<()> {
     };
     let new = !dir.join("manifest.json").exists();
     if new {
-        let made = crate::cli::make_parent_folders(&a.output)?;
+        let made = crate::cli::files::make_parent_folders(&a.output)?;
         if let Err(e) = cvtrace_streams::atomic::check_writable(&a.output, a.force) {
-            crate::cli::remove_empty(&made);
+            crate::cli::files::remove_empty(&made);
             return Err(e.into());
         }
     }
@@ -256,7 +257,7 @@ fn study(a: FarmStudyArgs) -> Result<()> {
             s.reference.display()
         );
     }
-    crate::cli::study::check(s)?;
+    prepare(s)?;
     let argv: Vec<String> = std::env::args_os()
         .map(|a| a.into_string().map_err(|a| anyhow::anyhow!("{}: not UTF-8; a job script needs it as text", a.to_string_lossy())))
         .collect::<Result<_>>()?;
@@ -266,7 +267,7 @@ fn study(a: FarmStudyArgs) -> Result<()> {
     spps.dedup();
     let cells = 2 * spps.len() as u32 * s.seeds;
     let dir = a.job.dir.clone().unwrap_or_else(|| default_dir(&s.output));
-    if crate::cli::same_output(&dir, &s.output) {
+    if crate::cli::files::same_output(&dir, &s.output) {
         bail!("{}: given as both --dir and -o; the job folder and the study folder must differ", dir.display());
     }
     let plan = Plan {

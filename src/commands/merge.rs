@@ -18,14 +18,14 @@ pub struct MergeArgs {
 
 pub fn run(args: MergeArgs) -> Result<()> {
     for p in &args.parts {
-        crate::cli::check_input_file(p)?;
-        crate::cli::refuse_overwriting_inputs(&args.output, &[p])?;
+        crate::cli::files::check_input_file(p)?;
+        crate::cli::files::refuse_overwriting_inputs(&args.output, &[p])?;
     }
-    let made = crate::cli::make_parent_folders(&args.output)?;
+    let made = crate::cli::files::make_parent_folders(&args.output)?;
     let merged = match merge(&args.parts, &args.output, args.force) {
         Ok(m) => m,
         Err(e) => {
-            crate::cli::remove_empty(&made);
+            crate::cli::files::remove_empty(&made);
             return Err(e.into());
         }
     };

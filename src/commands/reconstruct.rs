@@ -105,10 +105,10 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
         bail!("reconstruct needs an input stream file and -o");
     };
     // Missing folders above the output are made, and taken back if the command fails.
-    let made = crate::cli::make_parent_folders(&output)?;
+    let made = crate::cli::files::make_parent_folders(&output)?;
     let result = reconstruct(&args, input_path, output);
     if result.is_err() {
-        crate::cli::remove_empty(&made);
+        crate::cli::files::remove_empty(&made);
     }
     result
 }
@@ -130,11 +130,11 @@ fn reconstruct(args: &ReconstructArgs, input_path: PathBuf, output: PathBuf) -> 
     }
     let inputs: Vec<&Path> = std::iter::once(input_path.as_path()).chain(args.reference.as_deref()).collect();
     for p in &inputs {
-        crate::cli::check_input_file(p)?;
+        crate::cli::files::check_input_file(p)?;
     }
     for (t, _) in &estimators {
         for out in std::iter::once(&t.exr).chain(&t.png) {
-            crate::cli::refuse_overwriting_inputs(out, &inputs)?;
+            crate::cli::files::refuse_overwriting_inputs(out, &inputs)?;
         }
         atomic::check_extension(&t.exr, "exr")?;
         if let Some(p) = &t.png {

@@ -31,8 +31,8 @@ pub struct ReportArgs {
 /// Refuses a `--markdown` path that the report itself writes (`-o rep --markdown
 /// rep/index.html` would replace the page), or that is a file of one of the studies.
 fn check_markdown_path(md: &Path, output: &Path, studies: &[PathBuf]) -> Result<()> {
-    let md_abs = crate::cli::resolved(md);
-    if let Ok(inside) = md_abs.strip_prefix(crate::cli::resolved(output)) {
+    let md_abs = crate::cli::files::resolved(md);
+    if let Ok(inside) = md_abs.strip_prefix(crate::cli::files::resolved(output)) {
         let first = inside.components().next().map(|c| c.as_os_str().to_string_lossy().into_owned()).unwrap_or_default();
         let own = inside.as_os_str().is_empty()
             || (inside.components().count() == 1 && REPORT_FILES.contains(&first.as_str()))
@@ -44,7 +44,7 @@ fn check_markdown_path(md: &Path, output: &Path, studies: &[PathBuf]) -> Result<
         return Ok(());
     }
     for d in studies {
-        if md.exists() && md_abs.starts_with(crate::cli::resolved(d)) {
+        if md.exists() && md_abs.starts_with(crate::cli::files::resolved(d)) {
             bail!("--markdown {}: is a file of the study {}; write the summary elsewhere", md.display(), d.display());
         }
     }
@@ -76,7 +76,7 @@ fn find_studies(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
     }
     // One folder named twice (`study study/`, or a folder and its parent) would be one scene twice.
     for (i, d) in found.iter().enumerate() {
-        if let Some(other) = found[..i].iter().find(|o| crate::cli::same_output(o, d)) {
+        if let Some(other) = found[..i].iter().find(|o| crate::cli::files::same_output(o, d)) {
             bail!("{} and {}: the same study folder is given twice", other.display(), d.display());
         }
     }
@@ -127,9 +127,9 @@ pub fn run(args: ReportArgs) -> Result<()> {
     // The viewer and the summary go next to the studies, never over them.
     let study_files: Vec<PathBuf> = dirs.iter().map(|d| d.join("results.json")).collect();
     let inputs: Vec<&Path> = dirs.iter().chain(&study_files).map(PathBuf::as_path).collect();
-    crate::cli::refuse_overwriting_inputs(&args.output, &inputs)?;
+    crate::cli::files::refuse_overwriting_inputs(&args.output, &inputs)?;
     if let Some(md) = &args.markdown {
-        crate::cli::refuse_overwriting_inputs(md, &inputs)?;
+        crate::cli::files::refuse_overwriting_inputs(md, &inputs)?;
         check_markdown_path(md, &args.output, &dirs)?;
         cvtrace_streams::atomic::check_writable(md, args.force)?;
     }

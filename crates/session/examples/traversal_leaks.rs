@@ -2,13 +2,13 @@
 //! each scene is rendered (a reference pass at the scene's own size and depth, robust answers)
 //! with every ray also traced through a fast BVH, and the disagreements are counted.
 //!
-//!     cargo run --release --example traversal_leaks -- SPP scenes/*/scene.gltf
+//!     cargo run --release -p cvtrace-session --example traversal_leaks -- SPP scenes/*/scene.gltf
 //!
 //! Prints one Markdown row per scene: rays, passes per million rays of each kind.
-use cvtrace::session::{image_size, resolve_settings, View};
-use cvtrace::set_flush_denormals;
-use cvtrace::traversal_check::TraversalComparison;
+use cvtrace_embree::set_flush_denormals;
+use cvtrace_embree::traversal_check::TraversalComparison;
 use cvtrace_render::{render_reference_pass, ReferenceAccum, Scene};
+use cvtrace_session::{image_size, resolve_settings, View};
 use std::path::Path;
 use std::time::Instant;
 

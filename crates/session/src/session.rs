@@ -7,13 +7,14 @@
 //! Settings a job leaves unset come from the scene's sidecar `<stem>.cvtrace.toml` (`[render]`,
 //! docs/scene-format.md), then the glTF's `asset.extras.defaultResolution` (size only), then
 //! the built-in defaults. Every output is written atomically.
-use crate::embree::{set_flush_denormals, BuildOptions, Device, EmbreeError, EmbreeScene};
 use crate::throughput::PhaseClock;
+use cvtrace_embree::{set_flush_denormals, BuildOptions, Device, EmbreeScene};
 use cvtrace_render::checkpoint::{self, checkpoint_path};
 use cvtrace_render::part::{write_reference, write_reference_part, PartError, PartSpec};
 use cvtrace_render::stream_file::{render_to_file, Written};
 use cvtrace_render::{
-    render_reference_pass, Camera, Define, ReferenceAccum, RenderDefaults, RenderError, RenderSettings, Scene, SceneError, StreamRender,
+    render_reference_pass, Camera, Define, Intersector, ReferenceAccum, RenderDefaults, RenderError, RenderSettings, Scene, SceneError,
+    StreamRender,
 };
 use cvtrace_streams::atomic::{check_extension, check_writable};
 use cvtrace_streams::output_lock::{lock_path_for, OutputLock};
@@ -33,6 +34,12 @@ pub const DEFAULT_MAX_DEPTH: i32 = -1;
 pub const DEFAULT_RR_DEPTH: u32 = 5;
 /// Batches per stream when the caller has no preference: the estimators' measured default.
 pub const DEFAULT_BATCHES: u32 = 16;
+
+/// The batch count for renders of every spp value of `spps` when none is given: the most of
+/// [`DEFAULT_BATCHES`], 8, 4, 2, 1 that divides them all ([`DEFAULT_BATCHES`] for none).
+pub fn default_batches(spps: &[u32]) -> u32 {
+    [DEFAULT_BATCHES, 8, 4, 2, 1].into_iter().find(|b| spps.iter().all(|n| n % b == 0)).unwrap_or(1)
+}
 /// Samples per pass, and so between checkpoints, of [`ReferenceJob::replacing`].
 pub const PLAIN_PASS_SPP: u32 = 256;
 
@@ -44,7 +51,7 @@ const VERSION: &str = env!("CARGO_PKG_VERSION");
 /// a shared edge through. Fast is the default because that is rare on real scenes (0.03–0.73
 /// rays per million on the bundled and validation scenes) while robust traversal costs 22–27%
 /// of the render's throughput on AVX2 (docs/performance.md has the figures).
-#[derive(clap::ValueEnum, Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Traversal {
     Robust,
     #[default]
@@ -52,12 +59,46 @@ pub enum Traversal {
 }
 
 impl Traversal {
-    /// The name recorded in output files (`cvtrace.traversal`).
+    pub const ALL: [Traversal; 2] = [Traversal::Robust, Traversal::Fast];
+
+    /// The name recorded in output files (`cvtrace.traversal`) and taken by [`str::parse`].
     pub fn name(self) -> &'static str {
         match self {
             Traversal::Robust => "robust",
             Traversal::Fast => "fast",
         }
+    }
+}
+
+impl std::str::FromStr for Traversal {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Traversal, String> {
+        Traversal::ALL.into_iter().find(|t| t.name() == s).ok_or_else(|| format!("{s:?}: expected robust or fast"))
+    }
+}
+
+/// What builds the ray caster of a session's scene: Embree for the program, anything that
+/// implements [`Intersector`] for tests and experiments (a brute-force tracer needs no library).
+pub trait Backend: Sync {
+    type Tracer: Intersector + Send + Sync;
+    /// The name in the log and in errors ("Embree").
+    fn name(&self) -> &'static str;
+    /// The ray caster of `scene`, watertight at shared edges when `traversal` is robust.
+    fn build(&self, scene: &Scene, traversal: Traversal) -> Result<Self::Tracer, String>;
+}
+
+/// Embree, fast or robust traversal, with the default build options.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Embree;
+
+impl Backend for Embree {
+    type Tracer = EmbreeScene;
+    fn name(&self) -> &'static str {
+        "Embree"
+    }
+    fn build(&self, scene: &Scene, traversal: Traversal) -> Result<EmbreeScene, String> {
+        let options = BuildOptions { robust: traversal == Traversal::Robust, ..BuildOptions::default() };
+        Device::new().and_then(|device| device.build_scene(scene.positions(), scene.triangles(), &options)).map_err(|e| e.to_string())
     }
 }
 
@@ -237,8 +278,8 @@ pub enum SessionError {
     Render(#[from] RenderError),
     #[error(transparent)]
     File(#[from] StreamError),
-    #[error("building the Embree BVH: {0}")]
-    Bvh(EmbreeError),
+    #[error("building the {backend} BVH: {message}")]
+    Bvh { backend: &'static str, message: String },
     /// The camera override makes no usable camera.
     #[error("the camera override: {0}")]
     Camera(String),
@@ -254,20 +295,22 @@ pub enum SessionError {
 }
 
 /// The BVH and the render threads, made at the first render.
-struct Engine {
-    tracer: EmbreeScene,
+struct Engine<T> {
+    tracer: T,
     pool: rayon::ThreadPool,
 }
 
 /// One scene, loaded once, and the renders of it (see the module doc). The renders run one at
-/// a time, each on the session's own thread pool.
-pub struct RenderSession {
+/// a time, each on the session's own thread pool, with the ray caster `B` builds (Embree by
+/// default).
+pub struct RenderSession<B: Backend = Embree> {
     path: PathBuf,
     scene: Scene,
     traversal: Traversal,
     /// [`Scene::fingerprint`] of the scene as rendered (camera override applied), in hex.
     scene_hash: String,
-    engine: OnceLock<Engine>,
+    backend: B,
+    engine: OnceLock<Engine<B::Tracer>>,
     bvh_builds: AtomicU32,
 }
 
@@ -275,6 +318,13 @@ impl RenderSession {
     /// Loads the scene at `path` and applies `options`' camera. The BVH is built at the first
     /// render, so a session whose outputs all exist already never builds one.
     pub fn new(path: &Path, options: &SessionOptions) -> Result<RenderSession, SessionError> {
+        RenderSession::with_backend(path, options, Embree)
+    }
+}
+
+impl<B: Backend> RenderSession<B> {
+    /// [`RenderSession::new`] with another ray caster.
+    pub fn with_backend(path: &Path, options: &SessionOptions, backend: B) -> Result<RenderSession<B>, SessionError> {
         // Denormal flushing in this thread too, for any work rayon runs on the caller.
         set_flush_denormals();
         let t = Instant::now();
@@ -298,6 +348,7 @@ impl RenderSession {
             scene,
             traversal: options.traversal,
             scene_hash,
+            backend,
             engine: OnceLock::new(),
             bvh_builds: AtomicU32::new(0),
         })
@@ -541,18 +592,16 @@ impl RenderSession {
     }
 
     /// The BVH and render threads, made on the first call.
-    fn engine(&self) -> Result<&Engine, SessionError> {
+    fn engine(&self) -> Result<&Engine<B::Tracer>, SessionError> {
         if let Some(engine) = self.engine.get() {
             return Ok(engine);
         }
         let t = Instant::now();
-        let build = BuildOptions { robust: self.traversal == Traversal::Robust, ..BuildOptions::default() };
-        let tracer = Device::new()
-            .and_then(|device| device.build_scene(self.scene.positions(), self.scene.triangles(), &build))
-            .map_err(SessionError::Bvh)?;
+        let backend = self.backend.name();
+        let tracer = self.backend.build(&self.scene, self.traversal).map_err(|message| SessionError::Bvh { backend, message })?;
         self.bvh_builds.fetch_add(1, Ordering::Relaxed);
         tracing::info!(
-            "built the Embree BVH of {} in {:.1} ms ({} triangles, {} traversal)",
+            "built the {backend} BVH of {} in {:.1} ms ({} triangles, {} traversal)",
             self.path.display(),
             ms(t),
             self.scene.triangles().len(),

@@ -3,7 +3,7 @@
 //! its render time beside it, so that a resumed study reuses finished files. A finished file
 //! made otherwise (its provenance differs from what the study asks for) is an error, never
 //! silently reused.
-use crate::session::{Job, Progress, ReferenceJob, RenderSession, StreamJob, View};
+use crate::session::{Backend, Embree, Job, Progress, ReferenceJob, RenderSession, StreamJob, View};
 use cvtrace_streams::exr_io::read_rgb;
 use cvtrace_streams::provenance::describe_all;
 use cvtrace_streams::{Image, Provenance, StreamSet};
@@ -12,8 +12,8 @@ use cvtrace_study::{Rendered, Source, SourceError};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-pub struct RenderSource<'a> {
-    pub session: &'a RenderSession,
+pub struct RenderSource<'a, B: Backend = Embree> {
+    pub session: &'a RenderSession<B>,
     /// The study folder.
     pub folder: PathBuf,
     pub view: View,
@@ -30,9 +30,9 @@ pub fn spp_dir(study: &Path, n: u32) -> PathBuf {
     files::spp_dir(study, n)
 }
 
-impl<'a> RenderSource<'a> {
+impl<'a, B: Backend> RenderSource<'a, B> {
     pub fn new(
-        session: &'a RenderSession,
+        session: &'a RenderSession<B>,
         folder: PathBuf,
         view: View,
         first_seed: u64,
@@ -127,7 +127,7 @@ impl<'a> RenderSource<'a> {
     }
 }
 
-impl Source for RenderSource<'_> {
+impl<B: Backend> Source for RenderSource<'_, B> {
     fn streams(&mut self, n: u32, batches: u32, seed: u64) -> Result<Rendered<StreamSet>, SourceError> {
         let path = self.file(n, seed, CellKind::Streams)?;
         let seconds = self.ensure_rendered(self.stream_job(n, batches, seed, &path))?;

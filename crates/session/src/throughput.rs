@@ -2,15 +2,12 @@
 //!
 //! Why both: wall-clock rates depend on how many cores the machine lends the process, while
 //! samples per CPU-second (process CPU time, all threads) compare across machines, thread counts
-//! and renderers; issue 2's throughput target and docs/performance.md use it.
+//! and renderers; docs/performance.md uses them.
 use std::time::{Duration, Instant};
 
-/// CPU time used by this process so far, over all its threads (`CLOCK_PROCESS_CPUTIME_ID`).
+/// CPU time used by this process so far, over all its threads.
 pub fn process_cpu_time() -> Option<Duration> {
-    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
-    // SAFETY: `ts` is a valid, writable timespec and the clock id is a libc constant.
-    let status = unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut ts) };
-    (status == 0 && ts.tv_sec >= 0).then(|| Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32))
+    cpu_time::ProcessTime::try_now().ok().map(|t| t.as_duration())
 }
 
 /// The wall and CPU clocks at the start of a phase.
