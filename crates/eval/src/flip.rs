@@ -360,7 +360,7 @@ pub fn write_flip_colorbar_png(path: &Path, width: usize, height: usize, overwri
 // ---- the computation ---------------------------------------------------------------------------
 
 /// `x > y ? x : y`, as NVIDIA's macro (a NaN `x` gives `y`).
-#[inline]
+#[inline(always)]
 fn max(x: f32, y: f32) -> f32 {
     if x > y {
         x
@@ -370,7 +370,7 @@ fn max(x: f32, y: f32) -> f32 {
 }
 
 /// `x > y ? y : x`, as NVIDIA's macro.
-#[inline]
+#[inline(always)]
 fn min(x: f32, y: f32) -> f32 {
     if x > y {
         y
@@ -379,12 +379,12 @@ fn min(x: f32, y: f32) -> f32 {
     }
 }
 
-#[inline]
+#[inline(always)]
 fn clamp01(v: f32) -> f32 {
     min(max(v, 0.0), 1.0)
 }
 
-#[inline]
+#[inline(always)]
 fn luminance(c: [f32; 3]) -> f32 {
     0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
 }
@@ -403,7 +403,7 @@ fn aces_input_at(t: f32) -> f32 {
     d1 + d2
 }
 
-#[inline]
+#[inline(always)]
 fn aces(c: f32) -> f32 {
     ((c * c) * ACES[0] + c * ACES[1] + ACES[2]) / (c * c * ACES[3] + c * ACES[4] + ACES[5])
 }
@@ -417,18 +417,23 @@ const RGB_TO_XYZ: [[f32; 3]; 3] = [
 const XYZ_TO_RGB: [[f32; 3]; 3] =
     [[3.241_003_3, -1.537_398_9, -0.498_615_87], [-0.969_224_3, 1.875_930_1, 0.041_554_224], [0.055_639_423, -0.204_011_2, 1.057_148_9]];
 
-#[inline]
+// Written out rather than with `array::map`, which the optimiser leaves as a loop here.
+#[inline(always)]
 fn mat(m: &[[f32; 3]; 3], c: [f32; 3]) -> [f32; 3] {
-    [0, 1, 2].map(|r| m[r][0] * c[0] + m[r][1] * c[1] + m[r][2] * c[2])
+    [
+        m[0][0] * c[0] + m[0][1] * c[1] + m[0][2] * c[2],
+        m[1][0] * c[0] + m[1][1] * c[1] + m[1][2] * c[2],
+        m[2][0] * c[0] + m[2][1] * c[1] + m[2][2] * c[2],
+    ]
 }
 
-#[inline]
+#[inline(always)]
 fn xyz_to_ycxcz(c: [f32; 3]) -> [f32; 3] {
     let (x, y, z) = (c[0] * INV_ILLUMINANT[0], c[1] * INV_ILLUMINANT[1], c[2] * INV_ILLUMINANT[2]);
     [116.0 * y - 16.0, 500.0 * (x - y), 200.0 * (y - z)]
 }
 
-#[inline]
+#[inline(always)]
 fn ycxcz_to_xyz(c: [f32; 3]) -> [f32; 3] {
     let y = (c[0] + 16.0) / 116.0;
     let cx = c[1] / 500.0;
@@ -436,7 +441,7 @@ fn ycxcz_to_xyz(c: [f32; 3]) -> [f32; 3] {
     [(y + cx) * ILLUMINANT[0], y * ILLUMINANT[1], (y - cz) * ILLUMINANT[2]]
 }
 
-#[inline]
+#[inline(always)]
 fn xyz_to_lab(c: [f32; 3]) -> [f32; 3] {
     let delta = 6.0f32 / 29.0;
     let delta_square = delta * delta;
@@ -449,12 +454,12 @@ fn xyz_to_lab(c: [f32; 3]) -> [f32; 3] {
 }
 
 /// CIELAB with the Hunt adjustment of the chroma (scaled by 0.01 L).
-#[inline]
+#[inline(always)]
 fn lab_hunt(c: [f32; 3]) -> [f32; 3] {
     [c[0], 0.01 * c[0] * c[1], 0.01 * c[0] * c[2]]
 }
 
-#[inline]
+#[inline(always)]
 fn hyab(a: [f32; 3], b: [f32; 3]) -> f32 {
     (a[0] - b[0]).abs() + ((a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2])).sqrt()
 }
@@ -570,7 +575,7 @@ impl Work {
             (py.par_chunks_mut(w), pcx.par_chunks_mut(w), pcz.par_chunks_mut(w), image.pixels.par_chunks(w)).into_par_iter().for_each(
                 |(ry, rcx, rcz, src)| {
                     for (i, p) in src.iter().enumerate() {
-                        let ldr = p.map(|c| clamp01(aces(c * gain)));
+                        let ldr = [clamp01(aces(p[0] * gain)), clamp01(aces(p[1] * gain)), clamp01(aces(p[2] * gain))];
                         let o = xyz_to_ycxcz(mat(&RGB_TO_XYZ, ldr));
                         (ry[i], rcx[i], rcz[i]) = (o[0], o[1], o[2]);
                     }
@@ -614,9 +619,8 @@ impl Work {
                 let (r, t) = acc.split_at(8);
                 for x in 0..w {
                     let lab = |a: &[Vec<f32>]| {
-                        let xyz = ycxcz_to_xyz([a[0][x], a[1][x], a[2][x] + a[3][x]]);
-                        let rgb = mat(&XYZ_TO_RGB, xyz).map(clamp01);
-                        lab_hunt(xyz_to_lab(mat(&RGB_TO_XYZ, rgb)))
+                        let rgb = mat(&XYZ_TO_RGB, ycxcz_to_xyz([a[0][x], a[1][x], a[2][x] + a[3][x]]));
+                        lab_hunt(xyz_to_lab(mat(&RGB_TO_XYZ, [clamp01(rgb[0]), clamp01(rgb[1]), clamp01(rgb[2])])))
                     };
                     let mut color = hyab(lab(r), lab(t)).powf(GQC);
                     color = if color < pccmax { color * below } else { GPT + ((color - pccmax) / (cmax - pccmax)) * (1.0 - GPT) };
