@@ -189,7 +189,7 @@
     return new DataView(bytes.buffer);
   }
   function decodePixels(d) {
-    const one = (e) => (e ? { rgb: b64View(e.rgb), relmse: e.relmse ? b64View(e.relmse) : null } : null);
+    const one = (e) => (e ? { rgb: b64View(e.rgb), relmse: e.relmse ? b64View(e.relmse) : null, flip: e.flip ? b64View(e.flip) : null } : null);
     const methods = {};
     for (const [k, e] of Object.entries(d.methods || {})) methods[k] = one(e);
     return { width: d.width, height: d.height, reference: one(d.reference), methods };
@@ -212,11 +212,11 @@
     }
     return null;
   }
-  // Linear RGB and relMSE of one image at pixel i (null where the image has no values).
+  // Linear RGB, relMSE and FLIP of one image at pixel i (null where the image has no values).
   function pixelValues(e, i) {
     if (!e) return null;
     const g = (c) => e.rgb.getFloat32((3 * i + c) * 4, true);
-    return { rgb: [g(0), g(1), g(2)], relmse: e.relmse ? e.relmse.getFloat32(4 * i, true) : null };
+    return { rgb: [g(0), g(1), g(2)], relmse: e.relmse ? e.relmse.getFloat32(4 * i, true) : null, flip: e.flip ? e.flip.getFloat32(4 * i, true) : null };
   }
 
   // ---- one scene -------------------------------------------------------------------------------
@@ -281,7 +281,7 @@
     // The readout table: one row per image, filled for the pixel under the cursor.
     const readoutRows = {};
     const readoutTable = el("table", { class: "results readout-table" });
-    readoutTable.appendChild(el("thead", {}, el("tr", {}, ...["Pixel", "R", "G", "B", "relMSE"].map((h) => el("th", { text: h })))));
+    readoutTable.appendChild(el("thead", {}, el("tr", {}, ...["Pixel", "R", "G", "B", "relMSE", "FLIP"].map((h) => el("th", { text: h })))));
     const readoutBody = el("tbody");
     readoutTable.appendChild(readoutBody);
     const onPixel = (x, y, key) => {
@@ -299,11 +299,11 @@
         readoutNote.textContent = pixelCache[view.slug] && pixelCache[view.slug].failed ? view.pixels + " did not load" : "loading the linear values…";
         return;
       }
-      readoutNote.textContent = "linear values of pixel (" + x + ", " + y + "); relMSE is the per-pixel mean over seeds the relMSE map shows";
+      readoutNote.textContent = "linear values of pixel (" + x + ", " + y + "); relMSE and FLIP are the per-pixel means over seeds the maps show";
       const i = y * scene.width + x;
       for (const [k, row] of Object.entries(readoutRows)) {
         const v = pixelValues(k === "reference" ? data.reference : data.methods[k], i);
-        const cells = v ? v.rgb.concat([v.relmse]) : [null, null, null, null];
+        const cells = v ? v.rgb.concat([v.relmse, v.flip]) : [null, null, null, null, null];
         row.cells.forEach((td, c) => {
           const x = cells[c];
           td.textContent = x === null || x === undefined ? "–" : fmt(x);
@@ -336,7 +336,7 @@
 
     // Readout rows: the images in the order of the boxes.
     for (const e of photos.concat(ablationPhotos)) {
-      const cells = ["R", "G", "B", "relmse"].map((c) => el("td", { text: "–", "data-key": view.slug + "/pixel/" + e.key + "/" + c }));
+      const cells = ["R", "G", "B", "relmse", "flip"].map((c) => el("td", { text: "–", "data-key": view.slug + "/pixel/" + e.key + "/" + c }));
       const tr = el("tr", { "data-method": e.key }, el("td", {}, el("span", { class: "swatch", style: "background:" + e.color + ";margin-right:7px" }), e.label), ...cells);
       readoutRows[e.key] = { tr, cells };
       readoutBody.appendChild(tr);
@@ -586,7 +586,7 @@
     if (!flipReadout || flipState !== st) return;
     const e = st.entries[flipIndex];
     const v = st.pixelAt ? st.pixelAt(x, y, e.key) : null;
-    flipReadout.textContent = "(" + x + ", " + y + ")" + (v ? " · RGB " + v.rgb.map(fmt).join(" ") + (v.relmse !== null ? " · relMSE " + fmt(v.relmse) : "") : "");
+    flipReadout.textContent = "(" + x + ", " + y + ")" + (v ? " · RGB " + v.rgb.map(fmt).join(" ") + (v.relmse !== null ? " · relMSE " + fmt(v.relmse) : "") + (v.flip !== null ? " · FLIP " + fmt(v.flip) : "") : "");
   }
   function openFlip(st, i) {
     st.flipReadout = (x, y) => flipShowPixel(st, x, y);

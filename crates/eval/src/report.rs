@@ -572,6 +572,7 @@ mod tests {
                 assert_eq!(px, [v.rgb[0][i], v.rgb[1][i], v.rgb[2][i]], "{} pixel {i}", m.name);
             }
             assert_eq!(floats(&json["methods"][&m.name]["relmse"]), v.relmse.unwrap(), "{}", m.name);
+            assert_eq!(floats(&json["methods"][&m.name]["flip"]), v.flip.unwrap(), "{}", m.name);
         }
         let reference = floats(&json["reference"]["rgb"]);
         assert_eq!(reference.len(), 3 * scene.width * scene.height);
@@ -581,7 +582,8 @@ mod tests {
         assert!(copied.scenes[0].reference.values.is_none() && copied.scenes[0].methods.iter().all(|m| m.values.is_none()));
         // A values file of another size is refused, naming the method.
         let ours = scene.method("ours").unwrap().values.clone().unwrap();
-        crate::pixels::write_values_exr(&dir.path().join("study").join(&ours), &cvtrace_streams::Image::new(3, 2), None, true).unwrap();
+        crate::pixels::write_values_exr(&dir.path().join("study").join(&ours), &cvtrace_streams::Image::new(3, 2), None, None, true)
+            .unwrap();
         let e =
             write_report(&results, &dir.path().join("study"), &dir.path().join("r2"), &ReportOptions::default()).unwrap_err().to_string();
         assert!(e.contains("`ours`") && e.contains("3x2"), "{e}");

@@ -277,7 +277,7 @@ pub fn write_synthetic_study(dir: &Path, opts: &SyntheticOptions) -> Result<Stud
     let scale = scale_for_maps(&maps.iter().map(|m| m.as_slice()).collect::<Vec<_>>());
     let diffs = first_images.iter().map(|img| signed_difference(img, &reference.image)).collect::<Result<Vec<_>, _>>()?;
     let diff_scale = scale_for_differences(&diffs.iter().map(|m| m.as_slice()).collect::<Vec<_>>());
-    write_values_exr(&dir.join("reference.values.exr"), &reference.image, None, true)?;
+    write_values_exr(&dir.join("reference.values.exr"), &reference.image, None, None, true)?;
     let mut results = Vec::new();
     for (i, (key, label, ablation)) in list.iter().enumerate() {
         let stats = accs[i].finish()?;
@@ -296,11 +296,12 @@ pub fn write_synthetic_study(dir: &Path, opts: &SyntheticOptions) -> Result<Stud
         if let Some(f) = flips[i].finish() {
             m.set_flip(&f);
         }
+        let flip_map = flips[i].mean_map();
         let flip_file = format!("{key}.flip.png");
-        write_flip_png(&dir.join(&flip_file), &flips[i].mean_map(), opts.width, opts.height, true)?;
+        write_flip_png(&dir.join(&flip_file), &flip_map, opts.width, opts.height, true)?;
         m.flip_map = Some(flip_file);
         let values_file = format!("{key}.values.exr");
-        write_values_exr(&dir.join(&values_file), &first_images[i], Some(&maps[i]), true)?;
+        write_values_exr(&dir.join(&values_file), &first_images[i], Some(&maps[i]), Some(&flip_map), true)?;
         m.values = Some(values_file);
         results.push(m);
     }

@@ -428,6 +428,7 @@ fn viewer_pixel_readout_shows_the_exr_values_and_the_table_sorts() {
         let mut channels = vec![("R", "R"), ("G", "G"), ("B", "B")];
         if key != "reference" {
             channels.push(("relmse", "relmse"));
+            channels.push(("flip", "flip"));
         }
         for (shown_as, channel) in channels {
             let want = exr.channels[channel][i];
@@ -439,9 +440,10 @@ fn viewer_pixel_readout_shows_the_exr_values_and_the_table_sorts() {
             assert_shows(&dom, &k, Some(want as f64));
             distinct.insert(want.to_bits());
         }
-        // The reference has no relMSE of its own.
+        // The reference has no relMSE or FLIP of its own.
         if key == "reference" {
             assert_eq!(cell(&dom, &format!("{sl}/pixel/reference/relmse")).as_deref(), Some("–"));
+            assert_eq!(cell(&dom, &format!("{sl}/pixel/reference/flip")).as_deref(), Some("–"));
         }
     }
     assert!(distinct.len() > images.len(), "the images should differ at the pixel, or the check proves little");

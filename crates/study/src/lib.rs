@@ -163,21 +163,22 @@ impl Study<'_> {
             let diff = format!("{}.diff.png", c.key);
             write_difference_png(&out.join(&diff), &diffs[i], reference.width(), reference.height(), &diff_scale, true)?;
             m.difference_map = Some(diff);
-            if let Some(f) = main.flips.get(i) {
+            let flip_map = main.flips.get(i).map(|f| f.mean_map());
+            if let (Some(f), Some(map)) = (main.flips.get(i), &flip_map) {
                 if let Some(stats) = f.finish() {
                     m.set_flip(&stats);
                 }
                 let file = format!("{}.flip.png", c.key);
-                write_flip_png(&out.join(&file), &f.mean_map(), reference.width(), reference.height(), true)?;
+                write_flip_png(&out.join(&file), map, reference.width(), reference.height(), true)?;
                 m.flip_map = Some(file);
             }
             let values = format!("{}.values.exr", c.key);
-            write_values_exr(&out.join(&values), &main.first_images[i], Some(&maps[i]), true)?;
+            write_values_exr(&out.join(&values), &main.first_images[i], Some(&maps[i]), flip_map.as_deref(), true)?;
             m.values = Some(values);
             methods.push(m);
         }
         write_png(&out.join("reference.png"), &reference.image, 0.0, true)?;
-        write_values_exr(&out.join("reference.values.exr"), &reference.image, None, true)?;
+        write_values_exr(&out.join("reference.values.exr"), &reference.image, None, None, true)?;
 
         // The reference's own noise, from the PT streams' batch variance scaled to its spp.
         let noise = match (scene.reference.spp, &main.pt_variance) {
