@@ -20,6 +20,8 @@
 #                       OIDN_DIR in .cargo/config.toml and puts the folder into the binaries' rpath
 #   .deps/embree4/lib   Embree 4.4.0 (wheel embreex), for `make test`'s Embree 4 build
 #                       (EMBREE_DIR=.deps/embree4)
+# Then, at the end, the project's Python virtual environment .venv with its pinned packages (see
+# setup_venv: flip-evaluator for the HDR-FLIP test).
 set -euo pipefail
 
 verbose=0
@@ -91,4 +93,53 @@ wheel_libraries pyoidn==2.5.1.0 "$root/.deps/oidn" \
     'pyoidn/oidn/lib/libOpenImageDenoise.so*' 'pyoidn/oidn/lib/libOpenImageDenoise_core.so*' \
     'pyoidn/oidn/lib/libOpenImageDenoise_device_cpu.so*' 'pyoidn/oidn/lib/libtbb.so*'
 wheel_libraries embreex==4.4.0.post1 "$root/.deps/embree4" 'embreex.libs/*.so*'
+# ---- Python tools in the project's virtual environment (.venv at the repository root) ----------
+# Tests run these with .venv/bin/python (crates/eval/tests/flip_evaluator.rs compares HDR-FLIP
+# with NVIDIA's flip-evaluator). Add a package by appending its pinned requirement here; only
+# what is missing is installed, so the step is quiet and quick once done.
+#   flip-evaluator  NVIDIA's FLIP (the reference implementation of HDR-FLIP)
+#   numpy           flip-evaluator's arrays (it does not declare the dependency itself)
+python_requirements=(flip-evaluator==1.7 numpy==2.4.6)
+
+setup_venv() {
+    local root venv
+    root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+    venv="$root/.venv"
+    if [[ ! -x "$venv/bin/python" ]]; then
+        command -v python3 >/dev/null || { echo "setup: python3 not found; it is needed for $venv" >&2; return 1; }
+        echo "setup: creating $venv" >&2
+        python3 -m venv "$venv" || { echo "setup: python3 -m venv failed (on Debian: apt-get install python3-venv)" >&2; return 1; }
+    fi
+    # The pinned requirements not installed at their version, in one Python start.
+    local missing=()
+    mapfile -t missing < <("$venv/bin/python" - "${python_requirements[@]}" <<'PY'
+import sys
+from importlib.metadata import PackageNotFoundError, version
+for req in sys.argv[1:]:
+    name, want = req.split("==")
+    try:
+        ok = version(name) == want
+    except PackageNotFoundError:
+        ok = False
+    if not ok:
+        print(req)
+PY
+    )
+    say "python packages missing from $venv: ${missing[*]:-none}"
+    if (( ${#missing[@]} )); then
+        echo "setup: installing ${missing[*]} into $venv" >&2
+        local log
+        log=$(mktemp)
+        if ! "$venv/bin/python" -m pip install --quiet --disable-pip-version-check "${missing[@]}" >"$log" 2>&1; then
+            cat "$log" >&2
+            rm -f "$log"
+            echo "setup: pip failed installing: ${missing[*]}" >&2
+            return 1
+        fi
+        if (( verbose )); then cat "$log"; fi
+        rm -f "$log"
+    fi
+}
+
+setup_venv
 say "all dependencies present"

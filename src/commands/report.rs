@@ -114,9 +114,9 @@ pub fn run(args: ReportArgs) -> Result<()> {
             rebase(&mut s.reference.values, &prefix);
             for m in &mut s.methods {
                 if args.no_ablation_images && m.ablation {
-                    (m.image, m.error_map, m.difference_map, m.values) = (None, None, None, None);
+                    (m.image, m.error_map, m.difference_map, m.flip_map, m.values) = (None, None, None, None, None);
                 }
-                for p in [&mut m.image, &mut m.error_map, &mut m.difference_map, &mut m.values] {
+                for p in [&mut m.image, &mut m.error_map, &mut m.difference_map, &mut m.flip_map, &mut m.values] {
                     rebase(p, &prefix);
                 }
             }

@@ -189,7 +189,7 @@
     return new DataView(bytes.buffer);
   }
   function decodePixels(d) {
-    const one = (e) => (e ? { rgb: b64View(e.rgb), relmse: e.relmse ? b64View(e.relmse) : null } : null);
+    const one = (e) => (e ? { rgb: b64View(e.rgb), relmse: e.relmse ? b64View(e.relmse) : null, flip: e.flip ? b64View(e.flip) : null } : null);
     const methods = {};
     for (const [k, e] of Object.entries(d.methods || {})) methods[k] = one(e);
     return { width: d.width, height: d.height, reference: one(d.reference), methods };
@@ -212,11 +212,11 @@
     }
     return null;
   }
-  // Linear RGB and relMSE of one image at pixel i (null where the image has no values).
+  // Linear RGB, relMSE and FLIP of one image at pixel i (null where the image has no values).
   function pixelValues(e, i) {
     if (!e) return null;
     const g = (c) => e.rgb.getFloat32((3 * i + c) * 4, true);
-    return { rgb: [g(0), g(1), g(2)], relmse: e.relmse ? e.relmse.getFloat32(4 * i, true) : null };
+    return { rgb: [g(0), g(1), g(2)], relmse: e.relmse ? e.relmse.getFloat32(4 * i, true) : null, flip: e.flip ? e.flip.getFloat32(4 * i, true) : null };
   }
 
   // ---- one scene -------------------------------------------------------------------------------
@@ -281,7 +281,7 @@
     // The readout table: one row per image, filled for the pixel under the cursor.
     const readoutRows = {};
     const readoutTable = el("table", { class: "results readout-table" });
-    readoutTable.appendChild(el("thead", {}, el("tr", {}, ...["Pixel", "R", "G", "B", "relMSE"].map((h) => el("th", { text: h })))));
+    readoutTable.appendChild(el("thead", {}, el("tr", {}, ...["Pixel", "R", "G", "B", "relMSE", "FLIP"].map((h) => el("th", { text: h })))));
     const readoutBody = el("tbody");
     readoutTable.appendChild(readoutBody);
     const onPixel = (x, y, key) => {
@@ -299,11 +299,11 @@
         readoutNote.textContent = pixelCache[view.slug] && pixelCache[view.slug].failed ? view.pixels + " did not load" : "loading the linear values…";
         return;
       }
-      readoutNote.textContent = "linear values of pixel (" + x + ", " + y + "); relMSE is the per-pixel mean over seeds the relMSE map shows";
+      readoutNote.textContent = "linear values of pixel (" + x + ", " + y + "); relMSE and FLIP are the per-pixel means over seeds the maps show";
       const i = y * scene.width + x;
       for (const [k, row] of Object.entries(readoutRows)) {
         const v = pixelValues(k === "reference" ? data.reference : data.methods[k], i);
-        const cells = v ? v.rgb.concat([v.relmse]) : [null, null, null, null];
+        const cells = v ? v.rgb.concat([v.relmse, v.flip]) : [null, null, null, null, null];
         row.cells.forEach((td, c) => {
           const x = cells[c];
           td.textContent = x === null || x === undefined ? "–" : fmt(x);
@@ -324,17 +324,19 @@
     const main = methods.filter((m) => !m.ablation);
     const ablations = methods.filter((m) => m.ablation);
     const colors = view.colors || {};
-    const photoEntry = (m) => ({ key: m.name, label: m.label, src: m.image, photo: true, kind: "image", color: colors[m.name] || "#888", caption: "relMSE " + fmt(m.relmse_mean) + (m.spp_total ? " · " + m.spp_total + " spp" : "") });
+    const flipText = (m) => (m.flip_mean !== null && m.flip_mean !== undefined ? " · FLIP " + fmt(m.flip_mean) : "");
+    const photoEntry = (m) => ({ key: m.name, label: m.label, src: m.image, photo: true, kind: "image", color: colors[m.name] || "#888", caption: "relMSE " + fmt(m.relmse_mean) + flipText(m) + (m.spp_total ? " · " + m.spp_total + " spp" : "") });
     const photos = main.filter((m) => m.image).map(photoEntry);
     if (ref.image) photos.push({ key: "reference", label: "Reference", src: ref.image, photo: true, kind: "image", color: "#ffffff", caption: ref.spp ? ref.spp + " spp" : "" });
     const maps = main.filter((m) => m.error_map).map((m) => ({ key: m.name, label: m.label, src: m.error_map, photo: false, kind: "relmse", color: colors[m.name] || "#888", caption: "relMSE " + fmt(m.relmse_mean) }));
+    const flips = main.filter((m) => m.flip_map).map((m) => ({ key: m.name, label: m.label, src: m.flip_map, photo: false, kind: "flip", color: colors[m.name] || "#888", caption: "FLIP " + fmt(m.flip_mean) }));
     const diffs = main.filter((m) => m.difference_map).map((m) => ({ key: m.name, label: m.label, src: m.difference_map, photo: false, kind: "diff", color: colors[m.name] || "#888", caption: "difference to the reference" }));
     const ablationPhotos = ablations.filter((m) => m.image).map(photoEntry);
-    st.entries = photos.concat(maps, diffs, ablationPhotos);
+    st.entries = photos.concat(maps, flips, diffs, ablationPhotos);
 
     // Readout rows: the images in the order of the boxes.
     for (const e of photos.concat(ablationPhotos)) {
-      const cells = ["R", "G", "B", "relmse"].map((c) => el("td", { text: "–", "data-key": view.slug + "/pixel/" + e.key + "/" + c }));
+      const cells = ["R", "G", "B", "relmse", "flip"].map((c) => el("td", { text: "–", "data-key": view.slug + "/pixel/" + e.key + "/" + c }));
       const tr = el("tr", { "data-method": e.key }, el("td", {}, el("span", { class: "swatch", style: "background:" + e.color + ";margin-right:7px" }), e.label), ...cells);
       readoutRows[e.key] = { tr, cells };
       readoutBody.appendChild(tr);
@@ -368,6 +370,22 @@
             el("span", { text: fmt(Math.pow(10, 0.5 * (scale.log10_min + scale.log10_max))) }),
             el("span", { text: fmt(Math.pow(10, scale.log10_max)), "data-key": view.slug + "/error_map/max" })),
           el("div", { class: "legend-note", text: "dark = low error · colour map " + scale.colormap })));
+      }
+      section.appendChild(grid);
+    }
+    if (flips.length) {
+      section.appendChild(el("h3", { text: "HDR-FLIP per pixel" }));
+      const grid = el("div", { class: "grid flips" });
+      for (const e of flips) grid.appendChild(box(st, e, index++, onPixel));
+      // FLIP's own scale, 0 to 1, the same for every scene and every study.
+      const f = scene.flip;
+      if (D.flip_colorbar) {
+        grid.appendChild(el("div", { class: "legend" },
+          el("div", { class: "legend-title", text: "HDR-FLIP error per pixel, mean over " + scene.seeds + (scene.seeds === 1 ? " seed" : " seeds") + " (linear, 0 to 1, as NVIDIA's tool shows it)" }),
+          el("img", { src: D.flip_colorbar, alt: "magma colour scale" }),
+          el("div", { class: "legend-ticks" }, el("span", { text: "0" }), el("span", { text: "0.5" }), el("span", { text: "1" })),
+          el("div", { class: "legend-note", "data-key": view.slug + "/flip/settings", text: "dark = no visible difference · colour map " + (f ? f.colormap : "magma") +
+            (f ? " · " + fmt(f.ppd) + " pixels per degree, " + f.num_exposures + " exposures from " + fmt(f.start_exposure) + " to " + fmt(f.stop_exposure) + " stops" : "") })));
       }
       section.appendChild(grid);
     }
@@ -481,8 +499,11 @@
     const pt2n = scene.methods.find((m) => m.name === "pt2n");
     const best = Math.min(...methods.map((m) => m.relmse_mean));
     const worst = Math.max(...methods.concat(ablations).map((m) => m.relmse_mean));
-    const head = ["Method", "spp", "relMSE", "± s.e.", "÷ PT(2n)", "bias²", "variance", "MSE", "render s", "recon s", "total s", "relMSE × s", "÷ PT(2n), equal time"];
-    const titles = { "relMSE × s": "equal-time efficiency: relMSE times the total seconds per image (lower is better)", "÷ PT(2n), equal time": "relMSE × s over PT(2n)'s: below 1, better than PT at equal time" };
+    // FLIP's columns only where some method has it (results of older studies do not).
+    const hasFlip = methods.concat(ablations).some((m) => m.flip_mean !== null && m.flip_mean !== undefined);
+    const head = ["Method", "spp", "relMSE", "± s.e.", "÷ PT(2n)", "bias²", "variance", "MSE"].concat(hasFlip ? ["FLIP", "FLIP ± s.e."] : [], ["render s", "recon s", "total s", "relMSE × s", "÷ PT(2n), equal time"]);
+    const bestFlip = Math.min(...methods.map((m) => (m.flip_mean === null || m.flip_mean === undefined ? Infinity : m.flip_mean)));
+    const titles = { FLIP: "HDR-FLIP: mean perceptual error in [0, 1] (NVIDIA's FLIP), mean over seeds", "relMSE × s": "equal-time efficiency: relMSE times the total seconds per image (lower is better)", "÷ PT(2n), equal time": "relMSE × s over PT(2n)'s: below 1, better than PT at equal time" };
     const table = el("table", { class: "results" });
     const tbody = el("tbody");
     // Click a header to sort the methods by it (again to reverse); ablations stay below.
@@ -522,12 +543,16 @@
         [el("td", { text: fmt(m.bias2), "data-key": k("bias2") }), m.bias2],
         [el("td", { text: fmt(m.variance), "data-key": k("variance") }), m.variance],
         [el("td", { text: fmt(m.mse_mean), "data-key": k("mse_mean") }), m.mse_mean],
+      ].concat(hasFlip ? [
+        [el("td", { class: m.flip_mean === bestFlip ? "best" : null, text: fmt(m.flip_mean), "data-key": k("flip_mean"), title: (m.flip_per_seed || []).length ? "per seed: " + m.flip_per_seed.map(fmt).join(", ") : null }), m.flip_mean],
+        [el("td", { class: "dim", text: fmt(m.flip_se), "data-key": k("flip_se") }), m.flip_se],
+      ] : [], [
         [el("td", { text: fmtSec(t.render), "data-key": k("time_render") }), t.render],
         [el("td", { text: fmtSec(t.reconstruct), "data-key": k("time_reconstruct") }), t.reconstruct],
         [el("td", { text: fmtSec(t.render + t.reconstruct), "data-key": k("time_total") }), t.render + t.reconstruct],
         [el("td", { text: eff === null ? "–" : fmt(eff), "data-key": k("efficiency") }), eff],
         [el("td", { text: eff !== null && pt2nEff ? fmt(eff / pt2nEff) : "–", "data-key": k("efficiency_over_pt2n") }), eff !== null && pt2nEff ? eff / pt2nEff : null],
-      ];
+      ]);
       for (const [td, v] of cells) if (v !== null && v !== undefined && isFinite(v)) td.setAttribute("data-value", String(v));
       tbody.appendChild(el("tr", { "data-method": m.name, class: m.ablation ? "ablation" : "main" }, ...cells.map(([td]) => td)));
     }
@@ -550,7 +575,7 @@
     if (!img) { img = el("img", { draggable: false }); flipVp.appendChild(img); }
     img.src = e.src;
     img.alt = e.label;
-    flipTitle.textContent = st.scene.name + " — " + e.label + (e.kind === "relmse" ? " (relMSE map)" : e.kind === "diff" ? " (difference to the reference)" : "");
+    flipTitle.textContent = st.scene.name + " — " + e.label + (e.kind === "relmse" ? " (relMSE map)" : e.kind === "flip" ? " (HDR-FLIP map)" : e.kind === "diff" ? " (difference to the reference)" : "");
     if (st.pixel) flipShowPixel(st, st.pixel[0], st.pixel[1]);
     [...flipButtons.children].forEach((b, k) => b.classList.toggle("on", k === flipIndex));
     layout(flipVp, st);
@@ -561,7 +586,7 @@
     if (!flipReadout || flipState !== st) return;
     const e = st.entries[flipIndex];
     const v = st.pixelAt ? st.pixelAt(x, y, e.key) : null;
-    flipReadout.textContent = "(" + x + ", " + y + ")" + (v ? " · RGB " + v.rgb.map(fmt).join(" ") + (v.relmse !== null ? " · relMSE " + fmt(v.relmse) : "") : "");
+    flipReadout.textContent = "(" + x + ", " + y + ")" + (v ? " · RGB " + v.rgb.map(fmt).join(" ") + (v.relmse !== null ? " · relMSE " + fmt(v.relmse) : "") + (v.flip !== null ? " · FLIP " + fmt(v.flip) : "") : "");
   }
   function openFlip(st, i) {
     st.flipReadout = (x, y) => flipShowPixel(st, x, y);
@@ -570,7 +595,7 @@
       flipState = st;
       flipButtons.textContent = "";
       st.entries.forEach((e, k) => {
-        const b = el("button", { type: "button", text: (k < 9 ? k + 1 + " " : "") + e.label + (e.kind === "relmse" ? " map" : e.kind === "diff" ? " diff" : "") });
+        const b = el("button", { type: "button", text: (k < 9 ? k + 1 + " " : "") + e.label + (e.kind === "relmse" ? " map" : e.kind === "flip" ? " FLIP" : e.kind === "diff" ? " diff" : "") });
         b.addEventListener("click", () => showFlip(k));
         flipButtons.appendChild(b);
       });

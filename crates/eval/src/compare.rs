@@ -1,8 +1,10 @@
-//! `cvtrace compare`: error of a handful of EXR images against one reference, one seed each.
+//! `cvtrace compare`: error of a handful of EXR images against one reference, one seed each:
+//! relMSE and its companions, and HDR-FLIP (see `flip`).
 //!
 //! Method names come from each file's `cvtrace.method` header attribute (written by
 //! `cvtrace reconstruct`), else from the file stem; `cvtrace.seconds` becomes the
 //! reconstruction time and `cvtrace.spp` the sample count when present.
+use crate::flip::{FlipAccumulator, FlipReference};
 use crate::metrics::Reference;
 use crate::results::{MethodResult, ReferenceInfo, SceneResult, StageTimes};
 use crate::stats::SeedAccumulator;
@@ -18,6 +20,7 @@ pub fn compare_files(reference: &Path, images: &[PathBuf]) -> Result<SceneResult
         return Err(EvalError::invalid("compare", "no images to compare"));
     }
     let reference_img = Reference::read_exr(reference)?;
+    let flip_reference = FlipReference::new(&reference_img.image, reference_img.label.clone())?;
     let mut names = BTreeSet::new();
     let mut methods = Vec::new();
     for path in images {
@@ -27,6 +30,8 @@ pub fn compare_files(reference: &Path, images: &[PathBuf]) -> Result<SceneResult
         let mut acc = SeedAccumulator::new(&reference_img, label.clone());
         acc.add_labelled(&img, &label)?;
         let stats = acc.finish()?;
+        let mut flip = FlipAccumulator::new(&flip_reference);
+        flip.add(&img, &label)?;
         let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| label.clone());
         let base = match ch.attr("cvtrace.method") {
             Some(AttrValue::Text(m)) if !m.trim().is_empty() => m.trim().to_string(),
@@ -45,6 +50,9 @@ pub fn compare_files(reference: &Path, images: &[PathBuf]) -> Result<SceneResult
         // Show the method when the header named one the file name does not.
         let shown = if base == stem { label.clone() } else { format!("{base} ({label})") };
         let mut m = MethodResult::from_stats(&name, &shown, spp, &stats);
+        if let Some(f) = flip.finish() {
+            m.set_flip(&f);
+        }
         if let Some(AttrValue::Float(s)) = ch.attr("cvtrace.seconds") {
             if s.is_finite() && *s >= 0.0 {
                 m.time_seconds = StageTimes { render: 0.0, reconstruct: *s as f64 };
@@ -64,6 +72,7 @@ pub fn compare_files(reference: &Path, images: &[PathBuf]) -> Result<SceneResult
         convergence: Vec::new(),
         error_map_scale: None,
         difference_scale: None,
+        flip: Some(flip_reference.settings()),
         warnings: reference_img.unusable_warning().into_iter().collect(),
         headline: crate::results::paper_headline(),
         render: Vec::new(),
@@ -96,6 +105,12 @@ mod tests {
         assert!((ours.relmse_mean - expected).abs() < 1e-12 * expected);
         assert_eq!(ours.time_seconds.reconstruct, 1.5);
         assert_eq!(scene.method("plain").unwrap().relmse_mean, 0.0);
+        // HDR-FLIP beside relMSE: none for the reference itself, some for the offset image.
+        assert_eq!(scene.method("plain").unwrap().flip_mean, Some(0.0));
+        let flip = crate::flip::hdr_flip(&r, &off).unwrap().mean;
+        assert!(flip > 0.0 && ours.flip_mean == Some(flip), "{:?} vs {flip}", ours.flip_mean);
+        assert!(ours.flip_se.is_none() && ours.flip_per_seed == [flip]);
+        assert_eq!(scene.flip.as_ref().unwrap().ppd, crate::flip::DEFAULT_PPD);
         assert!(ours.relmse_se.is_none() && ours.bias2.is_none());
         crate::results::StudyResults::new(vec![scene.clone()]).validate().unwrap();
         assert!(crate::table::terminal_table(&scene).contains("ours"));

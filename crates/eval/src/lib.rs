@@ -2,6 +2,7 @@
 //! (docs/results.md):
 //!
 //! - [`metrics`]: relMSE (IDUW's definition, ε = 0.01) and MSE against a reference;
+//! - [`flip`]: HDR-FLIP (NVIDIA's perceptual error) maps and means, beside relMSE;
 //! - [`stats`]: per-method statistics over seeds — relMSE mean ± standard error and its
 //!   split into squared bias and variance — from a streaming accumulator;
 //! - [`reference_noise`]: how much relMSE the reference's own noise adds, with a warning;
@@ -20,6 +21,7 @@ pub mod compare;
 pub mod difference;
 pub mod error;
 pub mod falsecolor;
+pub mod flip;
 pub mod metrics;
 pub mod palette;
 pub mod pixels;

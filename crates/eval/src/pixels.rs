@@ -1,8 +1,9 @@
 //! The linear values behind the viewer's pixel readout.
 //!
 //! The viewer shows 8-bit tonemapped PNGs, which cannot say what a pixel's radiance is. A study
-//! therefore keeps, next to each preview, a small EXR with the image's linear `R`, `G`, `B` and
-//! the per-pixel relMSE of its error map (`relmse`); the reference gets one with `R`, `G`, `B`.
+//! therefore keeps, next to each preview, a small EXR with the image's linear `R`, `G`, `B`, the
+//! per-pixel relMSE of its error map (`relmse`) and the per-pixel HDR-FLIP of its FLIP map
+//! (`flip`); the reference gets one with `R`, `G`, `B`.
 //! The report embeds them as little-endian f32, base64 in one plain script per scene,
 //! `images/<scene>/pixels.js`: a page opened from `file://` may not fetch files but may load
 //! scripts, and the viewer loads that one only when a pixel is first pointed at. f32 and not
@@ -15,48 +16,64 @@ use std::path::Path;
 
 /// The channel of the per-pixel relMSE in a values file.
 pub const RELMSE_CHANNEL: &str = "relmse";
+/// The channel of the per-pixel HDR-FLIP in a values file.
+pub const FLIP_CHANNEL: &str = "flip";
 
-/// Writes the values file of one image (and its relMSE map when given), atomically.
-pub fn write_values_exr(path: &Path, image: &Image, relmse: Option<&[f32]>, overwrite: bool) -> Result<(), EvalError> {
+/// Writes the values file of one image (and its relMSE and FLIP maps when given), atomically.
+pub fn write_values_exr(
+    path: &Path,
+    image: &Image,
+    relmse: Option<&[f32]>,
+    flip: Option<&[f32]>,
+    overwrite: bool,
+) -> Result<(), EvalError> {
     let mut ch = ExrChannels::new(image.width, image.height);
     cvtrace_streams::exr_io::put_rgb(&mut ch, "", image);
-    if let Some(map) = relmse {
-        if map.len() != image.width * image.height {
-            return Err(EvalError::invalid(
-                path.display().to_string(),
-                format!("relMSE map has {} values, expected {}x{}", map.len(), image.width, image.height),
-            ));
+    for (channel, what, map) in [(RELMSE_CHANNEL, "relMSE", relmse), (FLIP_CHANNEL, "FLIP", flip)] {
+        if let Some(map) = map {
+            if map.len() != image.width * image.height {
+                return Err(EvalError::invalid(
+                    path.display().to_string(),
+                    format!("{what} map has {} values, expected {}x{}", map.len(), image.width, image.height),
+                ));
+            }
+            ch.insert(channel, map.to_vec());
         }
-        ch.insert(RELMSE_CHANNEL, map.to_vec());
     }
     ch.write(path, overwrite)?;
     Ok(())
 }
 
-/// The planes of a values file: `[R, G, B]` and the relMSE when the file has one.
+/// The planes of a values file: `[R, G, B]`, and the relMSE and FLIP when the file has them.
 pub struct Values {
     pub width: usize,
     pub height: usize,
     pub rgb: [Vec<f32>; 3],
     pub relmse: Option<Vec<f32>>,
+    pub flip: Option<Vec<f32>>,
 }
 
 /// Reads a values file.
 pub fn read_values_exr(path: &Path) -> Result<Values, EvalError> {
     let mut ch = ExrChannels::read(path)?;
-    let relmse = if ch.channels.contains_key(RELMSE_CHANNEL) { Some(ch.take(path, RELMSE_CHANNEL)?) } else { None };
+    let mut optional = |name: &str| if ch.channels.contains_key(name) { ch.take(path, name).map(Some) } else { Ok(None) };
+    let relmse = optional(RELMSE_CHANNEL)?;
+    let flip = optional(FLIP_CHANNEL)?;
     let rgb = [ch.take(path, "R")?, ch.take(path, "G")?, ch.take(path, "B")?];
-    Ok(Values { width: ch.width, height: ch.height, rgb, relmse })
+    Ok(Values { width: ch.width, height: ch.height, rgb, relmse, flip })
 }
 
 impl Values {
-    /// The JSON object the viewer decodes: `{"rgb": <R, G, B interleaved>, "relmse": ...}`, each
-    /// little-endian f32 in base64.
+    /// The JSON object the viewer decodes: `{"rgb": <R, G, B interleaved>, "relmse": ...,
+    /// "flip": ...}`, each little-endian f32 in base64.
     pub fn to_json(&self) -> serde_json::Value {
         let interleaved: Vec<f32> = (0..self.width * self.height).flat_map(|i| self.rgb.iter().map(move |c| c[i])).collect();
         let mut v = serde_json::json!({ "rgb": base64_f32(&interleaved) });
         if let Some(r) = &self.relmse {
             v["relmse"] = serde_json::Value::String(base64_f32(r));
+        }
+        if let Some(f) = &self.flip {
+            v["flip"] = serde_json::Value::String(base64_f32(f));
         }
         v
     }
@@ -106,17 +123,21 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("x.values.exr");
         let img = Image { width: 2, height: 1, pixels: vec![[0.1, 0.2, 0.3], [1e-9, 5.0, 65504.5]] };
-        write_values_exr(&p, &img, Some(&[1e-9, 0.25]), false).unwrap();
+        write_values_exr(&p, &img, Some(&[1e-9, 0.25]), Some(&[0.0, 0.5]), false).unwrap();
         let v = read_values_exr(&p).unwrap();
         assert_eq!((v.width, v.height), (2, 1));
         assert_eq!(v.rgb[2], vec![0.3, 65504.5]);
         assert_eq!(v.relmse.as_deref(), Some(&[1e-9f32, 0.25][..]));
+        assert_eq!(v.flip.as_deref(), Some(&[0.0f32, 0.5][..]));
         let json = v.to_json();
         assert_eq!(json["relmse"].as_str().unwrap(), base64_f32(&[1e-9, 0.25]));
+        assert_eq!(json["flip"].as_str().unwrap(), base64_f32(&[0.0, 0.5]));
         assert_eq!(json["rgb"].as_str().unwrap(), base64_f32(&[0.1, 0.2, 0.3, 1e-9, 5.0, 65504.5]));
-        // Without a relMSE map (the reference's file), no relmse entry.
-        write_values_exr(&p, &img, None, true).unwrap();
-        assert!(read_values_exr(&p).unwrap().to_json().get("relmse").is_none());
-        assert!(write_values_exr(&p, &img, Some(&[0.0]), true).is_err());
+        // Without maps (the reference's file), no relmse or flip entry.
+        write_values_exr(&p, &img, None, None, true).unwrap();
+        let json = read_values_exr(&p).unwrap().to_json();
+        assert!(json.get("relmse").is_none() && json.get("flip").is_none());
+        assert!(write_values_exr(&p, &img, Some(&[0.0]), None, true).is_err());
+        assert!(write_values_exr(&p, &img, None, Some(&[0.0]), true).unwrap_err().to_string().contains("FLIP map"));
     }
 }

@@ -3,16 +3,17 @@
 //! ```text
 //! out/index.html  viewer.css  viewer.js     the page (fixed assets, built into the crate)
 //! out/data.js                                window.CVTRACE_DATA = { results, per-scene view data }
-//! out/images/<scene>/*.png                  copies of the study's previews, relMSE and difference maps
+//! out/images/<scene>/*.png                  copies of the study's previews, relMSE, difference and FLIP maps
 //! out/images/<scene>/pixels.js               linear values for the pixel readout (see `pixels`)
 //! out/plots/<scene>.svg  <scene>.time.svg    convergence plots against spp and against time
-//! out/colorbar.png  colorbar-diff.png  results.json  results.csv
+//! out/colorbar.png  colorbar-diff.png  colorbar-flip.png  results.json  results.csv
 //! out/.cvtrace-report                        the images and plots this report wrote (one per line)
 //! ```
 //! The page builds itself from data.js (a plain script, so no server or fetch is needed);
 //! every number it shows comes from the results tree, formatted like the terminal table.
 use crate::difference::write_difference_colorbar_png;
 use crate::falsecolor::write_colorbar_png;
+use crate::flip::write_flip_colorbar_png;
 use crate::palette::{hex, method_colour};
 use crate::pixels::read_values_exr;
 use crate::plots::{write_convergence_svg_against, XAxis};
@@ -52,6 +53,7 @@ struct ViewerData<'a> {
     geomean_ratios: Vec<Ratio>,
     colorbar: &'a str,
     difference_colorbar: &'a str,
+    flip_colorbar: &'a str,
     files: BTreeMap<&'a str, &'a str>,
 }
 
@@ -147,8 +149,18 @@ const MANIFEST: &str = ".cvtrace-report";
 
 /// Every file a report writes at the top of its folder, and the folders of its images and
 /// plots: what nothing else may be written over (`report --markdown`).
-pub const REPORT_FILES: &[&str] =
-    &["index.html", "viewer.css", "viewer.js", "data.js", "colorbar.png", "colorbar-diff.png", "results.json", "results.csv", MANIFEST];
+pub const REPORT_FILES: &[&str] = &[
+    "index.html",
+    "viewer.css",
+    "viewer.js",
+    "data.js",
+    "colorbar.png",
+    "colorbar-diff.png",
+    "colorbar-flip.png",
+    "results.json",
+    "results.csv",
+    MANIFEST,
+];
 pub const REPORT_FOLDERS: &[&str] = &["images", "plots"];
 
 fn manifest_text<'a>(files: impl IntoIterator<Item = &'a String>) -> String {
@@ -219,7 +231,12 @@ fn write_viewer(
         }
         let name = scene.name.clone();
         for m in scene.methods.iter_mut() {
-            for (field, what) in [(&mut m.image, "image"), (&mut m.error_map, "error_map"), (&mut m.difference_map, "difference_map")] {
+            for (field, what) in [
+                (&mut m.image, "image"),
+                (&mut m.error_map, "error_map"),
+                (&mut m.difference_map, "difference_map"),
+                (&mut m.flip_map, "flip_map"),
+            ] {
                 if let Some(p) = field.as_mut() {
                     *p = copier.plan(p, &format!("scene `{name}`, method `{}`, {what}", m.name))?;
                 }
@@ -274,6 +291,7 @@ fn write_viewer(
 
     write_colorbar_png(&out_dir.join("colorbar.png"), 256, 12, true)?;
     write_difference_colorbar_png(&out_dir.join("colorbar-diff.png"), 256, 12, true)?;
+    write_flip_colorbar_png(&out_dir.join("colorbar-flip.png"), 256, 12, true)?;
     out.write_json(&out_dir.join("results.json"), true)?;
     write_csv(&out, &out_dir.join("results.csv"), true)?;
     let data = ViewerData {
@@ -283,6 +301,7 @@ fn write_viewer(
         geomean_ratios: out.geomean_ratios(),
         colorbar: "colorbar.png",
         difference_colorbar: "colorbar-diff.png",
+        flip_colorbar: "colorbar-flip.png",
         files: BTreeMap::from([("results.json", "results.json"), ("results.csv", "results.csv")]),
     };
     let json = serde_json::to_string(&data).map_err(|e| EvalError::invalid("report data", e.to_string()))?;
@@ -493,6 +512,7 @@ mod tests {
             for m in s["methods"].as_array().unwrap() {
                 refs.extend(m["image"].as_str().map(String::from));
                 refs.extend(m["error_map"].as_str().map(String::from));
+                refs.extend(m["flip_map"].as_str().map(String::from));
             }
         }
         for s in v["scenes"].as_array().unwrap() {
@@ -552,6 +572,7 @@ mod tests {
                 assert_eq!(px, [v.rgb[0][i], v.rgb[1][i], v.rgb[2][i]], "{} pixel {i}", m.name);
             }
             assert_eq!(floats(&json["methods"][&m.name]["relmse"]), v.relmse.unwrap(), "{}", m.name);
+            assert_eq!(floats(&json["methods"][&m.name]["flip"]), v.flip.unwrap(), "{}", m.name);
         }
         let reference = floats(&json["reference"]["rgb"]);
         assert_eq!(reference.len(), 3 * scene.width * scene.height);
@@ -561,7 +582,8 @@ mod tests {
         assert!(copied.scenes[0].reference.values.is_none() && copied.scenes[0].methods.iter().all(|m| m.values.is_none()));
         // A values file of another size is refused, naming the method.
         let ours = scene.method("ours").unwrap().values.clone().unwrap();
-        crate::pixels::write_values_exr(&dir.path().join("study").join(&ours), &cvtrace_streams::Image::new(3, 2), None, true).unwrap();
+        crate::pixels::write_values_exr(&dir.path().join("study").join(&ours), &cvtrace_streams::Image::new(3, 2), None, None, true)
+            .unwrap();
         let e =
             write_report(&results, &dir.path().join("study"), &dir.path().join("r2"), &ReportOptions::default()).unwrap_err().to_string();
         assert!(e.contains("`ours`") && e.contains("3x2"), "{e}");
@@ -570,14 +592,16 @@ mod tests {
     #[test]
     fn results_of_older_studies_still_read_and_report() {
         let (dir, results) = study();
-        // What a study wrote before values, difference maps and times per point were recorded.
+        // What a study wrote before values, difference maps, FLIP and times per point were recorded.
         let mut json: serde_json::Value = serde_json::from_str(&results.to_json()).unwrap();
         let scene = &mut json["scenes"][0];
         scene.as_object_mut().unwrap().remove("difference_scale");
+        scene.as_object_mut().unwrap().remove("flip");
         scene["reference"].as_object_mut().unwrap().remove("values");
         for m in scene["methods"].as_array_mut().unwrap() {
-            m.as_object_mut().unwrap().remove("values");
-            m.as_object_mut().unwrap().remove("difference_map");
+            for field in ["values", "difference_map", "flip_mean", "flip_se", "flip_per_seed", "flip_map"] {
+                m.as_object_mut().unwrap().remove(field);
+            }
         }
         for p in scene["convergence"].as_array_mut().unwrap() {
             p.as_object_mut().unwrap().remove("seconds");
@@ -586,6 +610,8 @@ mod tests {
         std::fs::write(&path, serde_json::to_string(&json).unwrap()).unwrap();
         let old = StudyResults::read_json(&path).unwrap();
         assert!(old.scenes[0].convergence.iter().all(|p| p.seconds.is_none()));
+        assert!(old.scenes[0].flip.is_none() && old.scenes[0].methods.iter().all(|m| m.flip_mean.is_none() && m.flip_map.is_none()));
+        assert!(!crate::table::terminal_table(&old.scenes[0]).contains("FLIP"));
         let out = dir.path().join("report");
         write_report(&old, &dir.path().join("study"), &out, &ReportOptions::default()).unwrap();
         let slug = slug(&old.scenes[0].name);

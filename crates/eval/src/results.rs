@@ -3,6 +3,7 @@
 //!
 //! Paths of images are relative to the folder holding the results file, use `/`, and never
 //! leave it (no `..`, not absolute), so a study folder can be moved as a whole.
+use crate::flip::{FlipSettings, FlipStats};
 use crate::reference_noise::ReferenceNoise;
 use crate::stats::SeedStats;
 use crate::EvalError;
@@ -61,6 +62,9 @@ pub struct SceneResult {
     /// The symmetric range of the signed difference maps, shared by all methods of the scene.
     #[serde(default)]
     pub difference_scale: Option<DifferenceScale>,
+    /// How the methods' HDR-FLIP was computed (pixels per degree, exposures), when it was.
+    #[serde(default)]
+    pub flip: Option<FlipSettings>,
     /// Human-readable warnings (e.g. a reference too noisy to rank the methods).
     #[serde(default)]
     pub warnings: Vec<String>,
@@ -159,6 +163,20 @@ pub struct MethodResult {
     /// relative to the results folder.
     #[serde(default)]
     pub difference_map: Option<String>,
+    /// HDR-FLIP (see `flip`): the mean over seeds of each seed's mean FLIP error, in [0, 1].
+    /// Absent in results of studies that did not compute it.
+    #[serde(default)]
+    pub flip_mean: Option<f64>,
+    /// Standard error of `flip_mean` over seeds; `None` for one seed.
+    #[serde(default)]
+    pub flip_se: Option<f64>,
+    /// Each seed's mean FLIP error, in seed order.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub flip_per_seed: Vec<f64>,
+    /// The per-pixel FLIP error averaged over seeds through the magma colour map (see `flip`),
+    /// PNG, relative to the results folder.
+    #[serde(default)]
+    pub flip_map: Option<String>,
     /// Linear RGB of `image` and the per-pixel relMSE of `error_map`, an EXR relative to the
     /// results folder (see `pixels`): what the viewer's pixel readout shows.
     #[serde(default)]
@@ -243,10 +261,21 @@ impl MethodResult {
             image: None,
             error_map: None,
             difference_map: None,
+            flip_mean: None,
+            flip_se: None,
+            flip_per_seed: Vec::new(),
+            flip_map: None,
             values: None,
             ablation: false,
             base: None,
         }
+    }
+
+    /// Records the method's HDR-FLIP statistics over seeds.
+    pub fn set_flip(&mut self, stats: &FlipStats) {
+        self.flip_mean = Some(stats.mean);
+        self.flip_se = stats.se;
+        self.flip_per_seed = stats.per_seed.clone();
     }
 }
 
@@ -402,6 +431,15 @@ impl StudyResults {
                     return Err(EvalError::invalid(&ctx, "difference_scale needs a finite max_abs > 0"));
                 }
             }
+            if let Some(f) = &scene.flip {
+                let e = (f.start_exposure, f.stop_exposure);
+                if !(f.ppd.is_finite() && f.ppd > 0.0 && e.0.is_finite() && e.1.is_finite() && e.0 <= e.1 && f.num_exposures >= 2) {
+                    return Err(EvalError::invalid(
+                        &ctx,
+                        "flip needs a finite ppd > 0, finite start_exposure <= stop_exposure and num_exposures >= 2",
+                    ));
+                }
+            }
             if let Some(noise) = &scene.reference.noise {
                 check_number(noise.relmse, true, &format!("{ctx}, reference noise"))?;
             }
@@ -432,11 +470,24 @@ impl StudyResults {
                 for v in &m.relmse_per_seed {
                     check_number(*v, true, &format!("{mctx}, relmse_per_seed"))?;
                 }
+                if let Some(f) = m.flip_mean {
+                    check_unit(f, &format!("{mctx}, flip_mean"))?;
+                }
+                if let Some(se) = m.flip_se {
+                    check_number(se, true, &format!("{mctx}, flip_se"))?;
+                }
+                for v in &m.flip_per_seed {
+                    check_unit(*v, &format!("{mctx}, flip_per_seed"))?;
+                }
                 check_number(m.time_seconds.render, true, &format!("{mctx}, render time"))?;
                 check_number(m.time_seconds.reconstruct, true, &format!("{mctx}, reconstruct time"))?;
-                for (p, what) in
-                    [(&m.image, "image"), (&m.error_map, "error_map"), (&m.difference_map, "difference_map"), (&m.values, "values")]
-                {
+                for (p, what) in [
+                    (&m.image, "image"),
+                    (&m.error_map, "error_map"),
+                    (&m.difference_map, "difference_map"),
+                    (&m.flip_map, "flip_map"),
+                    (&m.values, "values"),
+                ] {
                     if let Some(p) = p {
                         check_relative_path(p, &format!("{mctx}, {what}"))?;
                     }
@@ -487,6 +538,13 @@ fn check_number(v: f64, non_negative: bool, ctx: &str) -> Result<(), EvalError> 
     if !v.is_finite() || (non_negative && v < 0.0) {
         let need = if non_negative { "a finite, non-negative number" } else { "a finite number" };
         return Err(EvalError::invalid(ctx, format!("is {v}, expected {need}")));
+    }
+    Ok(())
+}
+
+fn check_unit(v: f64, ctx: &str) -> Result<(), EvalError> {
+    if !(0.0..=1.0).contains(&v) {
+        return Err(EvalError::invalid(ctx, format!("is {v}, expected a number in [0, 1]")));
     }
     Ok(())
 }

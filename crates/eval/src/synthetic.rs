@@ -7,6 +7,7 @@
 //! labels say "synthetic" so nobody mistakes them.
 use crate::difference::{scale_for_differences, signed_difference, write_difference_png};
 use crate::falsecolor::{scale_for_maps, write_false_color_png};
+use crate::flip::{write_flip_png, FlipAccumulator, FlipReference};
 use crate::metrics::Reference;
 use crate::pixels::write_values_exr;
 use crate::reference_noise::{from_half_references, too_noisy_warning};
@@ -235,8 +236,8 @@ fn run_seed(t: &Image, spp: u32, seed: u64, ablations: bool) -> Vec<(Image, Stag
     out
 }
 
-/// Runs the synthetic study into `dir` (created if needed): previews, relMSE maps and
-/// results.json (overwritten). Returns the results, with paths relative to `dir`.
+/// Runs the synthetic study into `dir` (created if needed): previews, relMSE, difference and
+/// FLIP maps and results.json (overwritten). Returns the results, with paths relative to `dir`.
 pub fn write_synthetic_study(dir: &Path, opts: &SyntheticOptions) -> Result<StudyResults, EvalError> {
     if opts.width < 8 || opts.height < 8 || opts.spp_per_stream == 0 || opts.seeds == 0 {
         return Err(EvalError::invalid("synthetic study", "needs at least 8x8 pixels, 1 spp and 1 seed"));
@@ -256,11 +257,14 @@ pub fn write_synthetic_study(dir: &Path, opts: &SyntheticOptions) -> Result<Stud
 
     let n = opts.spp_per_stream;
     let mut accs: Vec<SeedAccumulator> = list.iter().map(|(k, _, _)| SeedAccumulator::new(&reference, *k)).collect();
+    let flip_reference = FlipReference::new(&reference.image, reference.label.clone())?;
+    let mut flips: Vec<FlipAccumulator> = list.iter().map(|_| FlipAccumulator::new(&flip_reference)).collect();
     let mut times = vec![StageTimes::default(); list.len()];
     let mut first_images = Vec::new();
     for seed in 0..opts.seeds {
         for (i, (img, t)) in run_seed(&truth, n, 1000 + seed as u64, opts.ablations).into_iter().enumerate() {
             accs[i].add(&img)?;
+            flips[i].add(&img, &format!("{} seed {seed}", list[i].0))?;
             times[i].render += t.render / opts.seeds as f64;
             times[i].reconstruct += t.reconstruct / opts.seeds as f64;
             if seed == 0 {
@@ -273,7 +277,7 @@ pub fn write_synthetic_study(dir: &Path, opts: &SyntheticOptions) -> Result<Stud
     let scale = scale_for_maps(&maps.iter().map(|m| m.as_slice()).collect::<Vec<_>>());
     let diffs = first_images.iter().map(|img| signed_difference(img, &reference.image)).collect::<Result<Vec<_>, _>>()?;
     let diff_scale = scale_for_differences(&diffs.iter().map(|m| m.as_slice()).collect::<Vec<_>>());
-    write_values_exr(&dir.join("reference.values.exr"), &reference.image, None, true)?;
+    write_values_exr(&dir.join("reference.values.exr"), &reference.image, None, None, true)?;
     let mut results = Vec::new();
     for (i, (key, label, ablation)) in list.iter().enumerate() {
         let stats = accs[i].finish()?;
@@ -289,8 +293,15 @@ pub fn write_synthetic_study(dir: &Path, opts: &SyntheticOptions) -> Result<Stud
         let diff_file = format!("{key}.diff.png");
         write_difference_png(&dir.join(&diff_file), &diffs[i], opts.width, opts.height, &diff_scale, true)?;
         m.difference_map = Some(diff_file);
+        if let Some(f) = flips[i].finish() {
+            m.set_flip(&f);
+        }
+        let flip_map = flips[i].mean_map();
+        let flip_file = format!("{key}.flip.png");
+        write_flip_png(&dir.join(&flip_file), &flip_map, opts.width, opts.height, true)?;
+        m.flip_map = Some(flip_file);
         let values_file = format!("{key}.values.exr");
-        write_values_exr(&dir.join(&values_file), &first_images[i], Some(&maps[i]), true)?;
+        write_values_exr(&dir.join(&values_file), &first_images[i], Some(&maps[i]), Some(&flip_map), true)?;
         m.values = Some(values_file);
         results.push(m);
     }
@@ -337,6 +348,7 @@ pub fn write_synthetic_study(dir: &Path, opts: &SyntheticOptions) -> Result<Stud
         convergence,
         error_map_scale: Some(scale),
         difference_scale: Some(diff_scale),
+        flip: Some(flip_reference.settings()),
         warnings: Vec::new(),
         headline: crate::results::paper_headline(),
         render: Vec::new(),
@@ -373,6 +385,17 @@ mod tests {
         let r = rel(keys::PT_2N) / rel(keys::PT);
         assert!((0.4..0.6).contains(&r), "PT(2n)/PT(n) = {r}");
         assert!(rel("ours") < rel(keys::PT_2N));
+        // HDR-FLIP ranks the noisy methods the same way, and every method has a map.
+        let flip = |k: &str| s.method(k).unwrap().flip_mean.unwrap();
+        assert!(
+            flip(keys::PT_2N) < flip(keys::PT) && flip("ours") < flip(keys::PT),
+            "{} {} {}",
+            flip("ours"),
+            flip(keys::PT_2N),
+            flip(keys::PT)
+        );
+        assert!(s.methods.iter().all(|m| m.flip_se.is_some() && m.flip_per_seed.len() == 4 && m.flip_map.is_some()));
+        assert!(s.flip.is_some());
         // The reference is far cleaner than any method, so no warning.
         assert!(s.warnings.is_empty(), "{:?}", s.warnings);
         assert_eq!(StudyResults::read_json(&dir.path().join("a/results.json")).unwrap(), a);

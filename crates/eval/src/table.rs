@@ -53,14 +53,32 @@ pub fn ratio_name(r: &Ratio, scene: &SceneResult) -> String {
 
 const HEADERS: [&str; 10] = ["method", "spp", "relMSE", "± se", "/PT(2n)", "bias²", "variance", "MSE", "render s", "recon s"];
 
-fn rows(scene: &SceneResult, ablation: bool) -> Vec<[String; 10]> {
+/// Where the HDR-FLIP mean and its standard error go in [`HEADERS`]: after MSE, before the times.
+const FLIP_AT: usize = 8;
+
+/// The column headers of `scene`'s tables: FLIP's only when some method has it (results of
+/// older studies do not).
+fn headers(scene: &SceneResult) -> Vec<&'static str> {
+    let mut h = HEADERS.to_vec();
+    if has_flip(scene) {
+        h.splice(FLIP_AT..FLIP_AT, ["FLIP", "± se"]);
+    }
+    h
+}
+
+fn has_flip(scene: &SceneResult) -> bool {
+    scene.methods.iter().any(|m| m.flip_mean.is_some())
+}
+
+fn rows(scene: &SceneResult, ablation: bool) -> Vec<Vec<String>> {
     let pt2n = scene.method(keys::PT_2N).map(|m| m.relmse_mean).filter(|v| *v > 0.0);
+    let flip = has_flip(scene);
     scene
         .ordered_methods()
         .into_iter()
         .filter(|m| m.ablation == ablation)
         .map(|m: &MethodResult| {
-            [
+            let mut row = vec![
                 m.label.clone(),
                 if m.spp_total > 0 { m.spp_total.to_string() } else { "?".into() },
                 fmt_num(m.relmse_mean),
@@ -71,7 +89,11 @@ fn rows(scene: &SceneResult, ablation: bool) -> Vec<[String; 10]> {
                 fmt_num(m.mse_mean),
                 fmt_seconds(m.time_seconds.render),
                 fmt_seconds(m.time_seconds.reconstruct),
-            ]
+            ];
+            if flip {
+                row.splice(FLIP_AT..FLIP_AT, [fmt_opt(m.flip_mean), fmt_opt(m.flip_se)]);
+            }
+            row
         })
         .collect()
 }
@@ -97,7 +119,7 @@ fn scene_title(scene: &SceneResult) -> String {
     t
 }
 
-fn aligned(header: &[&str; 10], rows: &[[String; 10]]) -> String {
+fn aligned(header: &[&str], rows: &[Vec<String>]) -> String {
     let mut widths: Vec<usize> = header.iter().map(|h| h.chars().count()).collect();
     for r in rows {
         for (w, c) in widths.iter_mut().zip(r) {
@@ -127,11 +149,12 @@ fn aligned(header: &[&str; 10], rows: &[[String; 10]]) -> String {
 /// The terminal table of one scene: title, methods, ablations, headline ratios, warnings.
 pub fn terminal_table(scene: &SceneResult) -> String {
     let mut out = scene_title(scene) + "\n\n";
-    out += &aligned(&HEADERS, &rows(scene, false));
+    let headers = headers(scene);
+    out += &aligned(&headers, &rows(scene, false));
     let ablations = rows(scene, true);
     if !ablations.is_empty() {
         out += "\nablations\n";
-        out += &aligned(&HEADERS, &ablations);
+        out += &aligned(&headers, &ablations);
     }
     let ratios = scene.ratios();
     if !ratios.is_empty() {
@@ -179,8 +202,9 @@ fn geomean_scenes(results: &StudyResults) -> String {
 /// A Markdown table of one scene (methods and ablations), for the project's docs.
 pub fn markdown_table(scene: &SceneResult) -> String {
     let mut out = format!("**{}**\n\n", md_text(&scene_title(scene)));
-    out += &md_row(&HEADERS.map(String::from));
-    out += &format!("|{}\n", "---|".repeat(HEADERS.len()));
+    let headers = headers(scene);
+    out += &md_row(&headers.iter().map(|h| h.to_string()).collect::<Vec<_>>());
+    out += &format!("|{}\n", "---|".repeat(headers.len()));
     for mut r in rows(scene, false).into_iter().chain(rows(scene, true)) {
         r[0] = md_text(&r[0]);
         out += &md_row(&r);
@@ -361,10 +385,11 @@ fn csv_opt(x: Option<f64>) -> String {
 }
 
 /// One row per scene and method, full precision (shortest round-trip), empty cells for values
-/// that need more than one seed.
+/// that need more than one seed (and for FLIP where the results have none). FLIP's columns come
+/// last, so readers of the older columns by position still find them.
 pub fn to_csv(results: &StudyResults) -> String {
     let mut out = String::from(
-        "scene,method,label,spp_per_stream,spp_total,seeds,relmse_mean,relmse_se,bias2,variance,mse_mean,render_seconds,reconstruct_seconds,ablation\n",
+        "scene,method,label,spp_per_stream,spp_total,seeds,relmse_mean,relmse_se,bias2,variance,mse_mean,render_seconds,reconstruct_seconds,ablation,flip_mean,flip_se\n",
     );
     for s in &results.scenes {
         for m in s.ordered_methods() {
@@ -383,6 +408,8 @@ pub fn to_csv(results: &StudyResults) -> String {
                 csv_num(m.time_seconds.render),
                 csv_num(m.time_seconds.reconstruct),
                 m.ablation.to_string(),
+                csv_opt(m.flip_mean),
+                csv_opt(m.flip_se),
             ];
             out += &cells.join(",");
             out += "\n";
@@ -502,6 +529,10 @@ mod tests {
                     image: None,
                     error_map: None,
                     difference_map: None,
+                    flip_mean: None,
+                    flip_se: None,
+                    flip_per_seed: Vec::new(),
+                    flip_map: None,
                     values: None,
                     ablation,
                     base: ablation.then(|| "ours".into()),
@@ -515,6 +546,7 @@ mod tests {
             convergence: Vec::new(),
             error_map_scale: None,
             difference_scale: None,
+            flip: None,
             warnings: Vec::new(),
             headline: crate::results::paper_headline(),
             render: Vec::new(),
@@ -575,6 +607,27 @@ mod tests {
         assert!(md.contains(&format!("| {escaped} (96+96) |")), "{md}");
         assert!(!md.contains("<script>") && md.lines().all(|l| !l.starts_with("z_")), "{md}");
         assert!(md.contains("geometric mean (1 of 2 scenes)"), "{md}");
+    }
+
+    #[test]
+    fn flip_columns_appear_only_with_flip_values() {
+        let mut sc = scene("a", &[("pt", 0.4, false), ("ours", 0.05, false)]);
+        let plain = terminal_table(&sc);
+        assert!(!plain.contains("FLIP"), "{plain}");
+        assert!(to_csv(&StudyResults::new(vec![sc.clone()])).lines().nth(1).unwrap().ends_with(",false,,"));
+        sc.methods[1].flip_mean = Some(0.123456);
+        sc.methods[1].flip_se = Some(0.0042);
+        let t = terminal_table(&sc);
+        let header = t.lines().find(|l| l.starts_with("method")).unwrap();
+        let cols: Vec<&str> = header.split_whitespace().collect();
+        assert_eq!(&cols[8..12], ["MSE", "FLIP", "±", "se"], "{header}");
+        let ours = t.lines().find(|l| l.starts_with("label ours")).unwrap();
+        assert!(ours.contains(" 0.1235 ") && ours.contains(" 0.004200 "), "{ours}");
+        assert!(t.lines().find(|l| l.starts_with("label pt")).unwrap().matches('–').count() >= 2);
+        assert!(markdown_table(&sc).contains("| MSE | FLIP | ± se | render s |"));
+        let csv = to_csv(&StudyResults::new(vec![sc]));
+        assert!(csv.lines().next().unwrap().ends_with(",ablation,flip_mean,flip_se"));
+        assert!(csv.lines().nth(2).unwrap().ends_with(",false,0.123456,0.0042"), "{csv}");
     }
 
     #[test]

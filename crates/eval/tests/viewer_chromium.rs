@@ -44,6 +44,7 @@ fn two_scene_study(dir: &Path) -> StudyResults {
             prefix(&mut m.image);
             prefix(&mut m.error_map);
             prefix(&mut m.difference_map);
+            prefix(&mut m.flip_map);
             prefix(&mut m.values);
         }
         scenes.push(scene);
@@ -221,8 +222,8 @@ fn viewer_loads_every_image_and_shows_the_json_numbers() {
     let failed_src = attr(&dom, "<body", "data-failed-src").unwrap_or_default();
     assert_eq!(ok, total, "only {ok} of {total} images loaded; failed: {failed_src}");
     assert_eq!(attr(&dom, "<body", "data-ready").as_deref(), Some("1"));
-    // Expected images: per scene the previews, the reference, the relMSE and difference maps,
-    // the ablation previews and the two plots; plus a colour bar per legend.
+    // Expected images: per scene the previews, the reference, the relMSE, FLIP and difference
+    // maps, the ablation previews and the two plots; plus a colour bar per legend.
     let expected: usize = results
         .scenes
         .iter()
@@ -230,7 +231,9 @@ fn viewer_loads_every_image_and_shows_the_json_numbers() {
             let photos = s.methods.iter().filter(|m| m.image.is_some()).count();
             let maps = s.methods.iter().filter(|m| !m.ablation && m.error_map.is_some()).count();
             let diffs = s.methods.iter().filter(|m| !m.ablation && m.difference_map.is_some()).count();
-            photos + maps + diffs + usize::from(s.reference.image.is_some()) + 2 * usize::from(!s.convergence.is_empty()) + 2
+            let flips = s.methods.iter().filter(|m| !m.ablation && m.flip_map.is_some()).count();
+            assert!(flips > 0, "the synthetic study makes FLIP maps");
+            photos + maps + diffs + flips + usize::from(s.reference.image.is_some()) + 2 * usize::from(!s.convergence.is_empty()) + 3
         })
         .sum();
     assert_eq!(total, expected, "number of <img> elements");
@@ -246,6 +249,8 @@ fn viewer_loads_every_image_and_shows_the_json_numbers() {
             assert_shows(&dom, &k("bias2"), m.bias2);
             assert_shows(&dom, &k("variance"), m.variance);
             assert_shows(&dom, &k("mse_mean"), Some(m.mse_mean));
+            assert_shows(&dom, &k("flip_mean"), m.flip_mean);
+            assert_shows(&dom, &k("flip_se"), m.flip_se);
             let t = cell(&dom, &k("time_total")).unwrap();
             let shown: f64 = t.parse().unwrap();
             assert!((shown - m.time_seconds.total()).abs() <= 5e-4 + 5e-3 * m.time_seconds.total(), "{} time {t}", m.name);
@@ -294,6 +299,8 @@ fn viewer_copes_with_minimal_results() {
         m.image = None;
         m.error_map = None;
         m.difference_map = None;
+        m.flip_map = None;
+        m.flip_se = None;
         m.values = None;
         m.relmse_se = None;
         m.bias2 = None;
@@ -310,7 +317,11 @@ fn viewer_copes_with_minimal_results() {
     for m in &results.scenes[0].methods {
         assert_shows(&dom, &format!("{sl}/{}/relmse_mean", m.name), Some(m.relmse_mean));
         assert_shows(&dom, &format!("{sl}/{}/bias2", m.name), None);
+        // `cvtrace compare` has a FLIP mean of one seed, without a map.
+        assert_shows(&dom, &format!("{sl}/{}/flip_mean", m.name), m.flip_mean);
+        assert_shows(&dom, &format!("{sl}/{}/flip_se", m.name), None);
     }
+    assert!(!dom.contains("grid flips"), "no FLIP view without FLIP maps");
     assert!(dom.contains("No convergence data"));
 
     // Results of a study by an older cvtrace: images and a convergence plot, but no linear
@@ -319,9 +330,12 @@ fn viewer_copes_with_minimal_results() {
     let scene = &mut old.scenes[0];
     scene.reference.values = None;
     scene.difference_scale = None;
+    scene.flip = None;
     for m in scene.methods.iter_mut() {
         m.values = None;
         m.difference_map = None;
+        (m.flip_mean, m.flip_se, m.flip_map) = (None, None, None);
+        m.flip_per_seed.clear();
     }
     scene.convergence = (1..=3)
         .map(|k| cvtrace_eval::ConvergencePoint {
@@ -340,6 +354,7 @@ fn viewer_copes_with_minimal_results() {
     assert!(dom.contains("carry no linear values"), "the readout says why it shows only the position");
     assert!(dom.contains("No times per point") && dom.contains("data-plot=\"spp\""), "the spp plot stays, the time plot is explained");
     assert!(!dom.contains("grid diffs"), "no difference view without difference maps");
+    assert!(!dom.contains("grid flips") && !dom.contains("/flip_mean\""), "no FLIP view or column without FLIP");
 }
 
 /// Drives the page as a user would, from a script loaded after viewer.js: points at pixel
@@ -413,6 +428,7 @@ fn viewer_pixel_readout_shows_the_exr_values_and_the_table_sorts() {
         let mut channels = vec![("R", "R"), ("G", "G"), ("B", "B")];
         if key != "reference" {
             channels.push(("relmse", "relmse"));
+            channels.push(("flip", "flip"));
         }
         for (shown_as, channel) in channels {
             let want = exr.channels[channel][i];
@@ -424,9 +440,10 @@ fn viewer_pixel_readout_shows_the_exr_values_and_the_table_sorts() {
             assert_shows(&dom, &k, Some(want as f64));
             distinct.insert(want.to_bits());
         }
-        // The reference has no relMSE of its own.
+        // The reference has no relMSE or FLIP of its own.
         if key == "reference" {
             assert_eq!(cell(&dom, &format!("{sl}/pixel/reference/relmse")).as_deref(), Some("–"));
+            assert_eq!(cell(&dom, &format!("{sl}/pixel/reference/flip")).as_deref(), Some("–"));
         }
     }
     assert!(distinct.len() > images.len(), "the images should differ at the pixel, or the check proves little");
@@ -457,4 +474,14 @@ fn viewer_pixel_readout_shows_the_exr_values_and_the_table_sorts() {
     assert_shows(&dom, &format!("{sl}/difference/max"), Some(max));
     assert_shows(&dom, &format!("{sl}/difference/min"), Some(-max));
     assert!(dom.contains("src=\"colorbar-diff.png\""));
+
+    // 5. The FLIP view: one magma map per main method, beside the relMSE maps, with its legend.
+    let grid = &dom[dom.find("class=\"grid flips\"").expect("no FLIP grid")..];
+    let grid = &grid[..grid.find("</section>").unwrap_or(grid.len())];
+    assert_eq!(grid.matches("data-kind=\"flip\"").count(), diffs, "FLIP maps");
+    assert!(dom.find("class=\"grid maps\"").unwrap() < dom.find("class=\"grid flips\"").unwrap(), "FLIP maps follow the relMSE maps");
+    assert!(dom.contains("src=\"colorbar-flip.png\""));
+    let settings = cell(&dom, &format!("{sl}/flip/settings")).expect("FLIP legend");
+    let f = scene.flip.as_ref().unwrap();
+    assert!(settings.contains("magma") && settings.contains(&format!("{} exposures", f.num_exposures)), "{settings}");
 }

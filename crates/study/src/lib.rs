@@ -2,8 +2,9 @@
 //! streams with `n` spp each and a real PT image with `2n` spp from a [`Source`], every
 //! column (the registered estimators, the PT(2n) image, the declared ablation variants)
 //! scored against the reference — relMSE mean ± standard error, bias² and variance over seeds,
-//! time per stage, diagnostics — then `results.json`, `results.csv` and the PNGs of the first
-//! seed with false-colour error and signed difference maps, and the linear values behind them
+//! HDR-FLIP mean ± standard error (at the last spp value), time per stage, diagnostics — then
+//! `results.json`, `results.csv` and the PNGs of the first seed with false-colour error, signed
+//! difference and FLIP maps (relMSE and FLIP averaged over seeds), and the linear values behind them
 //! (`<column>.values.exr`, `reference.values.exr`) for the viewer's pixel readout.
 //!
 //! A source is anything that makes stream sets and PT images: the real renderer (the `cvtrace`
@@ -21,6 +22,7 @@ pub use synthetic::SyntheticSource;
 
 use cvtrace_eval::difference::{scale_for_differences, signed_difference, write_difference_png};
 use cvtrace_eval::falsecolor::{scale_for_maps, write_false_color_png};
+use cvtrace_eval::flip::{write_flip_png, FlipAccumulator, FlipReference};
 use cvtrace_eval::pixels::write_values_exr;
 use cvtrace_eval::reference_noise::{from_variance_image, too_noisy_warning};
 use cvtrace_eval::results::{ConvergencePoint, ReferenceInfo, SceneResult, StageTimes, StudyResults};
@@ -116,9 +118,10 @@ impl Study<'_> {
     pub fn run(&self, source: &mut dyn Source, reference: &Reference, scene: SceneInfo, out: &Path) -> Result<StudyResults, StudyError> {
         let mut convergence = Vec::new();
         let mut main = None;
+        let flip_reference = FlipReference::new(&reference.image, reference.label.clone())?;
         for (si, &n) in self.spps.iter().enumerate() {
             let last = si + 1 == self.spps.len();
-            let r = self.run_spp(source, reference, n, last)?;
+            let r = self.run_spp(source, reference, n, last.then_some(&flip_reference))?;
             for ((c, acc), t) in self.columns.iter().zip(&r.accs).zip(&r.times) {
                 if c.base.is_some() {
                     continue;
@@ -139,8 +142,8 @@ impl Study<'_> {
         let main = main.ok_or_else(|| StudyError::Invalid("a study needs at least one spp value".into()))?;
         let n = *self.spps.last().expect("main is set, so there is an spp value");
 
-        // Images of the first seed, false-colour maps of the mean relMSE over seeds and of the
-        // first seed's signed difference, and the linear values behind them for the viewer.
+        // Images of the first seed, false-colour maps of the mean relMSE and FLIP over seeds and
+        // of the first seed's signed difference, and the linear values behind them for the viewer.
         let maps: Vec<Vec<f32>> = main.accs.iter().map(|a| a.mean_rel_mse_map()).collect();
         let scale = scale_for_maps(&maps.iter().map(|m| m.as_slice()).collect::<Vec<_>>());
         let diffs = main.first_images.iter().map(|img| signed_difference(img, &reference.image)).collect::<Result<Vec<_>, _>>()?;
@@ -160,13 +163,22 @@ impl Study<'_> {
             let diff = format!("{}.diff.png", c.key);
             write_difference_png(&out.join(&diff), &diffs[i], reference.width(), reference.height(), &diff_scale, true)?;
             m.difference_map = Some(diff);
+            let flip_map = main.flips.get(i).map(|f| f.mean_map());
+            if let (Some(f), Some(map)) = (main.flips.get(i), &flip_map) {
+                if let Some(stats) = f.finish() {
+                    m.set_flip(&stats);
+                }
+                let file = format!("{}.flip.png", c.key);
+                write_flip_png(&out.join(&file), map, reference.width(), reference.height(), true)?;
+                m.flip_map = Some(file);
+            }
             let values = format!("{}.values.exr", c.key);
-            write_values_exr(&out.join(&values), &main.first_images[i], Some(&maps[i]), true)?;
+            write_values_exr(&out.join(&values), &main.first_images[i], Some(&maps[i]), flip_map.as_deref(), true)?;
             m.values = Some(values);
             methods.push(m);
         }
         write_png(&out.join("reference.png"), &reference.image, 0.0, true)?;
-        write_values_exr(&out.join("reference.values.exr"), &reference.image, None, true)?;
+        write_values_exr(&out.join("reference.values.exr"), &reference.image, None, None, true)?;
 
         // The reference's own noise, from the PT streams' batch variance scaled to its spp.
         let noise = match (scene.reference.spp, &main.pt_variance) {
@@ -193,6 +205,7 @@ impl Study<'_> {
             convergence: if self.spps.len() > 1 { convergence } else { Vec::new() },
             error_map_scale: Some(scale),
             difference_scale: Some(diff_scale),
+            flip: Some(flip_reference.settings()),
             warnings: Vec::new(),
             headline: self.headline.clone(),
             render: scene.render,
@@ -206,9 +219,19 @@ impl Study<'_> {
         Ok(results)
     }
 
-    fn run_spp<'r>(&self, source: &mut dyn Source, reference: &'r Reference, n: u32, keep_images: bool) -> Result<SppRun<'r>, StudyError> {
+    /// One spp value over every seed; with `flip` (the spp the tables show), also each column's
+    /// HDR-FLIP and its first seed's image.
+    fn run_spp<'r>(
+        &self,
+        source: &mut dyn Source,
+        reference: &'r Reference,
+        n: u32,
+        flip: Option<&'r FlipReference>,
+    ) -> Result<SppRun<'r>, StudyError> {
         let cols = self.columns;
+        let keep_images = flip.is_some();
         let mut accs: Vec<SeedAccumulator> = cols.iter().map(|c| SeedAccumulator::new(reference, c.key.clone())).collect();
+        let mut flips: Vec<FlipAccumulator> = flip.map(|f| cols.iter().map(|_| FlipAccumulator::new(f)).collect()).unwrap_or_default();
         let mut times = vec![StageTimes::default(); cols.len()];
         let mut first_images = Vec::new();
         let mut diagnostics: Vec<DiagnosticsMean> = cols.iter().map(|_| DiagnosticsMean::default()).collect();
@@ -249,6 +272,9 @@ impl Study<'_> {
                 };
                 let label = format!("{} ({})", c.key, streams.name);
                 accs[k].add_labelled(&img, &label)?;
+                if let Some(f) = flips.get_mut(k) {
+                    f.add(&img, &label)?;
+                }
                 if let Some(v) = &predicted {
                     accs[k].add_predicted_variance(v, &label)?;
                 }
@@ -260,12 +286,14 @@ impl Study<'_> {
             }
             tracing::info!("spp {n}, seed {} of {}: done", i + 1, self.seeds);
         }
-        Ok(SppRun { accs, times, first_images, diagnostics, pt_variance })
+        Ok(SppRun { accs, flips, times, first_images, diagnostics, pt_variance })
     }
 }
 
 struct SppRun<'r> {
     accs: Vec<SeedAccumulator<'r>>,
+    /// Per column, HDR-FLIP over the seeds (empty for the convergence points).
+    flips: Vec<FlipAccumulator<'r>>,
     times: Vec<StageTimes>,
     first_images: Vec<Image>,
     diagnostics: Vec<DiagnosticsMean>,

@@ -26,7 +26,15 @@ fn a_study_of_the_synthetic_scene_scores_every_estimator() {
         let m = scene.method(key).unwrap_or_else(|| panic!("{key} missing"));
         assert_eq!(m.relmse_per_seed.len(), 3, "{key}");
         assert!(dir.path().join(m.image.as_ref().unwrap()).is_file() && dir.path().join(m.error_map.as_ref().unwrap()).is_file());
+        // HDR-FLIP at the last spp, over the same seeds, with its map.
+        assert_eq!(m.flip_per_seed.len(), 3, "{key}");
+        assert!(m.flip_mean.is_some_and(|f| f > 0.0 && f < 1.0) && m.flip_se.is_some(), "{key}: {:?}", m.flip_mean);
+        assert!(dir.path().join(m.flip_map.as_ref().unwrap()).is_file(), "{key}");
     }
+    assert!(scene.flip.as_ref().is_some_and(|f| f.num_exposures >= 2));
+    // FLIP agrees with relMSE that PT(2n) beats PT(n).
+    let flip = |k: &str| scene.method(k).unwrap().flip_mean.unwrap();
+    assert!(flip("pt2n") < flip("pt"), "{} vs {}", flip("pt2n"), flip("pt"));
     // Equal samples: PT(2n) about halves PT(n)'s error, and ours beats PT(2n) on this scene
     // (its CRN noise is smooth), by far more than the seed noise at 3 seeds.
     let rel = |k: &str| scene.method(k).unwrap().relmse_mean;
