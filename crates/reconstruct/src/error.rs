@@ -59,6 +59,10 @@ pub enum ReconError {
 
     #[error("invalid option --{option} {value}: {why}")]
     InvalidOption { option: &'static str, value: String, why: String },
+
+    /// A library an estimator calls failed (its own words in `message`).
+    #[error("`{method}`: {message}")]
+    Failed { method: &'static str, message: String },
 }
 
 impl ReconError {
