@@ -5,7 +5,7 @@ use crate::cli::render::{default_batches, spp_parser, ViewArgs};
 use crate::cli::study::StudyArgs;
 use anyhow::{bail, Context, Result};
 use cvtrace_farm::{JobFolder, MergeState, PartState, Plan, Slurm, StudyCells};
-use cvtrace_render::part::PartSpec;
+use cvtrace_streams::parts::PartSpec;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]

@@ -15,8 +15,8 @@ use cvtrace::session::{
     self, CameraView, Job, Progress, ReferenceJob, ReferenceOutcome, RenderSession, SessionError, SessionOptions, StreamJob, View,
     DEFAULT_BATCHES, DEFAULT_WIDTH,
 };
-use cvtrace_render::part::PartSpec;
 use cvtrace_render::{Define, RenderDefaults};
+use cvtrace_streams::parts::PartSpec;
 use glam::Vec3A;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::path::PathBuf;
@@ -231,12 +231,12 @@ fn render_job(args: &RenderArgs, job: &Job, options: &SessionOptions) -> Result<
         Job::Reference(j) => {
             crate::cli::set_interrupt_note(format!(
                 "the finished passes are kept in {}; run the same command again to resume",
-                cvtrace_render::checkpoint::checkpoint_path(&j.output).display()
+                cvtrace_streams::checkpoint::checkpoint_path(&j.output).display()
             ));
             if let ReferenceOutcome::Stopped { passes, samples_done, spp } = session.render_reference(j, &progress)? {
                 tracing::info!(
                     "stopped after {passes} passes as asked: {samples_done} of {spp} spp saved in {}",
-                    cvtrace_render::checkpoint::checkpoint_path(&j.output).display()
+                    cvtrace_streams::checkpoint::checkpoint_path(&j.output).display()
                 );
                 // No finished image to preview yet.
                 return Ok(());

@@ -3,7 +3,8 @@
 //! Each tile is rendered independently into its own buffers and then copied into the image,
 //! so per-pixel sums never depend on which thread ran which tile. A batch's sum is kept in f64
 //! and accumulated in sample-index order; the totals over all samples are exact fixed-point
-//! sums ([`crate::exact`]), so any split of the batches adds up to the same total.
+//! sums ([`cvtrace_streams::exact`]), so any split of the batches adds up to the same total.
+use cvtrace_streams::exact;
 use glam::{DVec3, Vec3A};
 
 /// Tile edge length in pixels: small enough to balance 2 cores, large enough to amortise overhead.
@@ -50,7 +51,7 @@ pub struct PixelSums {
 impl PixelSums {
     #[inline]
     pub fn add(&mut self, v: Vec3A) {
-        crate::exact::add3(&mut self.total, crate::exact::fixed3(v.to_array()));
+        exact::add3(&mut self.total, exact::fixed3(v.to_array()));
         self.batch += v.as_dvec3();
     }
 

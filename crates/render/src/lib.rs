@@ -12,15 +12,12 @@
 //! progressive PT-only references. Nothing here depends on Embree.
 pub mod bsdf;
 pub mod camera;
-pub mod checkpoint;
-pub mod exact;
 pub mod film;
 pub mod gltf_import;
 pub mod integrator;
 pub mod intersect;
 pub mod lights;
 pub mod material;
-pub mod part;
 pub mod render;
 pub mod sampler;
 pub mod scene;
@@ -36,7 +33,7 @@ pub use camera::Camera;
 pub use intersect::{Hit, Intersector, Ray};
 pub use lights::{Environment, Punctual};
 pub use material::Material;
-pub use render::{render_reference_pass, render_stream_part, render_streams, ReferenceAccum, RenderError, RenderSettings, StreamRender};
+pub use render::{render_reference_pass, render_stream_part, render_streams, RenderError, RenderSettings, StreamRender};
 pub use scene::{Scene, SceneError, SceneParts};
 pub use sidecar::{Define, RenderDefaults, Sidecar};
 pub use texture::Texture;

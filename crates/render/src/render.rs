@@ -6,14 +6,15 @@
 //! mean and the stream mean are stored. The pixel filter is a box: a sample only counts in the
 //! pixel it was taken in.
 use crate::camera::CameraFrame;
-use crate::exact;
 use crate::film::{tiles, Tile, TileResult, TileStream, TILE_SIZE};
 use crate::integrator::{radiance_from_hit, FirstHit, PathContext, PathLimits};
 use crate::intersect::{Hit, Intersector, Ray};
-use crate::part::{StreamPart, StreamSums};
 use crate::sampler::{dims, SampleSampler, StreamKind, StreamSampler};
 use crate::scene::Scene;
 use crate::wavefront::{SceneLanes, Wavefront};
+use cvtrace_streams::exact;
+use cvtrace_streams::parts::{StreamPart, StreamSums};
+use cvtrace_streams::reference::{ReferenceAccum, ReferenceSettings};
 use cvtrace_streams::{Image, StreamSet};
 use glam::{DVec3, Vec3A};
 use rayon::prelude::*;
@@ -58,9 +59,6 @@ pub enum RenderError {
     Camera(String),
     #[error("reference accumulator does not match: {0}")]
     ReferenceMismatch(String),
-    /// A reference checkpoint that cannot be continued (the message names the file and why).
-    #[error("{0}; delete it to start the reference over")]
-    Checkpoint(String),
     #[error(transparent)]
     File(#[from] cvtrace_streams::StreamError),
 }
@@ -118,6 +116,18 @@ impl RenderSettings {
     /// with `checkpoints` (more than one pass) the checkpoint's 27 planes and their copy as well.
     pub fn reference_memory_estimate(&self, checkpoints: bool) -> u64 {
         self.width as u64 * self.height as u64 * if checkpoints { 94 + 27 * 4 * 2 } else { 94 }
+    }
+
+    /// What a reference of these settings records with its sums (`batches` aside).
+    pub fn reference(&self) -> ReferenceSettings {
+        ReferenceSettings {
+            width: self.width,
+            height: self.height,
+            spp: self.spp,
+            seed: self.seed,
+            max_depth: self.max_depth,
+            rr_depth: self.rr_depth,
+        }
     }
 
     fn limits(&self) -> PathLimits {
@@ -411,88 +421,6 @@ impl<'a, T: Intersector> StreamRender<'a, T> {
     }
 }
 
-/// Running sums of a progressive PT reference render, or of one part of it: samples
-/// `first..first + samples_done` of every pixel. The sums are exact ([`crate::exact`]), so N
-/// samples give bit-identical results however the render is split into passes or parts, and
-/// equal the PT stream mean of [`render_streams`] at the same seed.
-#[derive(Clone, Debug, PartialEq)]
-pub struct ReferenceAccum {
-    pub width: u32,
-    pub height: u32,
-    pub sum: Vec<[i128; 3]>,
-    /// The first sample index in the sums (0 but for a part).
-    pub first: u32,
-    pub samples_done: u32,
-    pub seed: u64,
-    pub max_depth: i32,
-    pub rr_depth: u32,
-    pub non_finite_samples: u64,
-}
-
-impl ReferenceAccum {
-    /// An empty accumulator for `settings` (its resolution, seed and path limits).
-    pub fn new(settings: &RenderSettings) -> ReferenceAccum {
-        ReferenceAccum {
-            width: settings.width,
-            height: settings.height,
-            sum: vec![[0; 3]; settings.width as usize * settings.height as usize],
-            first: 0,
-            samples_done: 0,
-            seed: settings.seed,
-            max_depth: settings.max_depth,
-            rr_depth: settings.rr_depth,
-            non_finite_samples: 0,
-        }
-    }
-
-    /// Resumes from a saved mean image of `samples_done` samples. The sums are rebuilt from f32
-    /// means, so a resumed reference matches an uninterrupted one only to f32 rounding.
-    pub fn from_mean(settings: &RenderSettings, mean: &Image, samples_done: u32) -> Result<ReferenceAccum, RenderError> {
-        if mean.width != settings.width as usize || mean.height != settings.height as usize {
-            return Err(RenderError::ReferenceMismatch(format!(
-                "saved reference is {}x{}, the render is {}x{}",
-                mean.width, mean.height, settings.width, settings.height
-            )));
-        }
-        let mut acc = ReferenceAccum::new(settings);
-        let n = samples_done as f64;
-        for (s, m) in acc.sum.iter_mut().zip(&mean.pixels) {
-            *s = m.map(|v| exact::fixed_f64(v as f64 * n));
-        }
-        acc.samples_done = samples_done;
-        Ok(acc)
-    }
-
-    /// The mean of the samples so far (black before the first pass).
-    pub fn mean(&self) -> Image {
-        let (w, h) = (self.width as usize, self.height as usize);
-        if self.samples_done == 0 {
-            return Image::new(w, h);
-        }
-        let n = self.samples_done as u64;
-        Image { width: w, height: h, pixels: self.sum.iter().map(|s| exact::mean3(*s, n)).collect() }
-    }
-
-    /// Adds the samples of `next`, which must be the same render's and start where these end.
-    pub fn append(&mut self, next: &ReferenceAccum) -> Result<(), RenderError> {
-        let end = self.first + self.samples_done;
-        if (next.width, next.height, next.seed, next.max_depth, next.rr_depth)
-            != (self.width, self.height, self.seed, self.max_depth, self.rr_depth)
-        {
-            return Err(RenderError::ReferenceMismatch("the sums are of different renders".into()));
-        }
-        if next.first != end {
-            return Err(RenderError::ReferenceMismatch(format!("samples from {} follow samples ending at {end}", next.first)));
-        }
-        for (a, b) in self.sum.iter_mut().zip(&next.sum) {
-            exact::add3(a, *b);
-        }
-        self.samples_done += next.samples_done;
-        self.non_finite_samples += next.non_finite_samples;
-        Ok(())
-    }
-}
-
 /// Adds PT samples `sample_range` of every pixel to `accum` (the range must start at
 /// `accum.first + accum.samples_done`). Sample `s` uses the same random numbers as sample `s` of the PT
 /// stream in [`render_streams`]. `progress(k)`: `k` more pixel-samples done.
@@ -591,7 +519,7 @@ mod tests {
         };
         let set = render_streams(&scene, &tracer, &settings, &|_| {}).unwrap();
         let features = set.features.as_ref().unwrap();
-        let mut reference = ReferenceAccum::new(&settings);
+        let mut reference = ReferenceAccum::new(&settings.reference());
         render_reference_pass(&scene, &tracer, &settings, &mut reference, 0..4, &|_| {}).unwrap();
         reference.samples_done = 4;
         render_reference_pass(&scene, &tracer, &settings, &mut reference, 4..9, &|_| {}).unwrap();

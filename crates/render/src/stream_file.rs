@@ -4,14 +4,14 @@
 //! batches: 113 channels, 0.94 GB of f32 samples, about a third of that on disk), so holding
 //! the whole image, let alone copies of it, costs several times the file. Every band of a
 //! [`StreamRender`] is final once rendered: it becomes the file's channels for its rows, with
-//! the code that writes a whole file ([`write_stream_file`]'s, [`StreamPart::to_exr`]), is
-//! compressed while the next band renders, written, and dropped. The file is the one the
-//! whole-image writers make, byte for byte.
+//! the code that writes a whole file ([`cvtrace_streams::parts::stream_file_exr`],
+//! [`StreamPart::to_exr`]), is compressed while the next band renders, written, and dropped.
+//! The file is the one the whole-image writers make, byte for byte.
 use crate::intersect::Intersector;
-use crate::part::{stream_file_exr, PartError, PartSpec, StreamPart};
-use crate::render::StreamRender;
+use crate::render::{RenderError, StreamRender};
 use cvtrace_streams::block_writer::{write_by_blocks, BlockSink, ExrLayout, Late};
 use cvtrace_streams::exr_io::{AttrValue, ExrChannels};
+use cvtrace_streams::parts::{stream_file_exr, PartSpec, StreamPart};
 use cvtrace_streams::{Provenance, StreamError};
 use std::ops::Range;
 use std::path::Path;
@@ -41,7 +41,7 @@ pub fn render_to_file<T: Intersector>(
     part: Option<PartSpec>,
     overwrite: bool,
     progress: &(dyn Fn(u64) + Sync),
-) -> Result<Written, PartError> {
+) -> Result<Written, RenderError> {
     let settings = render.settings();
     let to_exr = |band: StreamPart| -> Result<ExrChannels, StreamError> {
         match part {
@@ -64,7 +64,7 @@ pub fn render_to_file<T: Intersector>(
     attributes.insert(ATTR_NON_FINITE.into(), AttrValue::Text("0".into()));
     let layout = ExrLayout::new(first.width, settings.height as usize, first.channels.keys().cloned(), attributes);
     let mut tail = Duration::ZERO;
-    write_by_blocks(path, overwrite, &layout, |sink: &mut BlockSink<'_>| -> Result<Late, PartError> {
+    write_by_blocks(path, overwrite, &layout, |sink: &mut BlockSink<'_>| -> Result<Late, RenderError> {
         let mut pending = (rows, first);
         for rows in bands {
             let (compressed, band) = rayon::join(|| compress(sink, &layout, &pending), || render.render_band(rows.clone(), progress));

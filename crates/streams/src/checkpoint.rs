@@ -2,11 +2,24 @@
 //! (exact running sums, so a resumed reference is bit-identical to one rendered at once) and
 //! the finished reference that `--extend` continues (means only, so to f32 rounding).
 //! docs/stream-format.md ("Reference checkpoints") describes the format.
-use crate::render::{ReferenceAccum, RenderError, RenderSettings};
-use cvtrace_streams::exr_io::{take_rgb, AttrValue, ExrChannels};
-use cvtrace_streams::provenance::{describe_all, Field, Provenance};
-use cvtrace_streams::StreamError;
+use crate::error::{StreamError, SumsError};
+use crate::exact;
+use crate::exr_io::{take_rgb, AttrValue, ExrChannels};
+use crate::provenance::{describe_all, Field, Provenance};
+use crate::reference::{ReferenceAccum, ReferenceSettings};
 use std::path::{Path, PathBuf};
+
+/// Why a saved reference state cannot be continued.
+#[derive(Debug, thiserror::Error)]
+pub enum CheckpointError {
+    #[error(transparent)]
+    File(#[from] StreamError),
+    #[error(transparent)]
+    Sums(#[from] SumsError),
+    /// A checkpoint that cannot be continued (the message names the file and why).
+    #[error("{0}; delete it to start the reference over")]
+    Unusable(String),
+}
 
 /// The attribute that tells a checkpoint from a finished reference, and the one layout this
 /// reader knows: another value is another layout of the sums.
@@ -15,13 +28,14 @@ pub const KIND: &str = "reference-v2";
 /// Samples per pixel in the sums so far (EXR `int`).
 pub const ATTR_SAMPLES_DONE: &str = "cvtrace.samplesDone";
 const ATTR_NON_FINITE: &str = "cvtrace.nonFiniteSamples";
-/// The version whose samples a checkpoint or reference may be continued with.
+/// The version whose samples a checkpoint or reference may be continued with (every cvtrace
+/// crate has the workspace's version).
 const VERSION: &str = env!("CARGO_PKG_VERSION");
 
 /// `sum.R.w0` … `sum.B.w7`: piece `piece` (bits `16·piece` to `16·piece + 15`) of the exact sum
 /// of colour channel `c` ([`crate::exact`]); R, G, B hold the mean so far for viewing.
 pub fn sum_channel(c: usize, piece: usize) -> String {
-    crate::exact::piece_channel(&format!("sum.{}", ["R", "G", "B"][c]), piece)
+    exact::piece_channel(&format!("sum.{}", ["R", "G", "B"][c]), piece)
 }
 
 /// `cbox.ref.exr` → `cbox.ref.checkpoint.exr` (other names get `.checkpoint.exr` appended).
@@ -33,36 +47,35 @@ pub fn checkpoint_path(output: &Path) -> PathBuf {
 
 /// Writes `accum` to `path` atomically, recording `provenance` without its counts (the
 /// progress is `cvtrace.samplesDone`).
-pub fn save(path: &Path, accum: &ReferenceAccum, provenance: &Provenance) -> Result<(), RenderError> {
+pub fn save(path: &Path, accum: &ReferenceAccum, provenance: &Provenance) -> Result<(), StreamError> {
     let (w, h) = (accum.width as usize, accum.height as usize);
     let mut ch = ExrChannels::new(w, h);
     let mean = accum.mean();
     for (c, name) in ["R", "G", "B"].iter().enumerate() {
         ch.insert(*name, mean.channel(c));
     }
-    crate::exact::insert_sums3(&mut ch, "sum.", ["R", "G", "B"], &accum.sum);
+    exact::insert_sums3(&mut ch, "sum.", ["R", "G", "B"], &accum.sum);
     provenance.without_counts().write_to(&mut ch.attributes);
     ch.attributes.insert(KIND_ATTR.into(), AttrValue::Text(KIND.into()));
     ch.attributes.insert(ATTR_SAMPLES_DONE.into(), AttrValue::Int(accum.samples_done as i32));
     ch.attributes.insert(ATTR_NON_FINITE.into(), AttrValue::Text(accum.non_finite_samples.to_string()));
-    ch.write(path, true)?;
-    Ok(())
+    ch.write(path, true)
 }
 
 /// The accumulator saved at `path` for the render `planned` with settings `s`; `None` if there
 /// is no checkpoint. A checkpoint of another render (any difference in `planned`'s fields but
 /// the counts), of another cvtrace version, or one that does not read is an error that says
 /// to delete it.
-pub fn load(path: &Path, planned: &Provenance, s: &RenderSettings) -> Result<Option<ReferenceAccum>, RenderError> {
+pub fn load(path: &Path, planned: &Provenance, s: &ReferenceSettings) -> Result<Option<ReferenceAccum>, CheckpointError> {
     if !path.exists() {
         return Ok(None);
     }
     // Whatever is wrong with it, the way out is the same.
-    read(path, planned, s).map(Some).map_err(|e| RenderError::Checkpoint(e.to_string()))
+    read(path, planned, s).map(Some).map_err(|e| CheckpointError::Unusable(e.to_string()))
 }
 
-fn read(path: &Path, planned: &Provenance, s: &RenderSettings) -> Result<ReferenceAccum, RenderError> {
-    let invalid = |m: String| RenderError::from(StreamError::invalid(path, m));
+fn read(path: &Path, planned: &Provenance, s: &ReferenceSettings) -> Result<ReferenceAccum, StreamError> {
+    let invalid = |m: String| StreamError::invalid(path, m);
     let mut ch = ExrChannels::read(path)?;
     if ch.attr(KIND_ATTR).map(AttrValue::as_text).as_deref() != Some(KIND) {
         return Err(invalid(format!("not a cvtrace {KIND} checkpoint")));
@@ -82,15 +95,15 @@ fn read(path: &Path, planned: &Provenance, s: &RenderSettings) -> Result<Referen
         _ => return Err(invalid(format!("checkpoint lacks a valid {ATTR_SAMPLES_DONE}"))),
     };
     let non_finite_samples = ch.attr(ATTR_NON_FINITE).and_then(|v| v.as_text().parse().ok()).unwrap_or(0);
-    let sum = crate::exact::take_sums3(&mut ch, path, "sum.", ["R", "G", "B"])?;
+    let sum = exact::take_sums3(&mut ch, path, "sum.", ["R", "G", "B"])?;
     Ok(ReferenceAccum { sum, samples_done, non_finite_samples, ..ReferenceAccum::new(s) })
 }
 
 /// The accumulator of the finished reference at `path`, to be extended to `s.spp` samples: its
 /// record must match `planned` (counts aside) and it must hold fewer samples. A reference that
 /// does not record its scene hash or camera is trusted, with a warning.
-pub fn load_finished(path: &Path, planned: &Provenance, s: &RenderSettings) -> Result<ReferenceAccum, RenderError> {
-    let invalid = |m: String| RenderError::from(StreamError::invalid(path, m));
+pub fn load_finished(path: &Path, planned: &Provenance, s: &ReferenceSettings) -> Result<ReferenceAccum, CheckpointError> {
+    let invalid = |m: String| CheckpointError::from(StreamError::invalid(path, m));
     let mut ch = ExrChannels::read(path)?;
     if ch.attr(KIND_ATTR).is_some() {
         return Err(invalid("this is a checkpoint, not a finished reference".into()));
@@ -123,7 +136,7 @@ pub fn load_finished(path: &Path, planned: &Provenance, s: &RenderSettings) -> R
 
 /// Another cvtrace version may draw other samples for the same settings: its sums are not
 /// continued.
-fn check_version(saved: &Provenance, path: &Path, what: &str) -> Result<(), RenderError> {
+fn check_version(saved: &Provenance, path: &Path, what: &str) -> Result<(), StreamError> {
     let version =
         saved.version.as_deref().ok_or_else(|| StreamError::invalid(path, format!("{what} lacks the attribute cvtrace.version")))?;
     if version != VERSION {
@@ -131,8 +144,7 @@ fn check_version(saved: &Provenance, path: &Path, what: &str) -> Result<(), Rend
         return Err(StreamError::invalid(
             path,
             format!("{what} written by cvtrace {version}, this is {VERSION}, whose samples may differ; {advice}"),
-        )
-        .into());
+        ));
     }
     Ok(())
 }
@@ -140,7 +152,7 @@ fn check_version(saved: &Provenance, path: &Path, what: &str) -> Result<(), Rend
 #[cfg(test)]
 mod tests {
     use super::*;
-    use cvtrace_streams::Image;
+    use crate::image::Image;
 
     #[test]
     fn checkpoint_sits_next_to_the_output() {
@@ -148,11 +160,11 @@ mod tests {
         assert_eq!(checkpoint_path(Path::new("ref")), Path::new("ref.checkpoint.exr"));
     }
 
-    fn settings() -> RenderSettings {
-        RenderSettings { width: 3, height: 2, spp: 8, batches: 1, seed: 9, max_depth: 4, rr_depth: 5 }
+    fn settings() -> ReferenceSettings {
+        ReferenceSettings { width: 3, height: 2, spp: 8, seed: 9, max_depth: 4, rr_depth: 5 }
     }
 
-    fn planned(s: &RenderSettings) -> Provenance {
+    fn planned(s: &ReferenceSettings) -> Provenance {
         Provenance {
             width: s.width,
             height: s.height,
@@ -204,10 +216,10 @@ mod tests {
         let s = settings();
         let mut attrs = Provenance { spp: Some(4), ..planned(&s) }.attributes();
         attrs.retain(|(k, _)| *k != "cvtrace.sceneHash");
-        cvtrace_streams::exr_io::write_rgb(&p, &Image::from_fn(3, 2, |x, _| [x as f32, 1.0, 2.0]), &attrs, false).unwrap();
+        crate::exr_io::write_rgb(&p, &Image::from_fn(3, 2, |x, _| [x as f32, 1.0, 2.0]), &attrs, false).unwrap();
         let a = load_finished(&p, &planned(&s), &s).unwrap();
-        assert_eq!((a.samples_done, a.sum[1][0]), (4, crate::exact::fixed(4.0)));
-        let few = RenderSettings { spp: 4, ..s.clone() };
+        assert_eq!((a.samples_done, a.sum[1][0]), (4, exact::fixed(4.0)));
+        let few = ReferenceSettings { spp: 4, ..s };
         let e = load_finished(&p, &planned(&few), &few).unwrap_err().to_string();
         assert!(e.contains("already holds 4 spp"), "{e}");
         let e = load_finished(&p, &Provenance { max_depth: Some(2), ..planned(&s) }, &s).unwrap_err().to_string();

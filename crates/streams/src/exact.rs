@@ -6,8 +6,8 @@
 //! Integer addition is: each sample is rounded once to a multiple of 2⁻⁴⁸ (its only rounding),
 //! and the sums of any split of the samples add up to the same integer. The format is in
 //! docs/stream-format.md ("Exact sums").
-use cvtrace_streams::exr_io::ExrChannels;
-use cvtrace_streams::StreamError;
+use crate::error::StreamError;
+use crate::exr_io::ExrChannels;
 use std::path::Path;
 
 /// Fraction bits of the fixed-point samples.
