@@ -373,7 +373,7 @@ fn parse_camera(s: &str) -> Result<CameraView> {
 /// Sample counts on the command line: 1 up to what a file records (an EXR `int`), with the
 /// range in clap's own error, and `-8` taken as the (refused) value it is rather than a flag.
 pub fn spp_parser() -> clap::builder::RangedI64ValueParser<u32> {
-    clap::value_parser!(u32).range(1..=cvtrace_render::render::MAX_SPP as i64)
+    clap::value_parser!(u32).range(1..=cvtrace_render::settings::MAX_SPP as i64)
 }
 
 #[cfg(test)]

@@ -15,7 +15,7 @@ use cvtrace::session::{Job, Progress, ReferenceJob};
 use cvtrace::study_source::RenderSource;
 use cvtrace_eval::results::ReferenceInfo;
 use cvtrace_eval::{table, Reference};
-use cvtrace_render::render::MAX_SPP;
+use cvtrace_render::settings::MAX_SPP;
 use cvtrace_streams::exr_io::{take_rgb, AttrValue, ExrChannels};
 use cvtrace_streams::provenance::describe_all;
 use cvtrace_streams::Provenance;

@@ -908,7 +908,7 @@ fn convert_image(data: &gltf::image::Data, srgb: bool) -> Result<Texture, String
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sidecar::RenderDefaults;
+    use crate::settings::RenderDefaults;
 
     fn base64(data: &[u8]) -> String {
         const T: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";

@@ -24,6 +24,7 @@ use crate::intersect::{Hit, Intersector, Ray};
 use crate::lights::ShadowEnd;
 use crate::sampler::{dims, SampleSampler};
 use crate::scene::Scene;
+use crate::settings::PathLimits;
 use glam::Vec3A;
 
 /// First-hit features of one sample (for denoising-style estimators).
@@ -36,13 +37,6 @@ pub struct FirstHit {
     pub normal: Vec3A,
     /// Distance from the camera; 0 for a miss.
     pub depth: f32,
-}
-
-/// Path-length limits (see the module doc).
-#[derive(Clone, Copy, Debug)]
-pub struct PathLimits {
-    pub max_depth: i32,
-    pub rr_depth: u32,
 }
 
 /// Balance of two densities by the power heuristic (β = 2), for the first one.

@@ -12,6 +12,7 @@
 //! progressive PT-only references. Nothing here depends on Embree.
 pub mod bsdf;
 pub mod camera;
+pub mod error;
 pub mod film;
 pub mod gltf_import;
 pub mod integrator;
@@ -22,6 +23,7 @@ pub mod render;
 pub mod sampler;
 pub mod scene;
 pub mod select;
+pub mod settings;
 pub mod sidecar;
 pub mod stream_file;
 pub mod testing;
@@ -30,10 +32,12 @@ pub mod vector;
 mod wavefront;
 
 pub use camera::Camera;
+pub use error::RenderError;
 pub use intersect::{Hit, Intersector, Ray};
 pub use lights::{Environment, Punctual};
 pub use material::Material;
-pub use render::{render_reference_pass, render_stream_part, render_streams, RenderError, RenderSettings, StreamRender};
+pub use render::{render_reference_pass, render_stream_part, render_streams, StreamRender};
 pub use scene::{Scene, SceneError, SceneParts};
-pub use sidecar::{Define, RenderDefaults, Sidecar};
+pub use settings::{RenderDefaults, RenderSettings};
+pub use sidecar::{Define, Sidecar};
 pub use texture::Texture;

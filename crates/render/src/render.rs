@@ -6,101 +6,25 @@
 //! mean and the stream mean are stored. The pixel filter is a box: a sample only counts in the
 //! pixel it was taken in.
 use crate::camera::CameraFrame;
+use crate::error::RenderError;
 use crate::film::{tiles, Tile, TileResult, TileStream, TILE_SIZE};
-use crate::integrator::{radiance_from_hit, FirstHit, PathContext, PathLimits};
+use crate::integrator::{radiance_from_hit, FirstHit, PathContext};
 use crate::intersect::{Hit, Intersector, Ray};
 use crate::sampler::{dims, SampleSampler, StreamKind, StreamSampler};
 use crate::scene::Scene;
+use crate::settings::{PathLimits, RenderSettings};
 use crate::wavefront::{SceneLanes, Wavefront};
 use cvtrace_streams::exact;
 use cvtrace_streams::parts::{StreamPart, StreamSums};
-use cvtrace_streams::reference::{ReferenceAccum, ReferenceSettings};
+use cvtrace_streams::reference::ReferenceAccum;
 use cvtrace_streams::{Image, StreamSet};
 use glam::{DVec3, Vec3A};
 use rayon::prelude::*;
 use std::ops::Range;
 
-/// Largest accepted image side.
-pub const MAX_IMAGE_SIDE: u32 = 16384;
-/// Most samples per pixel (per stream, or of a reference): the count is recorded as an EXR
-/// `int` (`cvtrace.spp`, a checkpoint's `cvtrace.samplesDone`), so larger ones would wrap.
-pub const MAX_SPP: u32 = i32::MAX as u32;
-/// Most batches per stream: the stream file numbers them with two digits (`pt.b00.` …
-/// `pt.b99.`, docs/stream-format.md). The estimators that use batches take at most 64.
-pub const MAX_BATCHES: u32 = 100;
-/// Largest Russian-roulette depth: a reference records it as an EXR `int` (`cvtrace.rrDepth`).
-pub const MAX_RR_DEPTH: u32 = i32::MAX as u32;
-
-/// What to render. `spp` is per stream; `max_depth` follows Mitsuba (−1 unlimited, see
-/// [`crate::integrator`]); Russian roulette starts at depth `rr_depth`.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct RenderSettings {
-    pub width: u32,
-    pub height: u32,
-    pub spp: u32,
-    pub batches: u32,
-    pub seed: u64,
-    pub max_depth: i32,
-    pub rr_depth: u32,
-}
-
-impl Default for RenderSettings {
-    fn default() -> Self {
-        RenderSettings { width: 512, height: 512, spp: 64, batches: 4, seed: 0, max_depth: -1, rr_depth: 5 }
-    }
-}
-
-/// Why a render could not run.
-#[derive(Debug, thiserror::Error)]
-pub enum RenderError {
-    #[error("invalid render settings: {0}")]
-    InvalidSettings(String),
-    #[error("the scene's camera is unusable: {0}")]
-    Camera(String),
-    #[error("reference accumulator does not match: {0}")]
-    ReferenceMismatch(String),
-    #[error(transparent)]
-    File(#[from] cvtrace_streams::StreamError),
-}
-
+/// The memory this driver's renders of these settings take (its tiles, bands and sums), for the
+/// check before a render starts.
 impl RenderSettings {
-    /// Checks image size, path-length limits and the batch split.
-    pub fn validate(&self) -> Result<(), RenderError> {
-        self.validate_image()?;
-        let bad = |m: String| Err(RenderError::InvalidSettings(m));
-        if self.spp == 0 {
-            return bad("spp must be at least 1".into());
-        }
-        if self.spp > MAX_SPP {
-            return bad(format!("spp {} is more than {MAX_SPP}, the largest sample count a file records", self.spp));
-        }
-        if self.batches == 0 {
-            return bad("batches must be at least 1".into());
-        }
-        if self.batches > MAX_BATCHES {
-            return bad(format!("batches {} is more than {MAX_BATCHES}, the most a stream file numbers (two digits)", self.batches));
-        }
-        if !self.spp.is_multiple_of(self.batches) {
-            return bad(format!("spp ({}) must be a multiple of batches ({})", self.spp, self.batches));
-        }
-        Ok(())
-    }
-
-    /// The checks that also apply to reference renders (which ignore `spp` and `batches`).
-    fn validate_image(&self) -> Result<(), RenderError> {
-        let bad = |m: String| Err(RenderError::InvalidSettings(m));
-        if self.width == 0 || self.height == 0 || self.width > MAX_IMAGE_SIDE || self.height > MAX_IMAGE_SIDE {
-            return bad(format!("image size {}x{} must be between 1 and {MAX_IMAGE_SIDE} on each side", self.width, self.height));
-        }
-        if self.max_depth < -1 || self.max_depth == 0 {
-            return bad(format!("max_depth {} must be -1 (unlimited) or at least 1", self.max_depth));
-        }
-        if self.rr_depth > MAX_RR_DEPTH {
-            return bad(format!("rr_depth {} is more than {MAX_RR_DEPTH}, the largest a file records", self.rr_depth));
-        }
-        Ok(())
-    }
-
     /// About the peak memory in bytes of a stream render of these settings, which goes into
     /// its file band by band ([`crate::stream_file`]): per pixel of a band (a row of tiles),
     /// its tile results, images, sums and file channels, measured as for the whole image at
@@ -116,22 +40,6 @@ impl RenderSettings {
     /// with `checkpoints` (more than one pass) the checkpoint's 27 planes and their copy as well.
     pub fn reference_memory_estimate(&self, checkpoints: bool) -> u64 {
         self.width as u64 * self.height as u64 * if checkpoints { 94 + 27 * 4 * 2 } else { 94 }
-    }
-
-    /// What a reference of these settings records with its sums (`batches` aside).
-    pub fn reference(&self) -> ReferenceSettings {
-        ReferenceSettings {
-            width: self.width,
-            height: self.height,
-            spp: self.spp,
-            seed: self.seed,
-            max_depth: self.max_depth,
-            rr_depth: self.rr_depth,
-        }
-    }
-
-    fn limits(&self) -> PathLimits {
-        PathLimits { max_depth: self.max_depth, rr_depth: self.rr_depth }
     }
 }
 

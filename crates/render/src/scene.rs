@@ -6,7 +6,7 @@
 use crate::camera::Camera;
 use crate::lights::{triangle_power, Environment, LightSet, Punctual};
 use crate::material::Material;
-use crate::sidecar::RenderDefaults;
+use crate::settings::RenderDefaults;
 use crate::texture::Texture;
 use glam::{Vec2, Vec3A};
 use std::path::{Path, PathBuf};

@@ -4,51 +4,12 @@
 //! otherwise be silently ignored), and every error names the sidecar file — TOML syntax and
 //! type errors also give the line.
 use crate::lights::Environment;
-use crate::render::MAX_IMAGE_SIDE;
 use crate::scene::SceneError;
+use crate::settings::RenderDefaults;
 use cvtrace_streams::input_file::{regular_file, NotAFile};
 use glam::Vec3A;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
-
-/// Render settings a scene asks for; command-line flags override them. `None` = not given.
-#[derive(Clone, Debug, Default, PartialEq, Eq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct RenderDefaults {
-    pub width: Option<u32>,
-    pub height: Option<u32>,
-    /// Samples per pixel of each stream of `cvtrace render`.
-    pub spp: Option<u32>,
-    /// Mitsuba's convention: −1 unlimited, else at least 1.
-    pub max_depth: Option<i32>,
-    pub rr_depth: Option<u32>,
-    /// Samples per pixel of reference renders (`render --reference`, `study`).
-    pub reference_spp: Option<u32>,
-}
-
-impl RenderDefaults {
-    /// Checks ranges; messages name the key.
-    pub fn validate(&self) -> Result<(), String> {
-        for (key, v) in [("width", self.width), ("height", self.height)] {
-            if let Some(v) = v {
-                if v == 0 || v > MAX_IMAGE_SIDE {
-                    return Err(format!("[render] {key} = {v}: must be between 1 and {MAX_IMAGE_SIDE}"));
-                }
-            }
-        }
-        for (key, v) in [("spp", self.spp), ("reference_spp", self.reference_spp)] {
-            if v == Some(0) {
-                return Err(format!("[render] {key} = 0: must be at least 1"));
-            }
-        }
-        if let Some(d) = self.max_depth {
-            if d < -1 || d == 0 {
-                return Err(format!("[render] max_depth = {d}: must be -1 (unlimited) or at least 1"));
-            }
-        }
-        Ok(())
-    }
-}
 
 /// The `[environment]` table.
 #[derive(Clone, Debug, Default, PartialEq, Deserialize)]

@@ -7,8 +7,9 @@
 //! the code that writes a whole file ([`cvtrace_streams::parts::stream_file_exr`],
 //! [`StreamPart::to_exr`]), is compressed while the next band renders, written, and dropped.
 //! The file is the one the whole-image writers make, byte for byte.
+use crate::error::RenderError;
 use crate::intersect::Intersector;
-use crate::render::{RenderError, StreamRender};
+use crate::render::StreamRender;
 use cvtrace_streams::block_writer::{write_by_blocks, BlockSink, ExrLayout, Late};
 use cvtrace_streams::exr_io::{AttrValue, ExrChannels};
 use cvtrace_streams::parts::{stream_file_exr, PartSpec, StreamPart};

@@ -3,11 +3,12 @@
 //! scenes (a Cornell-style box, a closed furnace box, a plane for light tests) and a
 //! radiance estimator along one ray.
 use crate::camera::Camera;
-use crate::integrator::{radiance, PathLimits};
+use crate::integrator::radiance;
 use crate::intersect::{Hit, Intersector, Ray};
 use crate::material::Material;
 use crate::sampler::{StreamKind, StreamSampler};
 use crate::scene::{Scene, SceneParts};
+use crate::settings::PathLimits;
 use glam::{DVec3, Vec3A};
 
 /// Tests every triangle for every ray: O(n) per ray, exact and obviously correct.

@@ -325,9 +325,10 @@ fn classify(ctx: &PathContext, lanes: &SceneLanes, ch: &mut Chunk, blocks: &mut 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::integrator::{radiance_from_hit, PathLimits};
+    use crate::integrator::radiance_from_hit;
     use crate::sampler::{StreamKind, StreamSampler};
     use crate::scene::Scene;
+    use crate::settings::PathLimits;
     use crate::testing::{cornell_box, cornell_box_parts, materials_box, BruteForce};
 
     /// The Cornell box with vertex normals: bent ones, some facing away from the geometry
