@@ -1,5 +1,5 @@
 //! A pinhole perspective camera and its primary rays.
-use crate::intersect::Ray;
+use crate::intersect::{Ray, MAX_COORDINATE};
 use crate::vector::unit;
 use glam::{Vec2, Vec3A};
 
@@ -30,7 +30,7 @@ impl Camera {
         if !(self.eye.is_finite() && self.target.is_finite() && self.up.is_finite()) {
             return Err("camera position, target or up vector is not finite".into());
         }
-        let far = crate::scene::MAX_COORDINATE;
+        let far = MAX_COORDINATE;
         if self.eye.abs().max_element() > far || self.target.abs().max_element() > far {
             return Err(format!("camera position or target is farther than {far:e} from the origin"));
         }
@@ -92,6 +92,15 @@ impl CameraFrame {
         let dir = unit(self.forward + self.right * sx + self.up * sy);
         Ray { origin: self.eye, dir, tmin: 0.0, tmax: f32::INFINITY }
     }
+}
+
+/// A camera looking at the bounds' centre from +Z (glTF's "front"), framing the bounding sphere.
+pub fn default_camera(lo: Vec3A, hi: Vec3A) -> Camera {
+    let centre = (lo + hi) * 0.5;
+    let radius = ((hi - lo).length() * 0.5).max(1e-3);
+    let vfov: f32 = 45.0;
+    let dist = radius / (vfov.to_radians() * 0.5).sin() * 1.05;
+    Camera { eye: centre + Vec3A::Z * dist, target: centre, up: Vec3A::Y, vfov_deg: vfov, width: 512, height: 512 }
 }
 
 #[cfg(test)]

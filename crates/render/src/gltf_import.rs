@@ -15,11 +15,11 @@
 //! rather than a guess: accessor types other than those above, factors outside their ranges,
 //! an invalid camera, a node with two parents. Every error names the file (and the light,
 //! camera or material).
-use crate::camera::Camera;
+use crate::camera::{default_camera, Camera};
 use crate::lights::Punctual;
 use crate::material::Material;
-use crate::scene::{default_camera, Scene, SceneError, SceneParts};
-use crate::sidecar::{sidecar_path, Define, Sidecar};
+use crate::scene::{Scene, SceneError, SceneParts};
+use crate::sidecar::{check_define_keys, sidecar_path, Define, Sidecar};
 use crate::texture::{srgb_to_linear, Texture};
 use cvtrace_streams::input_file::{regular_file, NotAFile};
 use glam::{Mat3, Mat4, Vec2, Vec3A};
@@ -38,9 +38,22 @@ pub const SUPPORTED_EXTENSIONS: &[&str] = &[
 /// Node hierarchies deeper than this are treated as cyclic (the spec forbids cycles).
 const MAX_NODE_DEPTH: usize = 1024;
 
+// Loading is the importer's: the scene itself only checks and holds what it is given.
+impl Scene {
+    /// Loads a glTF 2.0 scene (`.gltf` with external or embedded buffers, or `.glb`).
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        load(path, &[])
+    }
+
+    /// As [`Scene::load`], with `-D` overrides of the sidecar's settings.
+    pub fn load_with(path: &Path, defines: &[Define]) -> Result<Scene, SceneError> {
+        load(path, defines)
+    }
+}
+
 /// Loads `path` (.gltf or .glb), its sidecar with `defines` applied.
 pub fn load(path: &Path, defines: &[Define]) -> Result<Scene, SceneError> {
-    crate::sidecar::check_define_keys(defines)?;
+    check_define_keys(defines)?;
     require_regular_file(path, path)?;
     let bytes = std::fs::read(path).map_err(|e| SceneError::Io { path: path.to_path_buf(), error: e })?;
     let malformed = |e: gltf::Error| SceneError::Malformed { path: path.to_path_buf(), message: e.to_string() };

@@ -21,7 +21,7 @@
 //! CRN paths of neighbouring pixels make the same decisions at the same depths.
 use crate::bsdf::{Bsdf, SampleDraw};
 use crate::intersect::{Hit, Intersector, Ray};
-use crate::lights::ShadowEnd;
+use crate::light_sample::ShadowEnd;
 use crate::sampler::{dims, SampleSampler};
 use crate::scene::Scene;
 use crate::settings::PathLimits;
@@ -203,7 +203,7 @@ impl<'a> PathContext<'a> {
         }
 
         let wo = -ray.dir;
-        let bsdf = material.bsdf_at(textures, sp.uv, sp.ns, sp.ng, wo);
+        let bsdf = Bsdf::at(material, textures, sp.uv, sp.ns, sp.ng, wo);
         let vertex = path.depth - 1;
         // The continuation's random numbers, drawn before the shadow ray (see `SampleDraw`).
         let u_choice = if bsdf.has_glass() { sampler.get1d(dims::at(vertex, dims::DIELECTRIC_CHOICE)) } else { 0.0 };

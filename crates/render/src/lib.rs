@@ -14,9 +14,13 @@ pub mod bsdf;
 pub mod camera;
 pub mod error;
 pub mod film;
+mod fingerprint;
 pub mod gltf_import;
 pub mod integrator;
 pub mod intersect;
+pub mod light_sample;
+#[cfg(test)]
+mod light_tests;
 pub mod lights;
 pub mod material;
 pub mod render;

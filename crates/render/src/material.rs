@@ -1,6 +1,5 @@
 //! Materials as loaded from glTF 2.0 (metallic-roughness + the KHR extensions cvtrace reads),
 //! kept in a flat `Vec` indexed by the per-triangle material id.
-use crate::bsdf::{Bsdf, PbrParams};
 use crate::texture::Texture;
 use glam::{Vec2, Vec3A};
 
@@ -77,21 +76,10 @@ impl Material {
 
     /// True if the material is its diffuse lobe alone at every texel: no metal, transmission or
     /// specular layer (textures only scale metallic, so they cannot add one). Its BSDF is then
-    /// [`Bsdf::diffuse`] of the base colour, which skips resolving the other parameters.
+    /// `Bsdf::diffuse` of the base colour, which skips resolving the other parameters.
     #[inline]
     pub fn is_diffuse_only(&self) -> bool {
-        crate::bsdf::pbr::is_diffuse_only(self.metallic, self.transmission, self.specular)
-    }
-
-    /// The BSDF at texture coordinate `uv` of a point with shading and geometric normals `ns`,
-    /// `ng`, seen from the unit direction `wo` (see [`Bsdf::new`]).
-    #[inline]
-    pub fn bsdf_at(&self, textures: &[Texture], uv: Vec2, ns: Vec3A, ng: Vec3A, wo: Vec3A) -> Bsdf {
-        if self.is_diffuse_only() {
-            Bsdf::diffuse(self.base_color_at(textures, uv), ns, ng, wo)
-        } else {
-            Bsdf::new(&self.params_at(textures, uv), ns, ng, wo)
-        }
+        is_diffuse_only(self.metallic, self.transmission, self.specular)
     }
 
     /// The BSDF parameters at texture coordinate `uv`.
@@ -143,6 +131,42 @@ impl Material {
             None => self.emission,
         }
     }
+}
+
+/// Material parameters resolved at a surface point (textures already applied).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PbrParams {
+    pub base_color: Vec3A,
+    pub metallic: f32,
+    pub roughness: f32,
+    /// `KHR_materials_specular` specularFactor (1 by default, 0 = no specular layer).
+    pub specular: f32,
+    pub specular_color: Vec3A,
+    /// `KHR_materials_transmission` transmissionFactor.
+    pub transmission: f32,
+    /// `KHR_materials_ior` (1.5 by default).
+    pub ior: f32,
+}
+
+impl Default for PbrParams {
+    fn default() -> Self {
+        PbrParams {
+            base_color: Vec3A::ONE,
+            metallic: 0.0,
+            roughness: 1.0,
+            specular: 1.0,
+            specular_color: Vec3A::ONE,
+            transmission: 0.0,
+            ior: 1.5,
+        }
+    }
+}
+
+/// True if these glTF factors leave the diffuse lobe alone: no metal, no transmission, no
+/// specular layer (each clamped to [0, 1] as the model uses it).
+#[inline]
+pub fn is_diffuse_only(metallic: f32, transmission: f32, specular: f32) -> bool {
+    metallic.clamp(0.0, 1.0) == 0.0 && transmission.clamp(0.0, 1.0) == 0.0 && specular.clamp(0.0, 1.0) == 0.0
 }
 
 #[cfg(test)]

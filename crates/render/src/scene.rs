@@ -3,7 +3,9 @@
 //! the light distribution over every emitter (emissive triangles, punctual lights, the
 //! environment), the camera and the render defaults of the scene's sidecar file.
 //! `Hit.prim` indexes [`Scene::triangles`].
-use crate::camera::Camera;
+use crate::camera::{default_camera, Camera};
+use crate::fingerprint::Canonical;
+use crate::intersect::MAX_COORDINATE;
 use crate::lights::{triangle_power, Environment, LightSet, Punctual};
 use crate::material::Material;
 use crate::settings::RenderDefaults;
@@ -92,23 +94,7 @@ pub struct Scene {
 
 const MEMORY: &str = "<memory>";
 
-/// Largest coordinate magnitude a scene, camera or light may have. Embree refuses (and its
-/// debug checks abort on) ray origins and directions beyond about 1.8e18; spawned rays add up
-/// to twice the scene's extent, so the bound leaves a wide margin while allowing any real scene
-/// (the Earth's orbit is 1.5e11 m).
-pub const MAX_COORDINATE: f32 = 1e15;
-
 impl Scene {
-    /// Loads a glTF 2.0 scene (`.gltf` with external or embedded buffers, or `.glb`).
-    pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        crate::gltf_import::load(path, &[])
-    }
-
-    /// As [`Scene::load`], with `-D` overrides of the sidecar's settings.
-    pub fn load_with(path: &Path, defines: &[crate::sidecar::Define]) -> Result<Scene, SceneError> {
-        crate::gltf_import::load(path, defines)
-    }
-
     /// Builds a scene from flat arrays, checking every index.
     pub fn from_parts(parts: SceneParts) -> Result<Scene, SceneError> {
         Scene::from_parts_named(parts, Path::new(MEMORY))
@@ -346,7 +332,7 @@ impl Scene {
     /// with their lengths, enums by a fixed tag) hashed with BLAKE3: no formatting of types,
     /// so a new glam or Rust cannot change it. It reads the arrays in place.
     pub fn fingerprint(&self) -> String {
-        let mut h = Canonical(blake3::Hasher::new());
+        let mut h = Canonical::new();
         h.bytes(b"cvtrace scene fingerprint 3");
         h.array(self.positions.len(), |h| h.floats(self.positions.iter().flat_map(|p| p.to_array())));
         h.array(self.triangles.len(), |h| self.triangles.iter().flatten().for_each(|&i| h.word(i as u64)));
@@ -411,53 +397,10 @@ impl Scene {
         h.floats([c.vfov_deg]);
         h.word(c.width as u64);
         h.word(c.height as u64);
-        let digest = h.0.finalize();
+        let digest = h.finalize();
         let first: [u8; 8] = digest.as_bytes()[..8].try_into().expect("a BLAKE3 digest has 32 bytes");
         format!("{FINGERPRINT_VERSION}:{:016x}", u64::from_be_bytes(first))
     }
-}
-
-/// The canonical serialisation the fingerprint hashes.
-pub(crate) struct Canonical(blake3::Hasher);
-
-impl Canonical {
-    fn bytes(&mut self, b: &[u8]) {
-        self.word(b.len() as u64);
-        self.0.update(b);
-    }
-
-    pub(crate) fn word(&mut self, w: u64) {
-        self.0.update(&w.to_le_bytes());
-    }
-
-    pub(crate) fn floats(&mut self, fs: impl IntoIterator<Item = f32>) {
-        for f in fs {
-            self.0.update(&f.to_bits().to_le_bytes());
-        }
-    }
-
-    pub(crate) fn vec(&mut self, v: Vec3A) {
-        self.floats(v.to_array());
-    }
-
-    /// `len` first, so that data cannot move between arrays unnoticed.
-    fn array(&mut self, len: usize, items: impl FnOnce(&mut Self)) {
-        self.word(len as u64);
-        items(self);
-    }
-
-    fn texture(&mut self, t: Option<u32>) {
-        self.word(t.map_or(0, |i| i as u64 + 1));
-    }
-}
-
-/// A camera looking at the bounds' centre from +Z (glTF's "front"), framing the bounding sphere.
-pub fn default_camera(lo: Vec3A, hi: Vec3A) -> Camera {
-    let centre = (lo + hi) * 0.5;
-    let radius = ((hi - lo).length() * 0.5).max(1e-3);
-    let vfov: f32 = 45.0;
-    let dist = radius / (vfov.to_radians() * 0.5).sin() * 1.05;
-    Camera { eye: centre + Vec3A::Z * dist, target: centre, up: Vec3A::Y, vfov_deg: vfov, width: 512, height: 512 }
 }
 
 #[cfg(test)]

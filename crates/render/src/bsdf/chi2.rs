@@ -13,7 +13,8 @@
 use super::dielectric::Dielectric;
 use super::ggx::Ggx;
 use super::microfacet::MicrofacetReflection;
-use super::pbr::{Bsdf, PbrParams};
+use super::pbr::Bsdf;
+use crate::material::PbrParams;
 use crate::sampler::{StreamKind, StreamSampler};
 use glam::{Vec2, Vec3A};
 use std::f64::consts::PI;

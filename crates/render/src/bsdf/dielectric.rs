@@ -8,9 +8,9 @@
 //! glTF's `KHR_materials_transmission` without `KHR_materials_volume` is defined as thin-walled;
 //! cvtrace instead treats closed transmissive meshes as solid glass with `KHR_materials_ior`
 //! (default 1.5), which is what glass scenes are modelled for.
+use super::frame::reflect;
 use super::fresnel::{dielectric as fresnel, refract};
 use super::ggx::{Ggx, MIN_ALPHA};
-use super::reflect;
 use crate::vector::unit;
 use glam::{Vec2, Vec3A};
 

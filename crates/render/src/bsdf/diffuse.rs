@@ -3,8 +3,8 @@
 //! out with the same arithmetic, so images are the same bit for bit; it only skips what that
 //! lobe does not need (lobe choice, Fresnel, the other lobes' state), which matters because
 //! every vertex of such a scene builds, evaluates and samples one.
-use super::pbr::{BsdfSample, SampleDraw};
-use super::Frame;
+use super::frame::Frame;
+use super::sample::{BsdfSample, SampleDraw};
 use glam::Vec3A;
 use std::f32::consts::FRAC_1_PI;
 
@@ -67,41 +67,5 @@ impl Diffuse {
             return None;
         }
         Some(BsdfSample { wi, weight: self.albedo, pdf: wi_l.z.abs() * FRAC_1_PI, delta: false, eta: 1.0 })
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::super::lambert;
-    use super::super::pbr::{Bsdf, PbrParams};
-    use super::*;
-
-    #[test]
-    fn the_diffuse_bsdf_agrees_with_the_pbr_model_without_specular() {
-        // The same white Lambertian built by the general mixture (through its diffuse lobe
-        // only, with the specular layer's weight at zero) and by `Diffuse` must agree exactly.
-        use crate::sampler::{StreamKind, StreamSampler};
-        let st = StreamSampler::new(11, StreamKind::Pt);
-        let params = PbrParams { base_color: Vec3A::new(0.8, 0.5, 0.2), specular: 0.0, ..Default::default() };
-        for i in 0..2000 {
-            let s = st.sample(0, i);
-            let unit = |u: glam::Vec2| lambert::sample(u) * if s.get1d(9) < 0.5 { 1.0 } else { -1.0 };
-            let (ns, wo, wi) = (crate::vector::unit(unit(s.get2d(0)) + Vec3A::Z * 0.3), unit(s.get2d(2)), unit(s.get2d(4)));
-            let Bsdf::Diffuse(d) = Bsdf::new(&params, ns, ns, wo) else { panic!("not the diffuse BSDF") };
-            let m = Bsdf::mixture(&params, ns, ns, wo);
-            assert_eq!(d.eval_pdf(wi), m.eval_pdf(wi), "eval at {wi}");
-            // Sampling: the same direction and weight; the mixture's density comes back from
-            // `eval_pdf` through the frame, so it may differ in the last bits.
-            let draw = SampleDraw::new(0.5, s.get2d(6), 0.0);
-            match (d.sample_drawn(&draw), m.sample_drawn(&draw)) {
-                (Some(a), Some(b)) => {
-                    assert_eq!(a.wi, b.wi);
-                    // Densities are at most 1/π: an absolute bound.
-                    assert!((a.pdf - b.pdf).abs() <= 1e-6 && (a.weight - b.weight).abs().max_element() <= 1e-5, "{a:?} vs {b:?}");
-                }
-                (None, None) => {}
-                (a, b) => panic!("{a:?} vs {b:?}"),
-            }
-        }
     }
 }

@@ -1,7 +1,7 @@
 //! GGX microfacet reflection with Schlick Fresnel: glTF's specular layer and its metals.
+use super::frame::reflect;
 use super::fresnel::schlick;
 use super::ggx::Ggx;
-use super::reflect;
 use crate::vector::unit;
 use glam::{Vec2, Vec3A};
 

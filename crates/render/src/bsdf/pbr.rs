@@ -18,74 +18,15 @@
 //! glass distinguishes inside from outside by the geometric normal's orientation (winding).
 use super::dielectric::Dielectric;
 use super::diffuse::Diffuse;
+use super::frame::Frame;
 use super::ggx::Ggx;
+use super::lambert;
 use super::microfacet::MicrofacetReflection;
-use super::{lambert, luminance, Frame};
+use super::sample::{BsdfSample, SampleDraw};
+use crate::material::{is_diffuse_only, Material, PbrParams};
+use crate::texture::Texture;
+use crate::vector::luminance;
 use glam::{Vec2, Vec3A};
-
-/// Material parameters resolved at a surface point (textures already applied).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PbrParams {
-    pub base_color: Vec3A,
-    pub metallic: f32,
-    pub roughness: f32,
-    /// `KHR_materials_specular` specularFactor (1 by default, 0 = no specular layer).
-    pub specular: f32,
-    pub specular_color: Vec3A,
-    /// `KHR_materials_transmission` transmissionFactor.
-    pub transmission: f32,
-    /// `KHR_materials_ior` (1.5 by default).
-    pub ior: f32,
-}
-
-impl Default for PbrParams {
-    fn default() -> Self {
-        PbrParams {
-            base_color: Vec3A::ONE,
-            metallic: 0.0,
-            roughness: 1.0,
-            specular: 1.0,
-            specular_color: Vec3A::ONE,
-            transmission: 0.0,
-            ior: 1.5,
-        }
-    }
-}
-
-/// A sampled direction with its Monte Carlo weight.
-#[derive(Clone, Copy, Debug)]
-pub struct BsdfSample {
-    /// World-space direction (unit).
-    pub wi: Vec3A,
-    /// `f · |cos θi| / pdf`.
-    pub weight: Vec3A,
-    /// Solid-angle density of the non-delta lobes at `wi` (0 for a delta sample).
-    pub pdf: f32,
-    /// Sampled from a delta lobe: the next emitter hit must not be MIS-weighted.
-    pub delta: bool,
-    /// Relative index crossed (η_t/η_i), 1 unless refracted.
-    pub eta: f32,
-}
-
-/// The random numbers of one BSDF sample, and the cosine-weighted local direction they give.
-/// It depends on nothing at the surface, so the integrator works it out before tracing the
-/// shadow ray: its division, polynomial and square root then overlap that work instead of
-/// lying between one ray and the next.
-#[derive(Clone, Copy, Debug)]
-pub struct SampleDraw {
-    pub u_lobe: f32,
-    pub u: Vec2,
-    pub u_choice: f32,
-    /// `lambert::sample(u)`.
-    pub cosine: Vec3A,
-}
-
-impl SampleDraw {
-    #[inline]
-    pub fn new(u_lobe: f32, u: Vec2, u_choice: f32) -> SampleDraw {
-        SampleDraw { u_lobe, u, u_choice, cosine: lambert::sample(u) }
-    }
-}
 
 /// The BSDF at one surface point for one outgoing direction: the glTF model, as its diffuse
 /// lobe alone when that is all a material has (the common case, made cheap), else as the
@@ -104,6 +45,17 @@ impl Bsdf {
             return Bsdf::diffuse(params.base_color, ns, ng, wo);
         }
         Bsdf::Mixture(Mixture::new(params, shading_frame(ns, ng, wo), ng, wo))
+    }
+
+    /// The BSDF of `material` at texture coordinate `uv` of a point with shading and geometric
+    /// normals `ns`, `ng`, seen from the unit direction `wo` (see [`Bsdf::new`]).
+    #[inline]
+    pub fn at(material: &Material, textures: &[Texture], uv: Vec2, ns: Vec3A, ng: Vec3A, wo: Vec3A) -> Bsdf {
+        if material.is_diffuse_only() {
+            Bsdf::diffuse(material.base_color_at(textures, uv), ns, ng, wo)
+        } else {
+            Bsdf::new(&material.params_at(textures, uv), ns, ng, wo)
+        }
     }
 
     /// The BSDF of a purely diffuse material with base colour `base` (see [`Bsdf::new`]).
@@ -173,13 +125,6 @@ impl Bsdf {
             Bsdf::Mixture(m) => m.sample_drawn(draw),
         }
     }
-}
-
-/// True if these glTF factors leave the diffuse lobe alone: no metal, no transmission, no
-/// specular layer (each clamped to [0, 1] as the model uses it).
-#[inline]
-pub fn is_diffuse_only(metallic: f32, transmission: f32, specular: f32) -> bool {
-    metallic.clamp(0.0, 1.0) == 0.0 && transmission.clamp(0.0, 1.0) == 0.0 && specular.clamp(0.0, 1.0) == 0.0
 }
 
 /// The frame around the shading normal `ns`, or around `ng` where `ns` would put `wo` on the
@@ -658,5 +603,33 @@ mod tests {
         // Specular layer off and metallic 0 with black base: a black BSDF samples nothing.
         let black = PbrParams { base_color: Vec3A::ZERO, ..params(0.0, 1.0, 0.0, 0.0) };
         assert!(Bsdf::new(&black, Vec3A::Z, Vec3A::Z, wo_at(0.5)).sample(0.5, glam::Vec2::splat(0.5), 0.5).is_none());
+    }
+
+    #[test]
+    fn the_diffuse_bsdf_agrees_with_the_pbr_model_without_specular() {
+        // The same white Lambertian built by the general mixture (through its diffuse lobe
+        // only, with the specular layer's weight at zero) and by `Diffuse` must agree exactly.
+        let st = StreamSampler::new(11, StreamKind::Pt);
+        let params = PbrParams { base_color: Vec3A::new(0.8, 0.5, 0.2), specular: 0.0, ..Default::default() };
+        for i in 0..2000 {
+            let s = st.sample(0, i);
+            let unit = |u: glam::Vec2| lambert::sample(u) * if s.get1d(9) < 0.5 { 1.0 } else { -1.0 };
+            let (ns, wo, wi) = (crate::vector::unit(unit(s.get2d(0)) + Vec3A::Z * 0.3), unit(s.get2d(2)), unit(s.get2d(4)));
+            let Bsdf::Diffuse(d) = Bsdf::new(&params, ns, ns, wo) else { panic!("not the diffuse BSDF") };
+            let m = Bsdf::mixture(&params, ns, ns, wo);
+            assert_eq!(d.eval_pdf(wi), m.eval_pdf(wi), "eval at {wi}");
+            // Sampling: the same direction and weight; the mixture's density comes back from
+            // `eval_pdf` through the frame, so it may differ in the last bits.
+            let draw = SampleDraw::new(0.5, s.get2d(6), 0.0);
+            match (d.sample_drawn(&draw), m.sample_drawn(&draw)) {
+                (Some(a), Some(b)) => {
+                    assert_eq!(a.wi, b.wi);
+                    // Densities are at most 1/π: an absolute bound.
+                    assert!((a.pdf - b.pdf).abs() <= 1e-6 && (a.weight - b.weight).abs().max_element() <= 1e-5, "{a:?} vs {b:?}");
+                }
+                (None, None) => {}
+                (a, b) => panic!("{a:?} vs {b:?}"),
+            }
+        }
     }
 }

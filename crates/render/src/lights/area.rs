@@ -3,7 +3,7 @@
 //!
 //! Emitters are one-sided: they emit from the front face, i.e. the side the geometric normal
 //! `(p1 − p0) × (p2 − p0)` points to (counter-clockwise winding, as glTF specifies).
-use crate::bsdf::luminance;
+use crate::vector::luminance;
 use glam::{Vec2, Vec3A};
 
 /// Power of a triangle as a light: luminance of its mean emission times its area.

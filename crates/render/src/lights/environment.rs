@@ -15,7 +15,8 @@
 //! surface normal, needs nothing from the shading point, so it keeps `LIGHT_POS` meaning the
 //! same direction for every CRN pixel.
 use super::distribution::Distribution2D;
-use crate::bsdf::luminance;
+use crate::fingerprint::Canonical;
+use crate::vector::luminance;
 use cvtrace_streams::Image;
 use glam::{Mat3, Vec2, Vec3A};
 use std::f32::consts::PI;
@@ -67,7 +68,7 @@ impl std::fmt::Debug for LatLong {
 impl Environment {
     /// Feeds everything that decides the radiance to the scene fingerprint: the kind, the
     /// colour or the map's size and texels (bit patterns), and the rotation.
-    pub(crate) fn fingerprint_into(&self, h: &mut crate::scene::Canonical) {
+    pub(crate) fn fingerprint_into(&self, h: &mut Canonical) {
         match &self.source {
             Source::Constant(c) => {
                 h.word(0);

@@ -5,7 +5,8 @@
 //! read 1:1 as linear-RGB radiometric ones): point and spot lights have radiant intensity
 //! `I = colour × intensity` (radiance arriving ∝ I/d², `range` ignored); a directional light
 //! gives irradiance `E = colour × intensity` on a surface facing it.
-use crate::bsdf::luminance;
+use crate::intersect::MAX_COORDINATE;
+use crate::vector::luminance;
 use glam::Vec3A;
 use std::f32::consts::FRAC_PI_2;
 
@@ -59,7 +60,7 @@ impl Punctual {
         if pos.is_some_and(|p| !p.is_finite()) {
             return Err("position is not finite".into());
         }
-        let far = crate::scene::MAX_COORDINATE;
+        let far = MAX_COORDINATE;
         if pos.is_some_and(|p| p.abs().max_element() > far) {
             return Err(format!("position is farther than {far:e} from the origin"));
         }

@@ -460,7 +460,7 @@ fn lane<const NORMALS: bool>(c: &mut Chunk, o: &mut Out, blk: &Blocks, draws: &D
     let lit = albedo.max_element() > 0.0;
     let cosine = cosine_direction(draws.bsdf[0][l], draws.bsdf[1][l]);
 
-    // Next-event estimation towards a point on the chosen triangle (`lights::sample_area`).
+    // Next-event estimation towards a point on the chosen triangle (`light_sample::sample_area`).
     let (lx, ly) = (draws.light[0][l], draws.light[1][l]);
     let su = lx.sqrt();
     let (ba, bb) = (su * (1.0 - ly), su * ly);

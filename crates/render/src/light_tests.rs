@@ -3,23 +3,24 @@
 //! estimates (checked to float precision); environment estimates are checked within 5
 //! standard errors of their own samples (fixed seeds), with the error bar also bounded so a
 //! broken estimator cannot hide behind huge variance.
-use super::*;
 use crate::bsdf::Bsdf;
 use crate::camera::Camera;
+use crate::lights::{Environment, Punctual};
 use crate::material::Material;
 use crate::render::render_streams;
 use crate::sampler::{dims, StreamKind, StreamSampler};
+use crate::scene::{Scene, SceneParts};
 use crate::settings::RenderSettings;
 use crate::testing::{add_box, add_quad, estimate_radiance, plane_parts, ray_through, BruteForce};
-use crate::Scene;
 use cvtrace_streams::Image;
+use glam::Vec3A;
 use std::f32::consts::PI;
 
 const RHO: f32 = 0.6;
 /// Camera position for looking at the plane.
 const EYE: Vec3A = Vec3A::new(0.2, 4.0, 1.0);
 
-fn scene_with(parts: crate::SceneParts) -> (Scene, BruteForce) {
+fn scene_with(parts: SceneParts) -> (Scene, BruteForce) {
     let scene = Scene::from_parts(parts).unwrap();
     let bf = BruteForce::new(&scene);
     (scene, bf)
@@ -236,7 +237,7 @@ fn a_constant_map_renders_like_the_constant_colour() {
 /// under a constant environment: a white furnace, so every pixel converges to the environment's
 /// radiance however many bounces a path needs.
 fn white_furnace(l_env: f32, sun: bool) -> Scene {
-    let mut parts = crate::SceneParts { materials: vec![Material::diffuse(Vec3A::ONE)], ..Default::default() };
+    let mut parts = SceneParts { materials: vec![Material::diffuse(Vec3A::ONE)], ..Default::default() };
     let v = Vec3A::new;
     add_quad(&mut parts, [v(-1., -1., 1.), v(1., -1., 1.), v(1., -1., -1.), v(-1., -1., -1.)], 0);
     add_quad(&mut parts, [v(-1., 1., -1.), v(1., 1., -1.), v(1., 1., 1.), v(-1., 1., 1.)], 0);
