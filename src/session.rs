@@ -9,7 +9,7 @@
 //! the built-in defaults. Every output is written atomically.
 use crate::embree::{set_flush_denormals, BuildOptions, Device, EmbreeError, EmbreeScene};
 use crate::throughput::PhaseClock;
-use cvtrace_render::stream_file::{render_to_file, Written};
+use cvtrace_render::film::stream_file::{render_to_file, Written};
 use cvtrace_render::{render_reference_pass, Camera, Define, RenderDefaults, RenderError, RenderSettings, Scene, SceneError, StreamRender};
 use cvtrace_streams::atomic::{check_extension, check_writable};
 use cvtrace_streams::checkpoint::{self, checkpoint_path, CheckpointError};

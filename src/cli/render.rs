@@ -120,7 +120,7 @@ impl ViewArgs {
 
     /// The camera override, traversal and `-D` overrides, for a [`RenderSession`].
     pub fn session_options(&self) -> Result<SessionOptions> {
-        cvtrace_render::sidecar::check_define_keys(&self.define)?;
+        cvtrace_render::scene::sidecar::check_define_keys(&self.define)?;
         Ok(SessionOptions {
             camera: self.camera.as_deref().map(parse_camera).transpose()?,
             traversal: self.traversal,

@@ -16,7 +16,7 @@ pub const MAX_BATCHES: u32 = 100;
 pub const MAX_RR_DEPTH: u32 = i32::MAX as u32;
 
 /// What to render. `spp` is per stream; `max_depth` follows Mitsuba (−1 unlimited, see
-/// [`crate::integrator`]); Russian roulette starts at depth `rr_depth`.
+/// [`crate::transport::integrator`]); Russian roulette starts at depth `rr_depth`.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct RenderSettings {
     pub width: u32,
@@ -91,7 +91,7 @@ impl RenderSettings {
 }
 
 /// Path-length limits: Mitsuba's `max_depth` (−1 unlimited) and the depth at which Russian
-/// roulette starts (see [`crate::integrator`]).
+/// roulette starts (see [`crate::transport::integrator`]).
 #[derive(Clone, Copy, Debug)]
 pub struct PathLimits {
     pub max_depth: i32,

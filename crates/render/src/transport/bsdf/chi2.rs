@@ -14,8 +14,8 @@ use super::dielectric::Dielectric;
 use super::ggx::Ggx;
 use super::microfacet::MicrofacetReflection;
 use super::pbr::Bsdf;
-use crate::material::PbrParams;
 use crate::sampler::{StreamKind, StreamSampler};
+use crate::scene::material::PbrParams;
 use glam::{Vec2, Vec3A};
 use std::f64::consts::PI;
 

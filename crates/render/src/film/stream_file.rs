@@ -8,8 +8,8 @@
 //! [`StreamPart::to_exr`]), is compressed while the next band renders, written, and dropped.
 //! The file is the one the whole-image writers make, byte for byte.
 use crate::error::RenderError;
+use crate::film::driver::StreamRender;
 use crate::intersect::Intersector;
-use crate::render::StreamRender;
 use cvtrace_streams::block_writer::{write_by_blocks, BlockSink, ExrLayout, Late};
 use cvtrace_streams::exr_io::{AttrValue, ExrChannels};
 use cvtrace_streams::parts::{stream_file_exr, PartSpec, StreamPart};
@@ -21,7 +21,7 @@ use std::time::{Duration, Instant};
 const ATTR_NON_FINITE: &str = "cvtrace.nonFiniteSamples";
 
 // A band (a row of tiles) must be whole blocks of the file, but for the image's last.
-const _: () = assert!((crate::film::TILE_SIZE as usize).is_multiple_of(cvtrace_streams::block_writer::ROWS_PER_BLOCK));
+const _: () = assert!((crate::film::tiles::TILE_SIZE as usize).is_multiple_of(cvtrace_streams::block_writer::ROWS_PER_BLOCK));
 
 /// What [`render_to_file`] did.
 #[derive(Clone, Copy, Debug)]

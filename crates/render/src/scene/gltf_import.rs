@@ -9,18 +9,19 @@
 //! ignored); the perspective camera of the first node (depth-first from the scene roots) that
 //! has one, with the resolution from `asset.extras.defaultResolution` if given, else 512 on the
 //! long side of the camera's aspect ratio. Then the sidecar `<stem>.cvtrace.toml`, if present,
-//! adds the environment light and the render defaults ([`crate::sidecar`]). Unsupported
+//! adds the environment light and the render defaults ([`crate::scene::sidecar`]). Unsupported
 //! *required* extensions are an error; other unsupported extensions, alpha modes, normal and
 //! occlusion textures are ignored with a warning. What the specification forbids is an error
 //! rather than a guess: accessor types other than those above, factors outside their ranges,
 //! an invalid camera, a node with two parents. Every error names the file (and the light,
 //! camera or material).
-use crate::camera::{default_camera, Camera};
-use crate::lights::Punctual;
-use crate::material::Material;
-use crate::scene::{Scene, SceneError, SceneParts};
-use crate::sidecar::{check_define_keys, sidecar_path, Define, Sidecar};
-use crate::texture::{srgb_to_linear, Texture};
+use crate::scene::camera::{default_camera, Camera};
+use crate::scene::error::SceneError;
+use crate::scene::lights::Punctual;
+use crate::scene::material::Material;
+use crate::scene::sidecar::{check_define_keys, sidecar_path, Define, Sidecar};
+use crate::scene::texture::{srgb_to_linear, Texture};
+use crate::scene::world::{Scene, SceneParts};
 use cvtrace_streams::input_file::{regular_file, NotAFile};
 use glam::{Mat3, Mat4, Vec2, Vec3A};
 use std::collections::HashMap;

@@ -1,7 +1,7 @@
 //! Unidirectional path tracing with next-event estimation, multiple importance sampling (power
 //! heuristic) between BSDF and light sampling, and Russian roulette.
 //!
-//! **Lights.** Each non-specular vertex samples one emitter from [`crate::lights::LightSet`]
+//! **Lights.** Each non-specular vertex samples one emitter from [`crate::scene::lights::LightSet`]
 //! (emissive triangles, punctual lights, the environment, chosen by power). Area lights and the
 //! environment are also found by BSDF sampling (a hit on an emitter's front, or a ray that
 //! escapes the scene), so both estimates are MIS-weighted; punctual lights are deltas reached
@@ -19,12 +19,12 @@
 //!
 //! Random numbers come from [`crate::sampler`] with a fixed block of dimensions per vertex, so
 //! CRN paths of neighbouring pixels make the same decisions at the same depths.
-use crate::bsdf::{Bsdf, SampleDraw};
 use crate::intersect::{Hit, Intersector, Ray};
-use crate::light_sample::ShadowEnd;
 use crate::sampler::{dims, SampleSampler};
-use crate::scene::Scene;
+use crate::scene::world::Scene;
 use crate::settings::PathLimits;
+use crate::transport::bsdf::{Bsdf, SampleDraw};
+use crate::transport::light_sample::ShadowEnd;
 use glam::Vec3A;
 
 /// First-hit features of one sample (for denoising-style estimators).

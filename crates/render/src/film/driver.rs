@@ -5,15 +5,15 @@
 //! of `spp / batches` samples (the same ranges in every pixel and both streams); each batch
 //! mean and the stream mean are stored. The pixel filter is a box: a sample only counts in the
 //! pixel it was taken in.
-use crate::camera::CameraFrame;
 use crate::error::RenderError;
-use crate::film::{tiles, Tile, TileResult, TileStream, TILE_SIZE};
-use crate::integrator::{radiance_from_hit, FirstHit, PathContext};
+use crate::film::tiles::{tiles, Tile, TileResult, TileStream, TILE_SIZE};
 use crate::intersect::{Hit, Intersector, Ray};
 use crate::sampler::{dims, SampleSampler, StreamKind, StreamSampler};
-use crate::scene::Scene;
+use crate::scene::camera::CameraFrame;
+use crate::scene::world::Scene;
 use crate::settings::{PathLimits, RenderSettings};
-use crate::wavefront::{SceneLanes, Wavefront};
+use crate::transport::integrator::{radiance_from_hit, FirstHit, PathContext};
+use crate::transport::wavefront::{SceneLanes, Wavefront};
 use cvtrace_streams::exact;
 use cvtrace_streams::parts::{StreamPart, StreamSums};
 use cvtrace_streams::reference::ReferenceAccum;
@@ -26,7 +26,7 @@ use std::ops::Range;
 /// check before a render starts.
 impl RenderSettings {
     /// About the peak memory in bytes of a stream render of these settings, which goes into
-    /// its file band by band ([`crate::stream_file`]): per pixel of a band (a row of tiles),
+    /// its file band by band ([`crate::film::stream_file`]): per pixel of a band (a row of tiles),
     /// its tile results, images, sums and file channels, measured as for the whole image at
     /// 45–52 bytes per pixel and RGB image plus the sums and, for a part, their 104 planes;
     /// for three bands (one compressing while the next renders, and the compressed blocks).
@@ -61,7 +61,7 @@ struct Context<'a, T: Intersector> {
 /// `Intersector::intersect_coherent`).
 const CAMERA_BATCH: usize = 64;
 
-/// Paths followed together (see [`crate::wavefront`]): whole camera batches, so that the
+/// Paths followed together (see [`crate::transport::wavefront`]): whole camera batches, so that the
 /// camera rays handed to the ray caster at once, and so their coherent batches, stay those
 /// of [`CAMERA_BATCH`] consecutive samples.
 const WAVE: usize = 4 * CAMERA_BATCH;
@@ -407,9 +407,9 @@ pub fn render_reference_pass<T: Intersector>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::film::PixelSums;
-    use crate::integrator::radiance;
+    use crate::film::tiles::PixelSums;
     use crate::testing::{cornell_box, BruteForce};
+    use crate::transport::integrator::radiance;
 
     /// Every stored value must be what rendering each sample on its own gives, bit for bit:
     /// camera rays go in batches that cross pixel and tile boundaries (20×12 pixels in 16-pixel

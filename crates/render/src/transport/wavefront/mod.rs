@@ -1,6 +1,6 @@
 //! Many paths at once, bounce by bounce: every live path's vertex is shaded, then every
 //! shadow ray is traced, then every continuation ray. Each path does exactly what
-//! [`crate::integrator::radiance_from_hit`] does with it (the same vertex, the same random
+//! [`crate::transport::integrator::radiance_from_hit`] does with it (the same vertex, the same random
 //! numbers, its radiance summed in the same order), so the result is the same bit for bit.
 //!
 //! Why: a vertex on its own is a chain of dependent steps between two calls into the ray
@@ -9,12 +9,12 @@
 //! vertex ([`lanes`]: a diffuse material, an emissive triangle as the light sample) runs on a
 //! whole chunk per instruction, reading and updating the paths where they are; every other
 //! vertex (glossy or glass materials, textures, punctual lights, the environment, escaped
-//! rays) takes the scalar [`crate::integrator::PathContext::vertex`].
+//! rays) takes the scalar [`crate::transport::integrator::PathContext::vertex`].
 mod lanes;
 
-use crate::integrator::{FirstHit, Path, PathContext};
 use crate::intersect::{Hit, Intersector, Ray};
 use crate::sampler::{dims, SampleSampler};
+use crate::transport::integrator::{FirstHit, Path, PathContext};
 use glam::Vec3A;
 use lanes::{Blocks, Chunk, Consts, Out, W};
 
@@ -325,11 +325,11 @@ fn classify(ctx: &PathContext, lanes: &SceneLanes, ch: &mut Chunk, blocks: &mut 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::integrator::radiance_from_hit;
     use crate::sampler::{StreamKind, StreamSampler};
-    use crate::scene::Scene;
+    use crate::scene::world::Scene;
     use crate::settings::PathLimits;
     use crate::testing::{cornell_box, cornell_box_parts, materials_box, BruteForce};
+    use crate::transport::integrator::radiance_from_hit;
 
     /// The Cornell box with vertex normals: bent ones, some facing away from the geometry
     /// (the shading frame falls back to the geometric normal) and some zero (the surface

@@ -3,15 +3,15 @@
 //! estimates (checked to float precision); environment estimates are checked within 5
 //! standard errors of their own samples (fixed seeds), with the error bar also bounded so a
 //! broken estimator cannot hide behind huge variance.
-use crate::bsdf::Bsdf;
-use crate::camera::Camera;
-use crate::lights::{Environment, Punctual};
-use crate::material::Material;
-use crate::render::render_streams;
+use crate::film::driver::render_streams;
 use crate::sampler::{dims, StreamKind, StreamSampler};
-use crate::scene::{Scene, SceneParts};
+use crate::scene::camera::Camera;
+use crate::scene::lights::{Environment, Punctual};
+use crate::scene::material::Material;
+use crate::scene::world::{Scene, SceneParts};
 use crate::settings::RenderSettings;
 use crate::testing::{add_box, add_quad, estimate_radiance, plane_parts, ray_through, BruteForce};
+use crate::transport::bsdf::Bsdf;
 use cvtrace_streams::Image;
 use glam::Vec3A;
 use std::f32::consts::PI;
@@ -168,11 +168,11 @@ fn constant_environment_over_a_plane_gives_rho_times_l() {
     let (scene, bf) = scene_with(parts);
     check_estimators(&scene, &bf, l_env * RHO, 20_000, "constant environment");
     // A camera ray that misses sees the environment, and records it as the first-hit albedo.
-    let mut fh = crate::integrator::FirstHit::default();
+    let mut fh = crate::transport::integrator::FirstHit::default();
     let st = StreamSampler::new(1, StreamKind::Pt);
     let up = ray_through(EYE, EYE + Vec3A::Y);
     let limits = crate::settings::PathLimits { max_depth: -1, rr_depth: 5 };
-    let v = crate::integrator::radiance(&scene, &bf, limits, up, &st.sample(0, 0), Some(&mut fh));
+    let v = crate::transport::integrator::radiance(&scene, &bf, limits, up, &st.sample(0, 0), Some(&mut fh));
     assert_eq!(v, l_env);
     assert_eq!((fh.albedo, fh.normal, fh.depth), (l_env, Vec3A::ZERO, 0.0));
 }

@@ -3,8 +3,8 @@
 //! docs/scene-format.md. Every key is optional; unknown keys are errors (a misspelt key would
 //! otherwise be silently ignored), and every error names the sidecar file — TOML syntax and
 //! type errors also give the line.
-use crate::lights::Environment;
-use crate::scene::SceneError;
+use crate::scene::error::SceneError;
+use crate::scene::lights::Environment;
 use crate::settings::RenderDefaults;
 use cvtrace_streams::input_file::{regular_file, NotAFile};
 use glam::Vec3A;

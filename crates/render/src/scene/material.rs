@@ -1,6 +1,6 @@
 //! Materials as loaded from glTF 2.0 (metallic-roughness + the KHR extensions cvtrace reads),
 //! kept in a flat `Vec` indexed by the per-triangle material id.
-use crate::texture::Texture;
+use crate::scene::texture::Texture;
 use glam::{Vec2, Vec3A};
 
 /// One material. Texture fields index the scene's texture list; colour textures are stored

@@ -15,7 +15,7 @@
 //! surface normal, needs nothing from the shading point, so it keeps `LIGHT_POS` meaning the
 //! same direction for every CRN pixel.
 use super::distribution::Distribution2D;
-use crate::fingerprint::Canonical;
+use crate::scene::fingerprint::Canonical;
 use crate::vector::luminance;
 use cvtrace_streams::Image;
 use glam::{Mat3, Vec2, Vec3A};

@@ -23,8 +23,8 @@ use super::ggx::Ggx;
 use super::lambert;
 use super::microfacet::MicrofacetReflection;
 use super::sample::{BsdfSample, SampleDraw};
-use crate::material::{is_diffuse_only, Material, PbrParams};
-use crate::texture::Texture;
+use crate::scene::material::{is_diffuse_only, Material, PbrParams};
+use crate::scene::texture::Texture;
 use crate::vector::luminance;
 use glam::{Vec2, Vec3A};
 

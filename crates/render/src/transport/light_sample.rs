@@ -2,8 +2,8 @@
 //! one point or direction on it, with the shadow ray's end. Choosing needs only the set; the
 //! point on an emissive triangle needs the scene's geometry and materials, which is why the
 //! sampling is here and not with the set, which the scene holds.
-use crate::lights::{sample_triangle, Emitter, LightSet};
-use crate::scene::Scene;
+use crate::scene::lights::{sample_triangle, Emitter, LightSet};
+use crate::scene::world::Scene;
 use glam::{Vec2, Vec3A};
 
 /// Where a shadow ray towards a light sample ends.
@@ -95,9 +95,9 @@ fn sample_area(scene: &Scene, prim: u32, pdf_area: f32, p: Vec3A, u: Vec2) -> Op
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::lights::{Environment, Punctual};
-    use crate::material::Material;
-    use crate::scene::SceneParts;
+    use crate::scene::lights::{Environment, Punctual};
+    use crate::scene::material::Material;
+    use crate::scene::world::SceneParts;
 
     #[test]
     fn every_kind_is_selected_in_proportion_to_its_power() {

@@ -1,6 +1,6 @@
 //! The common vertex of a wavefront, [`W`] paths at a time: a diffuse material without
 //! textures, lit by next-event estimation towards an emissive triangle (the Cornell box's
-//! every vertex). The arithmetic is that of [`crate::integrator::PathContext::vertex`] on such a
+//! every vertex). The arithmetic is that of [`crate::transport::integrator::PathContext::vertex`] on such a
 //! vertex, operation by operation and in the same order (glam's `Vec3A` sums its dot products
 //! as `(x·x' + y·y') + z·z'`, and so does [`V3::dot`]), with every branch replaced by a select,
 //! so that the compiler can run each step on all lanes at once; the result is the same bit
@@ -15,7 +15,7 @@
 //! copied in per lane and turned into structure-of-arrays by a 16×16 transpose in registers
 //! ([`Transpose`]): a gather of each value on its own cost several times as much.
 use crate::sampler::dims;
-use crate::scene::Scene;
+use crate::scene::world::Scene;
 use glam::Vec3A;
 use std::f32::consts::{FRAC_1_PI, FRAC_PI_4};
 
@@ -324,7 +324,7 @@ impl V3 {
     }
 }
 
-/// `crate::integrator::power_heuristic`.
+/// `crate::transport::integrator::power_heuristic`.
 #[inline(always)]
 fn power_heuristic(a: f32, b: f32) -> f32 {
     let (a2, b2) = (a * a, b * b);
@@ -337,7 +337,7 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
     }
 }
 
-/// `crate::integrator::spawn_origin`.
+/// `crate::transport::integrator::spawn_origin`.
 #[inline(always)]
 fn spawn_origin(p: V3, ng: V3, dir: V3, eps: f32) -> V3 {
     V3::select(dir.dot(ng) >= 0.0, p.add(ng.scale(eps)), p.sub(ng.scale(eps)))
@@ -399,7 +399,7 @@ fn draws(c: &Chunk) -> Draws {
     d
 }
 
-/// One lane: the vertex of [`crate::integrator::PathContext::vertex`] for a hit on a diffuse,
+/// One lane: the vertex of [`crate::transport::integrator::PathContext::vertex`] for a hit on a diffuse,
 /// untextured material whose light sample (if any) is on a triangle. Where the scalar code
 /// returns early on `x <= 0`, the lane keeps `!(x <= 0)`: the same side for NaN.
 #[allow(clippy::neg_cmp_op_on_partial_ord)]

@@ -6,7 +6,7 @@
 //! quadrature over the sphere. A wrong factor in `eval` then shows as a gap between the
 //! quadrature of this model and the importance-sampled albedo.
 use super::ggx::MIN_ALPHA;
-use crate::material::PbrParams;
+use crate::scene::material::PbrParams;
 use glam::{DVec3, Vec3A};
 use std::f64::consts::PI;
 
