@@ -18,6 +18,10 @@
 //! path is followed), [`film`] (how paths become images and files); [`testing`] (a brute-force
 //! ray caster and small scenes). The files they read and write beyond the stream file (exact
 //! sums, reference checkpoints, render parts) are `cvtrace_streams`'s.
+//!
+//! The only `unsafe` code is the SIMD builds of the wavefront's lane kernel
+//! (`transport/wavefront/simd/`), behind tokens that only CPU-feature detection makes.
+#![deny(unsafe_code)]
 pub mod error;
 pub mod film;
 pub mod intersect;

@@ -1,19 +1,21 @@
 //! The common vertex of a wavefront, [`W`] paths at a time: a diffuse material without
 //! textures, lit by next-event estimation towards an emissive triangle (the Cornell box's
-//! every vertex). The arithmetic is that of [`crate::transport::integrator::PathContext::vertex`] on such a
-//! vertex, operation by operation and in the same order (glam's `Vec3A` sums its dot products
-//! as `(x·x' + y·y') + z·z'`, and so does [`V3::dot`]), with every branch replaced by a select,
-//! so that the compiler can run each step on all lanes at once; the result is the same bit
-//! for bit, which the tests check against the scalar vertex and the renders check end to end.
+//! every vertex). The arithmetic is that of [`crate::transport::integrator::PathContext::vertex`]
+//! on such a vertex, operation by operation and in the same order (glam's `Vec3A` sums its dot
+//! products as `(x·x' + y·y') + z·z'`, and so does [`V3::dot`]), with every branch replaced by a
+//! select, so that the compiler can run each step on all lanes at once; the result is the same
+//! bit for bit, which the tests check against the scalar vertex and the renders check end to
+//! end.
 //!
 //! The kernel is written once, as loops over the lanes of a [`Chunk`] (structure of arrays),
-//! and compiled three times ([`Isa`]): for AVX-512, for AVX2 and for any CPU. Rust never fuses
+//! and compiled three times (`simd`): for AVX-512, for AVX2 and for any CPU. Rust never fuses
 //! a multiplication and an addition on its own, so all three do the same IEEE operations and
 //! give the same bits: an image does not depend on the CPU it was rendered on, and a farm's
 //! parts from different machines still merge into the one-shot file. What a lane reads of the
 //! scene comes as one 16-value record per triangle, material and emitter ([`SceneLanes`]),
 //! copied in per lane and turned into structure-of-arrays by a 16×16 transpose in registers
-//! ([`Transpose`]): a gather of each value on its own cost several times as much.
+//! ([`Transpose`]): a gather of each value on its own cost several times as much. Nothing here
+//! is `unsafe`: the instructions of each build are `simd`'s.
 use crate::sampler::dims;
 use crate::scene::world::Scene;
 use glam::Vec3A;
@@ -399,9 +401,9 @@ fn draws(c: &Chunk) -> Draws {
     d
 }
 
-/// One lane: the vertex of [`crate::transport::integrator::PathContext::vertex`] for a hit on a diffuse,
-/// untextured material whose light sample (if any) is on a triangle. Where the scalar code
-/// returns early on `x <= 0`, the lane keeps `!(x <= 0)`: the same side for NaN.
+/// One lane: the vertex of [`crate::transport::integrator::PathContext::vertex`] for a hit on a
+/// diffuse, untextured material whose light sample (if any) is on a triangle. Where the scalar
+/// code returns early on `x <= 0`, the lane keeps `!(x <= 0)`: the same side for NaN.
 #[allow(clippy::neg_cmp_op_on_partial_ord)]
 #[inline(always)]
 fn lane<const NORMALS: bool>(c: &mut Chunk, o: &mut Out, blk: &Blocks, draws: &Draws, k: &Consts, l: usize) {
@@ -522,211 +524,24 @@ fn lanes<const NORMALS: bool>(c: &mut Chunk, o: &mut Out, b: &Blocks, k: &Consts
 }
 
 /// Turns a block of records `[lane][value]` into `[value][lane]`. Pure data movement, so every
-/// build gives the same values.
-pub(crate) trait Transpose {
-    fn transpose(block: &mut [Record; W]);
+/// build gives the same values. Implemented by each build's CPU-feature token (`simd`), which
+/// [`shade`] passes on.
+pub(crate) trait Transpose: Copy {
+    fn transpose(self, block: &mut [Record; W]);
 }
 
-struct Scalar;
-
-impl Transpose for Scalar {
-    #[inline(always)]
-    fn transpose(block: &mut [Record; W]) {
-        for j in 1..W {
-            let (upper, lower) = block.split_at_mut(j);
-            for (i, row) in upper.iter_mut().enumerate() {
-                std::mem::swap(&mut row[j], &mut lower[0][i]);
-            }
-        }
-    }
-}
-
-/// The 16×16 transpose in AVX-512 registers: 32-bit and 64-bit interleaves within 128-bit
-/// lanes, then two rounds of 128-bit lane shuffles (64 shuffles for 256 values). Plain loops,
-/// not closures: a closure would not inherit the caller's target features, and every
-/// intrinsic in it would become a call.
-#[cfg(target_arch = "x86_64")]
-struct Avx512;
-
-#[cfg(target_arch = "x86_64")]
-impl Transpose for Avx512 {
-    #[inline(always)]
-    fn transpose(block: &mut [Record; W]) {
-        use std::arch::x86_64::*;
-        // SAFETY: only called from functions compiled with AVX-512F (the kernel's `avx512`);
-        // every load and store is of one whole 16-value row of `block`.
-        unsafe {
-            let mut r = [_mm512_setzero_ps(); W];
-            for i in 0..W {
-                r[i] = _mm512_loadu_ps(block[i].as_ptr());
-            }
-            let mut t = [_mm512_setzero_ps(); W];
-            for p in 0..W / 2 {
-                t[2 * p] = _mm512_unpacklo_ps(r[2 * p], r[2 * p + 1]);
-                t[2 * p + 1] = _mm512_unpackhi_ps(r[2 * p], r[2 * p + 1]);
-            }
-            // u[4g + q]: rows 4g..4g+4 of columns q, q + 4, q + 8, q + 12 (one per 128-bit lane).
-            let mut u = [_mm512_setzero_ps(); W];
-            for g in 0..4 {
-                for h in 0..2 {
-                    let (a, b) = (_mm512_castps_pd(t[4 * g + h]), _mm512_castps_pd(t[4 * g + 2 + h]));
-                    u[4 * g + 2 * h] = _mm512_castpd_ps(_mm512_unpacklo_pd(a, b));
-                    u[4 * g + 2 * h + 1] = _mm512_castpd_ps(_mm512_unpackhi_pd(a, b));
-                }
-            }
-            for q in 0..4 {
-                let v0 = _mm512_shuffle_f32x4::<0b10_00_10_00>(u[q], u[4 + q]);
-                let v1 = _mm512_shuffle_f32x4::<0b11_01_11_01>(u[q], u[4 + q]);
-                let v2 = _mm512_shuffle_f32x4::<0b10_00_10_00>(u[8 + q], u[12 + q]);
-                let v3 = _mm512_shuffle_f32x4::<0b11_01_11_01>(u[8 + q], u[12 + q]);
-                _mm512_storeu_ps(block[q].as_mut_ptr(), _mm512_shuffle_f32x4::<0b10_00_10_00>(v0, v2));
-                _mm512_storeu_ps(block[q + 8].as_mut_ptr(), _mm512_shuffle_f32x4::<0b11_01_11_01>(v0, v2));
-                _mm512_storeu_ps(block[q + 4].as_mut_ptr(), _mm512_shuffle_f32x4::<0b10_00_10_00>(v1, v3));
-                _mm512_storeu_ps(block[q + 12].as_mut_ptr(), _mm512_shuffle_f32x4::<0b11_01_11_01>(v1, v3));
-            }
-        }
-    }
-}
-
-/// The 16×16 transpose as four 8×8 ones in AVX2 registers.
-#[cfg(target_arch = "x86_64")]
-struct Avx2;
-
-/// The transposed 8×8 block of `block` at row `r0`, column `c0`, as eight rows.
-#[cfg(target_arch = "x86_64")]
+/// The kernel: shades the lanes of `c` whose `shade` is set, from the records the caller copied
+/// into `b` (which it transposes in place; vertex normals only if `normals`). Each build
+/// compiles it, inlined, for its own instructions (`simd`).
 #[inline(always)]
-unsafe fn transpose8(block: &[Record; W], r0: usize, c0: usize) -> [std::arch::x86_64::__m256; 8] {
-    use std::arch::x86_64::*;
-    // SAFETY (the caller's): compiled with AVX2; r0 + 8 and c0 + 8 are at most 16.
-    unsafe {
-        let mut r = [_mm256_setzero_ps(); 8];
-        for i in 0..8 {
-            r[i] = _mm256_loadu_ps(block[r0 + i].as_ptr().add(c0));
-        }
-        let mut t = [_mm256_setzero_ps(); 8];
-        for p in 0..4 {
-            t[2 * p] = _mm256_unpacklo_ps(r[2 * p], r[2 * p + 1]);
-            t[2 * p + 1] = _mm256_unpackhi_ps(r[2 * p], r[2 * p + 1]);
-        }
-        // u[4g + q]: rows 4g..4g+4 of columns q and q + 4 (one per 128-bit lane).
-        let mut u = [_mm256_setzero_ps(); 8];
-        for g in 0..2 {
-            for h in 0..2 {
-                let (a, b) = (_mm256_castps_pd(t[4 * g + h]), _mm256_castps_pd(t[4 * g + 2 + h]));
-                u[4 * g + 2 * h] = _mm256_castpd_ps(_mm256_unpacklo_pd(a, b));
-                u[4 * g + 2 * h + 1] = _mm256_castpd_ps(_mm256_unpackhi_pd(a, b));
-            }
-        }
-        let mut out = [_mm256_setzero_ps(); 8];
-        for q in 0..4 {
-            out[q] = _mm256_permute2f128_ps::<0x20>(u[q], u[4 + q]);
-            out[q + 4] = _mm256_permute2f128_ps::<0x31>(u[q], u[4 + q]);
-        }
-        out
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-impl Transpose for Avx2 {
-    #[inline(always)]
-    fn transpose(block: &mut [Record; W]) {
-        use std::arch::x86_64::*;
-        // SAFETY: only called from functions compiled with AVX2 (the kernel's `avx2`); every
-        // load and store is of eight values inside one row of `block`.
-        unsafe {
-            let q00 = transpose8(block, 0, 0);
-            let q01 = transpose8(block, 0, 8);
-            let q10 = transpose8(block, 8, 0);
-            let q11 = transpose8(block, 8, 8);
-            for i in 0..8 {
-                _mm256_storeu_ps(block[i].as_mut_ptr(), q00[i]);
-                _mm256_storeu_ps(block[i].as_mut_ptr().add(8), q10[i]);
-                _mm256_storeu_ps(block[8 + i].as_mut_ptr(), q01[i]);
-                _mm256_storeu_ps(block[8 + i].as_mut_ptr().add(8), q11[i]);
-            }
-        }
-    }
-}
-
-#[inline(always)]
-fn generic<T: Transpose>(c: &mut Chunk, o: &mut Out, b: &mut Blocks, normals: bool, k: &Consts) {
-    T::transpose(&mut b.triangle);
-    T::transpose(&mut b.material);
-    T::transpose(&mut b.light);
+pub(crate) fn shade<T: Transpose>(isa: T, c: &mut Chunk, o: &mut Out, b: &mut Blocks, normals: bool, k: &Consts) {
+    isa.transpose(&mut b.triangle);
+    isa.transpose(&mut b.material);
+    isa.transpose(&mut b.light);
     if normals {
-        T::transpose(&mut b.normals);
+        isa.transpose(&mut b.normals);
         lanes::<true>(c, o, b, k)
     } else {
         lanes::<false>(c, o, b, k)
-    }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512dq,avx512vl,avx512bw")]
-unsafe fn avx512(c: &mut Chunk, o: &mut Out, b: &mut Blocks, normals: bool, k: &Consts) {
-    generic::<Avx512>(c, o, b, normals, k)
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn avx2(c: &mut Chunk, o: &mut Out, b: &mut Blocks, normals: bool, k: &Consts) {
-    generic::<Avx2>(c, o, b, normals, k)
-}
-
-fn portable(c: &mut Chunk, o: &mut Out, b: &mut Blocks, normals: bool, k: &Consts) {
-    generic::<Scalar>(c, o, b, normals, k)
-}
-
-/// The kernel: shades the lanes of a chunk whose `shade` is set, from the records the
-/// caller copied into the blocks (which it transposes in place; vertex normals only if
-/// `normals`).
-pub(crate) type Kernel = fn(&mut Chunk, &mut Out, &mut Blocks, bool, &Consts);
-
-/// Which build of the kernel runs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(crate) enum Isa {
-    Avx512,
-    Avx2,
-    Portable,
-}
-
-#[cfg(target_arch = "x86_64")]
-fn has_avx512() -> bool {
-    std::is_x86_feature_detected!("avx512f")
-        && std::is_x86_feature_detected!("avx512dq")
-        && std::is_x86_feature_detected!("avx512vl")
-        && std::is_x86_feature_detected!("avx512bw")
-}
-
-impl Isa {
-    /// The widest build this CPU runs.
-    pub fn detect() -> Isa {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if has_avx512() {
-                return Isa::Avx512;
-            }
-            if std::is_x86_feature_detected!("avx2") {
-                return Isa::Avx2;
-            }
-        }
-        Isa::Portable
-    }
-
-    /// The kernel of this build, or `None` if the CPU lacks its instructions.
-    pub fn kernel(self) -> Option<Kernel> {
-        match self {
-            // SAFETY (both): the build runs only where the CPU has the instructions it is
-            // compiled for, checked just before.
-            #[cfg(target_arch = "x86_64")]
-            Isa::Avx512 => has_avx512()
-                .then_some((|c: &mut Chunk, o: &mut Out, b: &mut Blocks, n: bool, k: &Consts| unsafe { avx512(c, o, b, n, k) }) as Kernel),
-            #[cfg(target_arch = "x86_64")]
-            Isa::Avx2 => std::is_x86_feature_detected!("avx2")
-                .then_some((|c: &mut Chunk, o: &mut Out, b: &mut Blocks, n: bool, k: &Consts| unsafe { avx2(c, o, b, n, k) }) as Kernel),
-            #[cfg(not(target_arch = "x86_64"))]
-            Isa::Avx512 | Isa::Avx2 => None,
-            Isa::Portable => Some(portable as Kernel),
-        }
     }
 }

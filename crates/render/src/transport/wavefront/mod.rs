@@ -1,7 +1,8 @@
 //! Many paths at once, bounce by bounce: every live path's vertex is shaded, then every
 //! shadow ray is traced, then every continuation ray. Each path does exactly what
-//! [`crate::transport::integrator::radiance_from_hit`] does with it (the same vertex, the same random
-//! numbers, its radiance summed in the same order), so the result is the same bit for bit.
+//! [`crate::transport::integrator::radiance_from_hit`] does with it (the same vertex, the same
+//! random numbers, its radiance summed in the same order), so the result is the same bit for
+//! bit.
 //!
 //! Why: a vertex on its own is a chain of dependent steps between two calls into the ray
 //! caster, run one path after the other. The live paths are kept as structure-of-arrays
@@ -11,14 +12,18 @@
 //! vertex (glossy or glass materials, textures, punctual lights, the environment, escaped
 //! rays) takes the scalar [`crate::transport::integrator::PathContext::vertex`].
 mod lanes;
+// The lane kernel's builds for each instruction set, the one place the crate allows `unsafe`.
+#[allow(unsafe_code)]
+mod simd;
 
 use crate::intersect::{Hit, Intersector, Ray};
 use crate::sampler::{dims, SampleSampler};
 use crate::transport::integrator::{FirstHit, Path, PathContext};
 use glam::Vec3A;
 use lanes::{Blocks, Chunk, Consts, Out, W};
+use simd::{Isa, Kernel};
 
-pub(crate) use lanes::{Isa, Kernel, SceneLanes};
+pub(crate) use lanes::SceneLanes;
 
 /// The paths of one wavefront and the scratch of its bounces, reused from batch to batch.
 pub(crate) struct Wavefront {
@@ -129,7 +134,7 @@ impl Wavefront {
                 self.vertices += filled as u64;
                 if let Some((kernel, lanes)) = kernel.filter(|_| shaded >= MIN_SHADED) {
                     self.kernel_vertices += shaded as u64;
-                    kernel(ch, out, &mut self.blocks, lanes.normals.is_some(), &consts);
+                    kernel.run(ch, out, &mut self.blocks, lanes.normals.is_some(), &consts);
                 } else {
                     ch.shade = [0; W];
                     out.shadow = [0; W];
