@@ -7,8 +7,8 @@
 //!
 //! The other files of a render live here too, so that what only reads or merges them needs no
 //! renderer: the exact fixed-point sums every mean is made of ([`exact`]), a progressive
-//! reference's sums ([`reference`](mod@reference)) and their checkpoints ([`checkpoint`]), and the parts of a
-//! render split over machines with their merge ([`parts`]).
+//! reference's sums ([`reference`](mod@reference)) and their checkpoints ([`checkpoint`]), and
+//! the parts of a render split over machines with their merge ([`parts`]).
 //!
 //! Nothing here depends on Embree: any renderer can write these files, and the
 //! reconstruction stage can read them.

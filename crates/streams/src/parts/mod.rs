@@ -9,8 +9,9 @@
 //! code as the one-shot render. docs/stream-format.md ("Parts") describes the files.
 //!
 //! [`spec`]: `--part I/N` and the errors of parts; [`header`]: what a part's header records;
-//! [`stream`] and [`reference`](mod@reference): the parts of the two kinds of render and the whole files they
-//! add up to; [`merge`](mod@merge): the check that parts make one render, and their merge.
+//! [`stream`] and [`reference`](mod@reference): the parts of the two kinds of render and the
+//! whole files they add up to; [`merge`](mod@merge): the check that parts make one render, and
+//! their merge.
 pub mod header;
 pub mod merge;
 pub mod reference;
