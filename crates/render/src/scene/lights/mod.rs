@@ -4,7 +4,9 @@
 //! the environment ([`environment`]). One light is chosen per shading point in proportion to
 //! its power (pbrt's heuristic, see each kind's `power`), with the single `LIGHT_SELECT`
 //! number; the point or direction on it uses the `LIGHT_POS` pair. Keeping one selection for all
-//! kinds keeps the sampler's dimension blocks fixed, so CRN pixels make the same choices.
+//! kinds keeps the sampler's dimension blocks fixed, so CRN pixels make the same choices. The
+//! sample itself ([`LightSet::sample`]) is next-event estimation's, in
+//! [`crate::transport::light_sample`]: a point on a triangle needs the scene's geometry.
 //!
 //! Triangles come first in the selection order, so a scene with only emissive triangles gets
 //! exactly the distribution it had before other kinds of light existed.
