@@ -1,9 +1,9 @@
 //! Flags that several commands take: what is rendered (size, camera, path length, traversal,
 //! `-D` overrides), sample counts, parts, and the default batch count.
 use anyhow::{bail, Context, Result};
-use cvtrace_render::part::PartSpec;
 use cvtrace_render::Define;
 use cvtrace_session::{CameraView, RenderSession, SessionError, SessionOptions, Traversal, View};
+use cvtrace_streams::parts::PartSpec;
 use glam::Vec3A;
 use std::path::Path;
 
@@ -73,7 +73,7 @@ impl ViewArgs {
 
     /// The camera override, traversal and `-D` overrides, for a [`RenderSession`].
     pub fn session_options(&self) -> Result<SessionOptions> {
-        cvtrace_render::sidecar::check_define_keys(&self.define)?;
+        cvtrace_render::scene::sidecar::check_define_keys(&self.define)?;
         Ok(SessionOptions {
             camera: self.camera.as_deref().map(parse_camera).transpose()?,
             traversal: self.traversal.into(),
@@ -133,7 +133,7 @@ fn parse_camera(s: &str) -> Result<CameraView> {
 /// Sample counts on the command line: 1 up to what a file records (an EXR `int`), with the
 /// range in clap's own error, and `-8` taken as the (refused) value it is rather than a flag.
 pub fn spp_parser() -> clap::builder::RangedI64ValueParser<u32> {
-    clap::value_parser!(u32).range(1..=cvtrace_render::render::MAX_SPP as i64)
+    clap::value_parser!(u32).range(1..=cvtrace_render::settings::MAX_SPP as i64)
 }
 
 #[cfg(test)]

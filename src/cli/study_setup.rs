@@ -7,7 +7,7 @@ use crate::cli::files::{check_input_file, same_output};
 use crate::cli::registry;
 use anyhow::{bail, Context, Result};
 use cvtrace_eval::Reference;
-use cvtrace_render::render::MAX_SPP;
+use cvtrace_render::settings::MAX_SPP;
 use cvtrace_session::{NoProgress, RenderSession, RenderSource};
 use cvtrace_streams::exr_io::{take_rgb, AttrValue, ExrChannels};
 use cvtrace_streams::provenance::describe_all;

@@ -6,7 +6,7 @@ use crate::cli::say;
 use crate::cli::study_setup::{prepare, StudyArgs};
 use anyhow::{bail, Context, Result};
 use cvtrace_farm::{JobFolder, MergeState, PartState, Plan, Slurm, StudyCells};
-use cvtrace_render::part::PartSpec;
+use cvtrace_streams::parts::PartSpec;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]

@@ -1,6 +1,6 @@
 //! `cvtrace merge`: the parts `render --part` wrote → exactly the file one render writes.
 use anyhow::Result;
-use cvtrace_render::part::{merge, STREAMS_KIND};
+use cvtrace_streams::parts::{merge, STREAMS_KIND};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]

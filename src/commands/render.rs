@@ -14,9 +14,9 @@ use crate::cli::args::{default_batches, parse_part, spp_parser, ViewArgs};
 use crate::cli::files::{make_parent_folders, refuse_overwriting_inputs, remove_empty, set_interrupt_note};
 use crate::cli::progress::TerminalProgress;
 use anyhow::{bail, Result};
-use cvtrace_render::part::PartSpec;
 use cvtrace_render::RenderDefaults;
 use cvtrace_session::{self as session, Job, ReferenceJob, ReferenceOutcome, StreamJob, DEFAULT_WIDTH};
+use cvtrace_streams::parts::PartSpec;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -149,12 +149,12 @@ fn render_job(args: &RenderArgs, job: &Job) -> Result<()> {
         Job::Reference(j) => {
             set_interrupt_note(format!(
                 "the finished passes are kept in {}; run the same command again to resume",
-                cvtrace_render::checkpoint::checkpoint_path(&j.output).display()
+                cvtrace_streams::checkpoint::checkpoint_path(&j.output).display()
             ));
             if let ReferenceOutcome::Stopped { passes, samples_done, spp } = session.render_reference(j, &progress)? {
                 tracing::info!(
                     "stopped after {passes} passes as asked: {samples_done} of {spp} spp saved in {}",
-                    cvtrace_render::checkpoint::checkpoint_path(&j.output).display()
+                    cvtrace_streams::checkpoint::checkpoint_path(&j.output).display()
                 );
                 // No finished image to preview yet.
                 return Ok(());

@@ -4,7 +4,8 @@
 //! Target: ≥ 1.5 M path samples per CPU-second (so ≥ 3 M/s wall on 2 cores).
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use cvtrace_embree::{set_flush_denormals, BuildOptions, BuildQuality, Device, EmbreeScene};
-use cvtrace_render::{render_reference_pass, render_streams, Intersector, Ray, ReferenceAccum, RenderSettings, Scene};
+use cvtrace_render::{render_reference_pass, render_streams, Intersector, Ray, RenderSettings, Scene};
+use cvtrace_streams::reference::ReferenceAccum;
 use glam::{Vec2, Vec3A};
 use std::hint::black_box;
 use std::path::Path;
@@ -55,7 +56,7 @@ fn path_tracer(c: &mut Criterion) {
     let s = settings();
     {
         let counting = Counting { inner: &tracer, intersect: AtomicU64::new(0), occluded: AtomicU64::new(0) };
-        let mut acc = ReferenceAccum::new(&s);
+        let mut acc = ReferenceAccum::new(&s.reference());
         pool.install(|| render_reference_pass(&scene, &counting, &s, &mut acc, 0..SPP, &|_| {})).unwrap();
         let n = (SIDE * SIDE * SPP) as f64;
         eprintln!(
@@ -73,7 +74,7 @@ fn path_tracer(c: &mut Criterion) {
     g.throughput(Throughput::Elements(pixels * SPP as u64));
     g.bench_function("cornell_256_depth8_pt_4spp", |b| {
         b.iter_batched_ref(
-            || ReferenceAccum::new(&s),
+            || ReferenceAccum::new(&s.reference()),
             |acc| pool.install(|| render_reference_pass(&scene, &tracer, &s, acc, 0..SPP, &|_| {})).unwrap(),
             BatchSize::LargeInput,
         )
@@ -84,7 +85,7 @@ fn path_tracer(c: &mut Criterion) {
     let one_thread = render_pool(1);
     g.bench_function("cornell_256_depth8_pt_4spp_1thread", |b| {
         b.iter_batched_ref(
-            || ReferenceAccum::new(&s),
+            || ReferenceAccum::new(&s.reference()),
             |acc| one_thread.install(|| render_reference_pass(&scene, &tracer, &s, acc, 0..SPP, &|_| {})).unwrap(),
             BatchSize::LargeInput,
         )
@@ -97,14 +98,14 @@ fn path_tracer(c: &mut Criterion) {
         .unwrap();
     g.bench_function("cornell_256_depth8_pt_4spp_fast_traversal", |b| {
         b.iter_batched_ref(
-            || ReferenceAccum::new(&s),
+            || ReferenceAccum::new(&s.reference()),
             |acc| pool.install(|| render_reference_pass(&scene, &fast, &s, acc, 0..SPP, &|_| {})).unwrap(),
             BatchSize::LargeInput,
         )
     });
     g.bench_function("cornell_256_depth8_pt_4spp_fast_traversal_1thread", |b| {
         b.iter_batched_ref(
-            || ReferenceAccum::new(&s),
+            || ReferenceAccum::new(&s.reference()),
             |acc| one_thread.install(|| render_reference_pass(&scene, &fast, &s, acc, 0..SPP, &|_| {})).unwrap(),
             BatchSize::LargeInput,
         )
@@ -114,7 +115,7 @@ fn path_tracer(c: &mut Criterion) {
     let triangles = device_triangles(&scene);
     g.bench_function("cornell_256_depth8_pt_4spp_triangles", |b| {
         b.iter_batched_ref(
-            || ReferenceAccum::new(&s),
+            || ReferenceAccum::new(&s.reference()),
             |acc| pool.install(|| render_reference_pass(&scene, &triangles, &s, acc, 0..SPP, &|_| {})).unwrap(),
             BatchSize::LargeInput,
         )

@@ -15,8 +15,10 @@
 //! and the final job, in place of the merge, is the plain `cvtrace study` with the same
 //! arguments, which finds every render finished and only reconstructs and scores. The scripts
 //! are `cells.sbatch` and `study.sbatch` then.
-use cvtrace_render::part::PartHeader;
+#![forbid(unsafe_code)]
+
 use cvtrace_streams::atomic::{create_dir_all, write_atomically};
+use cvtrace_streams::parts::PartHeader;
 use cvtrace_study::files::{cell_file, cells, timing_file, Cell};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};

@@ -7,8 +7,12 @@
 //! take paths: they check for regular files and resolve relative references), and runs the
 //! reader. Errors are the expected outcome for most inputs and are discarded; a panic, an abort
 //! or an unbounded allocation is a bug.
-use cvtrace_render::{checkpoint, RenderSettings, Scene, Sidecar};
+#![forbid(unsafe_code)]
+
+use cvtrace_render::{Scene, Sidecar};
+use cvtrace_streams::checkpoint;
 use cvtrace_streams::exr_io::ExrChannels;
+use cvtrace_streams::reference::ReferenceSettings;
 use cvtrace_streams::{iduw_layout, Provenance, StreamSet};
 use std::path::{Path, PathBuf};
 
@@ -99,11 +103,10 @@ pub fn checkpoint_file(data: &[u8]) {
     let saved = ExrChannels::read(&path).ok().and_then(|ch| Provenance::from_exr(&ch, &path).ok());
     let (planned, settings) = match saved {
         Some(p) => {
-            let s = RenderSettings {
+            let s = ReferenceSettings {
                 width: p.width,
                 height: p.height,
                 spp: p.spp.unwrap_or(1).saturating_add(1),
-                batches: 1,
                 seed: p.seed.unwrap_or(0),
                 max_depth: p.max_depth.unwrap_or(-1),
                 rr_depth: p.rr_depth.unwrap_or(5),
@@ -111,7 +114,7 @@ pub fn checkpoint_file(data: &[u8]) {
             (p, s)
         }
         None => {
-            let s = RenderSettings { width: 8, height: 8, spp: 16, batches: 1, ..Default::default() };
+            let s = ReferenceSettings { width: 8, height: 8, spp: 16, seed: 0, max_depth: -1, rr_depth: 5 };
             (Provenance { width: 8, height: 8, ..Default::default() }, s)
         }
     };

@@ -2,6 +2,13 @@
 //! nothing else. The root crate implements it with Embree; tests implement it by brute force.
 use glam::Vec3A;
 
+/// Largest coordinate magnitude a scene, camera or light may have. Embree refuses (and its
+/// debug checks abort on) ray origins and directions beyond about 1.8e18; spawned rays add up
+/// to twice the scene's extent, so the bound leaves a wide margin while allowing any real scene
+/// (the Earth's orbit is 1.5e11 m). A limit of the ray caster, so it is stated with its
+/// contract; the scene, camera and lights check against it.
+pub const MAX_COORDINATE: f32 = 1e15;
+
 /// A ray segment `origin + t * dir`, `t` in `[tmin, tmax]`. `dir` need not be normalised.
 #[derive(Clone, Copy, Debug)]
 pub struct Ray {

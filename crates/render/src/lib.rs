@@ -4,39 +4,43 @@
 //!
 //! Data flow: [`Scene::load`] flattens a glTF file into world-space triangle arrays,
 //! materials, textures and lights (emissive triangles, `KHR_lights_punctual`, and the
-//! environment and render defaults of the [`sidecar`] file) → the caller builds an acceleration structure from
-//! [`Scene::positions`]/[`Scene::triangles`] and implements [`Intersector`] (Embree in the root
-//! crate, [`testing::BruteForce`] in tests) → [`render_streams`] traces every pixel's PT and
-//! CRN samples in parallel tiles ([`integrator`], keyed by the counter-based [`sampler`]) and
-//! returns a [`cvtrace_streams::StreamSet`]; [`render_reference_pass`] accumulates
-//! progressive PT-only references. Nothing here depends on Embree.
-pub mod bsdf;
-pub mod camera;
-pub mod checkpoint;
-pub mod exact;
+//! environment and render defaults of the [`scene::sidecar`] file) → the caller builds an
+//! acceleration structure from [`Scene::positions`]/[`Scene::triangles`] and implements
+//! [`Intersector`] (Embree in the root crate, [`testing::BruteForce`] in tests) →
+//! [`render_streams`] traces every pixel's PT and CRN samples in parallel tiles
+//! ([`transport::integrator`], keyed by the counter-based [`sampler`]) and returns a
+//! [`cvtrace_streams::StreamSet`]; [`render_reference_pass`] accumulates progressive PT-only
+//! references. Nothing here depends on Embree.
+//!
+//! The modules, whose code depends only on those before it: [`intersect`] (the ray caster's
+//! contract), [`sampler`], [`vector`] and [`select`] (small shared helpers), [`error`] and
+//! [`settings`] (what a render is asked for); [`scene`] (what is rendered), [`transport`] (how a
+//! path is followed), [`film`] (how paths become images and files); [`testing`] (a brute-force
+//! ray caster and small scenes). The files they read and write beyond the stream file (exact
+//! sums, reference checkpoints, render parts) are `cvtrace_streams`'s.
+//!
+//! The only `unsafe` code is the SIMD builds of the wavefront's lane kernel
+//! (`transport/wavefront/simd/`), behind tokens that only CPU-feature detection makes.
+#![deny(unsafe_code)]
+pub mod error;
 pub mod film;
-pub mod gltf_import;
-pub mod integrator;
 pub mod intersect;
-pub mod lights;
-pub mod material;
-pub mod part;
-pub mod render;
 pub mod sampler;
 pub mod scene;
 pub mod select;
-pub mod sidecar;
-pub mod stream_file;
+pub mod settings;
 pub mod testing;
-pub mod texture;
+pub mod transport;
 pub mod vector;
-mod wavefront;
 
-pub use camera::Camera;
+pub use error::RenderError;
+pub use film::driver::{render_reference_pass, render_stream_part, render_streams, StreamRender};
 pub use intersect::{Hit, Intersector, Ray};
-pub use lights::{Environment, Punctual};
-pub use material::Material;
-pub use render::{render_reference_pass, render_stream_part, render_streams, ReferenceAccum, RenderError, RenderSettings, StreamRender};
-pub use scene::{Scene, SceneError, SceneParts};
-pub use sidecar::{Define, RenderDefaults, Sidecar};
-pub use texture::Texture;
+pub use scene::camera::Camera;
+pub use scene::error::SceneError;
+pub use scene::lights::{Environment, Punctual};
+pub use scene::material::Material;
+pub use scene::sidecar::{Define, Sidecar};
+pub use scene::texture::Texture;
+pub use scene::world::{Scene, SceneParts};
+pub use settings::{RenderDefaults, RenderSettings};

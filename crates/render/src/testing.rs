@@ -2,12 +2,13 @@
 //! [`Intersector`] (Möller–Trumbore with Embree's `(u, v)` convention), small procedural
 //! scenes (a Cornell-style box, a closed furnace box, a plane for light tests) and a
 //! radiance estimator along one ray.
-use crate::camera::Camera;
-use crate::integrator::{radiance, PathLimits};
 use crate::intersect::{Hit, Intersector, Ray};
-use crate::material::Material;
 use crate::sampler::{StreamKind, StreamSampler};
-use crate::scene::{Scene, SceneParts};
+use crate::scene::camera::Camera;
+use crate::scene::material::Material;
+use crate::scene::world::{Scene, SceneParts};
+use crate::settings::PathLimits;
+use crate::transport::integrator::radiance;
 use glam::{DVec3, Vec3A};
 
 /// Tests every triangle for every ray: O(n) per ray, exact and obviously correct.

@@ -1,4 +1,4 @@
-//! Vector helpers shared by the camera and the BSDFs.
+//! Vector helpers shared by the camera, the BSDFs and the lights.
 use glam::Vec3A;
 
 /// `v` scaled to unit length by the reciprocal of its length, as glam's scalar
@@ -8,6 +8,12 @@ use glam::Vec3A;
 #[inline]
 pub fn unit(v: Vec3A) -> Vec3A {
     v * v.length_recip()
+}
+
+/// Rec. 709 luminance, used to weight lobes and lights.
+#[inline]
+pub fn luminance(c: Vec3A) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
 }
 
 #[cfg(test)]

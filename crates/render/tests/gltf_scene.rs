@@ -171,7 +171,7 @@ fn base_colour_texture_is_decoded_from_srgb_and_a_missing_one_is_named() {
     let t = &scene.textures()[m.base_color_texture.expect("texture is used") as usize];
     assert_eq!((t.width, t.height), (2, 1));
     assert_eq!(t.texels[0], glam::Vec3::new(1.0, 0.0, 0.0));
-    let g = cvtrace_render::texture::srgb_to_linear(128.0 / 255.0);
+    let g = cvtrace_render::scene::texture::srgb_to_linear(128.0 / 255.0);
     assert!((t.texels[1] - glam::Vec3::splat(g)).length() < 1e-6 && g < 0.25, "{}", t.texels[1]);
     std::fs::remove_file(dir.path().join("albedo.png")).unwrap();
     let msg = Scene::load(&p).unwrap_err().to_string();

@@ -1,7 +1,8 @@
 //! The stream render's contract: determinism across thread counts, batch/mean consistency,
 //! the CRN/PT correlation structure, progressive references, and non-finite handling.
 use cvtrace_render::testing::{cornell_box, furnace_box, BruteForce};
-use cvtrace_render::{render_reference_pass, render_streams, ReferenceAccum, RenderSettings};
+use cvtrace_render::{render_reference_pass, render_streams, RenderSettings};
+use cvtrace_streams::reference::ReferenceAccum;
 use cvtrace_streams::{Image, StreamSet};
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -109,10 +110,10 @@ fn reference_passes_are_split_invariant_and_match_the_pt_stream() {
     let s = settings(19, 17, 8, 2);
     let scene = cornell_box();
     let tracer = BruteForce::new(&scene);
-    let mut split = ReferenceAccum::new(&s);
+    let mut split = ReferenceAccum::new(&s.reference());
     render_reference_pass(&scene, &tracer, &s, &mut split, 0..3, &|_| {}).unwrap();
     render_reference_pass(&scene, &tracer, &s, &mut split, 3..8, &|_| {}).unwrap();
-    let mut whole = ReferenceAccum::new(&s);
+    let mut whole = ReferenceAccum::new(&s.reference());
     render_reference_pass(&scene, &tracer, &s, &mut whole, 0..8, &|_| {}).unwrap();
     assert_eq!(split, whole);
     assert_eq!(split.samples_done, 8);

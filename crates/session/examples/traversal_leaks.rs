@@ -7,8 +7,9 @@
 //! Prints one Markdown row per scene: rays, passes per million rays of each kind.
 use cvtrace_embree::set_flush_denormals;
 use cvtrace_embree::traversal_check::TraversalComparison;
-use cvtrace_render::{render_reference_pass, ReferenceAccum, Scene};
+use cvtrace_render::{render_reference_pass, Scene};
 use cvtrace_session::{image_size, resolve_settings, View};
+use cvtrace_streams::reference::ReferenceAccum;
 use std::path::Path;
 use std::time::Instant;
 
@@ -24,7 +25,7 @@ fn main() -> anyhow::Result<()> {
         let size = image_size(&view, scene.render_defaults(), scene.camera());
         let settings = resolve_settings(&view, Some(spp), 1, 1_000_003, true, scene.render_defaults(), size);
         let check = TraversalComparison::build(scene.positions(), scene.triangles(), scene.ray_epsilon())?;
-        let mut accum = ReferenceAccum::new(&settings);
+        let mut accum = ReferenceAccum::new(&settings.reference());
         let start = Instant::now();
         pool.install(|| render_reference_pass(&scene, &check, &settings, &mut accum, 0..spp, &|_| {}))?;
         let c = check.counts();

@@ -9,15 +9,15 @@
 //! the built-in defaults. Every output is written atomically.
 use crate::throughput::PhaseClock;
 use cvtrace_embree::{set_flush_denormals, BuildOptions, Device, EmbreeScene};
-use cvtrace_render::checkpoint::{self, checkpoint_path};
-use cvtrace_render::part::{write_reference, write_reference_part, PartError, PartSpec};
-use cvtrace_render::stream_file::{render_to_file, Written};
+use cvtrace_render::film::stream_file::{render_to_file, Written};
 use cvtrace_render::{
-    render_reference_pass, Camera, Define, Intersector, ReferenceAccum, RenderDefaults, RenderError, RenderSettings, Scene, SceneError,
-    StreamRender,
+    render_reference_pass, Camera, Define, Intersector, RenderDefaults, RenderError, RenderSettings, Scene, SceneError, StreamRender,
 };
 use cvtrace_streams::atomic::{check_extension, check_writable};
+use cvtrace_streams::checkpoint::{self, checkpoint_path, CheckpointError};
 use cvtrace_streams::output_lock::{lock_path_for, OutputLock};
+use cvtrace_streams::parts::{write_reference, write_reference_part, PartError, PartSpec};
+use cvtrace_streams::reference::ReferenceAccum;
 use cvtrace_streams::{Provenance, StreamError};
 use glam::Vec3A;
 use std::path::{Path, PathBuf};
@@ -290,6 +290,8 @@ pub enum SessionError {
     Threads { threads: usize, message: String },
     #[error(transparent)]
     Part(#[from] PartError),
+    #[error(transparent)]
+    Checkpoint(#[from] CheckpointError),
     #[error("{0}")]
     Invalid(String),
 }
@@ -462,7 +464,7 @@ impl<B: Backend> RenderSession<B> {
         }
         let checkpoint = checkpoint_path(&job.output);
         // An interrupted extension left a checkpoint, which is exact: it comes first.
-        let mut accum = match checkpoint::load(&checkpoint, &plan.provenance, s)? {
+        let mut accum = match checkpoint::load(&checkpoint, &plan.provenance, &s.reference())? {
             Some(a) => {
                 if a.samples_done > s.spp {
                     return Err(SessionError::Invalid(format!(
@@ -477,11 +479,11 @@ impl<B: Backend> RenderSession<B> {
                 a
             }
             None if job.extend => {
-                let a = checkpoint::load_finished(&job.output, &plan.provenance, s)?;
+                let a = checkpoint::load_finished(&job.output, &plan.provenance, &s.reference())?;
                 tracing::info!("extending {} from {} to {} spp", job.output.display(), a.samples_done, s.spp);
                 a
             }
-            None => ReferenceAccum::new(s),
+            None => ReferenceAccum::new(&s.reference()),
         };
         let engine = self.engine()?;
         let pixels = s.width as u64 * s.height as u64;
@@ -571,7 +573,7 @@ impl<B: Backend> RenderSession<B> {
             s.seed,
             engine.pool.current_num_threads()
         );
-        let mut accum = ReferenceAccum { first: samples.start, ..ReferenceAccum::new(s) };
+        let mut accum = ReferenceAccum { first: samples.start, ..ReferenceAccum::new(&s.reference()) };
         progress.start(pixels * samples.len() as u64, 0);
         let clock = PhaseClock::start();
         for pass in passes.clone() {

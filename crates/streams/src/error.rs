@@ -1,4 +1,5 @@
-//! One error type for everything that reads or writes stream and image files.
+//! The errors of reading and writing stream and image files, and of adding up the exact sums
+//! of a render's pieces.
 use std::path::PathBuf;
 
 #[derive(Debug, thiserror::Error)]
@@ -24,4 +25,16 @@ impl StreamError {
     pub fn invalid(path: impl Into<PathBuf>, message: impl Into<String>) -> Self {
         StreamError::Invalid { path: path.into(), message: message.into() }
     }
+}
+
+/// Sums that cannot be added up: pieces of different renders, or pieces that do not follow one
+/// another.
+#[derive(Debug, thiserror::Error)]
+pub enum SumsError {
+    /// Parts of a stream render.
+    #[error("invalid render settings: {0}")]
+    Streams(String),
+    /// A reference accumulator and the sums or image given to it.
+    #[error("reference accumulator does not match: {0}")]
+    Reference(String),
 }

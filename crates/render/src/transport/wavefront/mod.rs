@@ -1,0 +1,406 @@
+//! Many paths at once, bounce by bounce: every live path's vertex is shaded, then every
+//! shadow ray is traced, then every continuation ray. Each path does exactly what
+//! [`crate::transport::integrator::radiance_from_hit`] does with it (the same vertex, the same
+//! random numbers, its radiance summed in the same order), so the result is the same bit for
+//! bit.
+//!
+//! Why: a vertex on its own is a chain of dependent steps between two calls into the ray
+//! caster, run one path after the other. The live paths are kept as structure-of-arrays
+//! [`lanes::Chunk`]s of [`lanes::W`] paths, compacted after every bounce, so that the common
+//! vertex ([`lanes`]: a diffuse material, an emissive triangle as the light sample) runs on a
+//! whole chunk per instruction, reading and updating the paths where they are; every other
+//! vertex (glossy or glass materials, textures, punctual lights, the environment, escaped
+//! rays) takes the scalar [`crate::transport::integrator::PathContext::vertex`].
+mod lanes;
+// The lane kernel's builds for each instruction set, the one place the crate allows `unsafe`.
+#[allow(unsafe_code)]
+mod simd;
+
+use crate::intersect::{Hit, Intersector, Ray};
+use crate::sampler::{dims, SampleSampler};
+use crate::transport::integrator::{FirstHit, Path, PathContext};
+use glam::Vec3A;
+use lanes::{Blocks, Chunk, Consts, Out, W};
+use simd::{Isa, Kernel};
+
+pub(crate) use lanes::SceneLanes;
+
+/// The paths of one wavefront and the scratch of its bounces, reused from batch to batch.
+pub(crate) struct Wavefront {
+    /// The live paths, `live` of them, in chunks of `W` (the last one partly filled).
+    chunks: Vec<Chunk>,
+    outs: Vec<Out>,
+    live: usize,
+    /// Per path, in the order pushed: its radiance once it has ended, and its first-hit features.
+    radiance: Vec<Vec3A>,
+    firsts: Vec<FirstHit>,
+    /// Shadow rays of the scalar vertices of this bounce: slot, ray, the light it brings.
+    shadows: Vec<(u32, Ray, Vec3A)>,
+    /// The lane kernel, or `None` to shade every vertex with the scalar code.
+    kernel: Option<Kernel>,
+    /// The scene records of the chunk being shaded.
+    blocks: Box<Blocks>,
+    /// Vertices shaded so far, and how many of them by the kernel.
+    vertices: u64,
+    kernel_vertices: u64,
+}
+
+impl Default for Wavefront {
+    fn default() -> Self {
+        Wavefront::new(Isa::detect().kernel())
+    }
+}
+
+/// The chunk and lane of slot `s`.
+#[inline(always)]
+fn slot(s: usize) -> (usize, usize) {
+    (s / W, s % W)
+}
+
+#[inline(always)]
+fn get(a: &[[f32; W]; 3], l: usize) -> Vec3A {
+    Vec3A::new(a[0][l], a[1][l], a[2][l])
+}
+
+#[inline(always)]
+fn put(a: &mut [[f32; W]; 3], l: usize, v: Vec3A) {
+    a[0][l] = v.x;
+    a[1][l] = v.y;
+    a[2][l] = v.z;
+}
+
+impl Wavefront {
+    /// A wavefront that shades its common vertices with `kernel` (all with the scalar code
+    /// for `None`).
+    pub fn new(kernel: Option<Kernel>) -> Wavefront {
+        Wavefront {
+            chunks: Vec::new(),
+            outs: Vec::new(),
+            live: 0,
+            radiance: Vec::new(),
+            firsts: Vec::new(),
+            shadows: Vec::new(),
+            kernel,
+            blocks: Box::default(),
+            vertices: 0,
+            kernel_vertices: 0,
+        }
+    }
+
+    /// Empties the wavefront.
+    pub fn clear(&mut self) {
+        self.live = 0;
+        self.radiance.clear();
+        self.firsts.clear();
+    }
+
+    /// Adds a path starting with the camera ray `ray`, whose nearest hit is `hit`.
+    pub fn push(&mut self, ray: Ray, hit: Option<Hit>, sampler: SampleSampler) {
+        let id = self.radiance.len() as u32;
+        self.radiance.push(Vec3A::ZERO);
+        self.firsts.push(FirstHit::default());
+        let (c, l) = slot(self.live);
+        if c == self.chunks.len() {
+            self.chunks.push(Chunk::default());
+            self.outs.push(Out::default());
+        }
+        let ch = &mut self.chunks[c];
+        set_lane_path(ch, l, &Path::new(ray), sampler.key(), id);
+        set_hit(ch, l, hit);
+        self.live += 1;
+    }
+
+    /// Follows every path to its end; then [`Wavefront::radiance`] and [`Wavefront::first_hit`]
+    /// hold each path's results, in the order they were pushed. `lanes` is the scene as the
+    /// kernel reads it (needed with a kernel).
+    pub fn run<T: Intersector>(&mut self, ctx: &PathContext, lanes: Option<&SceneLanes>, tracer: &T, features: bool) {
+        let consts = Consts { eps: ctx.eps, max_depth: ctx.max_depth, rr_depth: ctx.limits.rr_depth };
+        let kernel = self.kernel.zip(lanes);
+        let mut first_bounce = true;
+        while self.live > 0 {
+            let want_first = features && first_bounce;
+            self.shadows.clear();
+            let chunks = self.live.div_ceil(W);
+            for c in 0..chunks {
+                let filled = (self.live - c * W).min(W);
+                let ch = &mut self.chunks[c];
+                let out = &mut self.outs[c];
+                out.next = [0; W];
+                let shaded = match kernel {
+                    Some((_, lanes)) => classify(ctx, lanes, ch, &mut self.blocks, filled),
+                    None => 0,
+                };
+                // A chunk with few lanes for the kernel is cheaper vertex by vertex.
+                self.vertices += filled as u64;
+                if let Some((kernel, lanes)) = kernel.filter(|_| shaded >= MIN_SHADED) {
+                    self.kernel_vertices += shaded as u64;
+                    kernel.run(ch, out, &mut self.blocks, lanes.normals.is_some(), &consts);
+                } else {
+                    ch.shade = [0; W];
+                    out.shadow = [0; W];
+                }
+                for l in 0..filled {
+                    if ch.shade[l] != 0 {
+                        if want_first {
+                            self.firsts[ch.id[l] as usize] =
+                                FirstHit { albedo: get(&out.first_albedo, l), normal: get(&out.first_normal, l), depth: ch.t[l] };
+                        }
+                        continue;
+                    }
+                    // The scalar vertex, on the lane's path.
+                    let (mut path, key, id) = lane_path(ch, l);
+                    let hit = (ch.hit[l] != 0).then(|| Hit { t: ch.t[l], prim: ch.prim[l], u: ch.u[l], v: ch.v[l] });
+                    let first = if want_first { Some(&mut self.firsts[id as usize]) } else { None };
+                    let step = ctx.vertex(&mut path, hit, &SampleSampler::from_key(key), first);
+                    set_lane_path(ch, l, &path, key, id);
+                    out.next[l] = step.next as u32;
+                    if let Some((ray, light)) = step.shadow {
+                        self.shadows.push(((c * W + l) as u32, ray, light));
+                    }
+                }
+            }
+            self.trace_shadows(tracer, chunks);
+            self.compact();
+            for s in 0..self.live {
+                let (c, l) = slot(s);
+                let ch = &mut self.chunks[c];
+                let ray = Ray { origin: get(&ch.origin, l), dir: get(&ch.dir, l), tmin: 0.0, tmax: f32::INFINITY };
+                set_hit(ch, l, tracer.intersect(&ray));
+            }
+            first_bounce = false;
+        }
+    }
+
+    /// Traces the bounce's shadow rays, the kernel's and the scalar vertices', and adds the
+    /// light of each unoccluded one to its path.
+    fn trace_shadows<T: Intersector>(&mut self, tracer: &T, chunks: usize) {
+        for c in 0..chunks {
+            let (ch, out) = (&mut self.chunks[c], &self.outs[c]);
+            for l in 0..W {
+                if out.shadow[l] != 0 {
+                    let ray = Ray { origin: get(&out.shadow_origin, l), dir: get(&out.shadow_dir, l), tmin: 0.0, tmax: 1.0 };
+                    if !tracer.occluded(&ray) {
+                        let lit = get(&ch.l, l) + get(&out.shadow_light, l);
+                        put(&mut ch.l, l, lit);
+                    }
+                }
+            }
+        }
+        for (s, ray, light) in &self.shadows {
+            let (c, l) = slot(*s as usize);
+            if !tracer.occluded(ray) {
+                let ch = &mut self.chunks[c];
+                let lit = get(&ch.l, l) + *light;
+                put(&mut ch.l, l, lit);
+            }
+        }
+    }
+
+    /// Records the radiance of every path that ended and moves the last live paths into the
+    /// slots they left, so that the live ones fill the first slots again.
+    fn compact(&mut self) {
+        let mut s = 0;
+        while s < self.live {
+            let (c, l) = slot(s);
+            if self.outs[c].next[l] != 0 {
+                s += 1;
+                continue;
+            }
+            let ch = &self.chunks[c];
+            self.radiance[ch.id[l] as usize] = get(&ch.l, l);
+            self.live -= 1;
+            if s < self.live {
+                let (cl, ll) = slot(self.live);
+                self.move_slot((cl, ll), (c, l));
+            }
+        }
+    }
+
+    /// Copies the path in slot `from` (and whether it goes on) to slot `to`.
+    fn move_slot(&mut self, (fc, fl): (usize, usize), (tc, tl): (usize, usize)) {
+        let (path, key, id) = lane_path(&self.chunks[fc], fl);
+        set_lane_path(&mut self.chunks[tc], tl, &path, key, id);
+        self.outs[tc].next[tl] = self.outs[fc].next[fl];
+    }
+
+    /// Whether the kernel shaded enough of the vertices this wavefront has seen for following
+    /// paths together to pay (it costs some 5–10% where every vertex takes the scalar code).
+    /// Undecided (true) until it has seen a few thousand.
+    pub fn pays(&self) -> bool {
+        self.vertices < PROBE_VERTICES || self.kernel_vertices as f64 >= KERNEL_SHARE * self.vertices as f64
+    }
+
+    /// The radiance of path `i`.
+    pub fn radiance(&self, i: usize) -> Vec3A {
+        self.radiance[i]
+    }
+
+    /// The first-hit features of path `i` (default unless `run` was asked for them).
+    pub fn first_hit(&self, i: usize) -> &FirstHit {
+        &self.firsts[i]
+    }
+}
+
+/// The path in lane `l`, its sampler key and its id.
+#[inline(always)]
+fn lane_path(ch: &Chunk, l: usize) -> (Path, u64, u32) {
+    let path = Path {
+        ray: Ray { origin: get(&ch.origin, l), dir: get(&ch.dir, l), tmin: 0.0, tmax: f32::INFINITY },
+        beta: get(&ch.beta, l),
+        l: get(&ch.l, l),
+        eta_scale: ch.eta_scale[l],
+        prev_pdf: ch.prev_pdf[l],
+        prev_delta: ch.prev_delta[l] != 0,
+        depth: ch.depth[l],
+    };
+    (path, ch.key[l], ch.id[l])
+}
+
+/// Puts `path` (whose ray must start at `tmin` 0 and have no end) into lane `l`.
+#[inline(always)]
+fn set_lane_path(ch: &mut Chunk, l: usize, path: &Path, key: u64, id: u32) {
+    debug_assert!(path.ray.tmin == 0.0 && path.ray.tmax == f32::INFINITY);
+    put(&mut ch.origin, l, path.ray.origin);
+    put(&mut ch.dir, l, path.ray.dir);
+    put(&mut ch.beta, l, path.beta);
+    put(&mut ch.l, l, path.l);
+    ch.eta_scale[l] = path.eta_scale;
+    ch.prev_pdf[l] = path.prev_pdf;
+    ch.prev_delta[l] = path.prev_delta as u32;
+    ch.depth[l] = path.depth;
+    ch.key[l] = key;
+    ch.id[l] = id;
+}
+
+/// Sets lane `l`'s hit (index 0 where there is none, so that the kernel reads valid data).
+#[inline(always)]
+fn set_hit(ch: &mut Chunk, l: usize, hit: Option<Hit>) {
+    let h = hit.unwrap_or(Hit { t: 0.0, prim: 0, u: 0.0, v: 0.0 });
+    ch.hit[l] = hit.is_some() as u32;
+    (ch.t[l], ch.u[l], ch.v[l], ch.prim[l]) = (h.t, h.u, h.v, h.prim);
+}
+
+/// Vertices a wavefront shades before [`Wavefront::pays`] decides.
+const PROBE_VERTICES: u64 = 4096;
+/// The share of vertices the kernel must shade for [`Wavefront::pays`]: render CPU time
+/// against following each path on its own, on scenes where it shades 10% of the vertices
+/// (bunny-glass) 1.04 ± 0.04, 35% (caustics) 0.99 ± 0.04, 60–70% (glass-of-water, engine,
+/// door-ajar) 0.95–0.97, 78% (the Cornell box) 0.87.
+const KERNEL_SHARE: f64 = 0.4;
+
+/// The fewest lanes of a chunk the kernel shades (else every lane takes the scalar vertex).
+const MIN_SHADED: usize = 4;
+
+/// Marks the first `filled` lanes whose vertex the kernel shades (a hit on a material of its
+/// kind whose light sample, if any, is on an emitter of its kind), copies their records into
+/// `blocks` and returns how many there are.
+#[inline]
+fn classify(ctx: &PathContext, lanes: &SceneLanes, ch: &mut Chunk, blocks: &mut Blocks, filled: usize) -> usize {
+    let lights = ctx.scene.lights();
+    let materials = ctx.scene.triangle_materials();
+    for l in 0..filled {
+        ch.shade[l] = 0;
+        if ch.hit[l] == 0 {
+            continue;
+        }
+        let (prim, material) = (ch.prim[l] as usize, materials[ch.prim[l] as usize] as usize);
+        if !lanes.material_shaded[material] {
+            continue;
+        }
+        let u_select = SampleSampler::from_key(ch.key[l]).get1d(dims::at(ch.depth[l] - 1, dims::LIGHT_SELECT));
+        ch.has_light[l] = 0;
+        if let Some(k) = lights.choose_index(u_select) {
+            if !lanes.light_sampled[k] {
+                continue;
+            }
+            blocks.light[l] = lanes.light[k];
+            ch.has_light[l] = 1;
+        }
+        ch.shade[l] = 1;
+        blocks.triangle[l] = lanes.triangle[prim];
+        blocks.material[l] = lanes.material[material];
+        if let Some(normals) = &lanes.normals {
+            blocks.normals[l] = normals[prim];
+        }
+    }
+    ch.shade[filled..].fill(0);
+    ch.shade.iter().filter(|&&s| s != 0).count()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampler::{StreamKind, StreamSampler};
+    use crate::scene::world::Scene;
+    use crate::settings::PathLimits;
+    use crate::testing::{cornell_box, cornell_box_parts, materials_box, BruteForce};
+    use crate::transport::integrator::radiance_from_hit;
+
+    /// The Cornell box with vertex normals: bent ones, some facing away from the geometry
+    /// (the shading frame falls back to the geometric normal) and some zero (the surface
+    /// keeps its geometric normal).
+    fn bent_normals_box() -> Scene {
+        let mut parts = cornell_box_parts();
+        parts.normals = (0..parts.positions.len())
+            .map(|i| match i % 7 {
+                0 => Vec3A::ZERO,
+                1 => Vec3A::new(0.9, -0.3, 0.2),
+                k => Vec3A::new(0.3 * k as f32 - 1.0, 0.5, 1.0 - 0.2 * k as f32),
+            })
+            .collect();
+        Scene::from_parts(parts).expect("the bent-normals box is valid")
+    }
+
+    /// Every path of a wavefront as `kernel` shades it: radiance and first-hit features.
+    fn paths(scene: &Scene, limits: PathLimits, kernel: Option<Kernel>, seed: u64) -> Vec<(Vec3A, FirstHit)> {
+        let tracer = BruteForce::new(scene);
+        let frame = scene.camera().frame(24, 24);
+        let stream = StreamSampler::new(seed, StreamKind::Pt);
+        let lanes = SceneLanes::new(scene);
+        let mut wave = Wavefront::new(kernel);
+        for pixel in 0..24 * 24u32 {
+            for s in 0..2 {
+                let smp = stream.sample(pixel as u64, s);
+                let ray = frame.ray(pixel % 24, pixel / 24, smp.get2d(dims::PIXEL));
+                wave.push(ray, tracer.intersect(&ray), smp);
+            }
+        }
+        wave.run(&PathContext::new(scene, limits), Some(&lanes), &tracer, true);
+        (0..wave.radiance.len()).map(|i| (wave.radiance(i), *wave.first_hit(i))).collect()
+    }
+
+    /// Each build of the lane kernel this CPU runs gives every path the scalar vertex's radiance
+    /// and first-hit features, bit for bit: on the Cornell box (every hit a lane vertex), with
+    /// bent vertex normals, and on the material box (lane and scalar vertices mixed), with and
+    /// without a depth limit and with Russian roulette from the first bounce.
+    #[test]
+    fn lanes_give_the_scalar_vertex_bit_for_bit() {
+        let builds: Vec<(Isa, Kernel)> =
+            [Isa::Portable, Isa::Avx2, Isa::Avx512].into_iter().filter_map(|i| Some((i, i.kernel()?))).collect();
+        let bits = |v: Vec3A| v.to_array().map(f32::to_bits);
+        for (name, scene) in [("cornell", cornell_box()), ("bent normals", bent_normals_box()), ("materials", materials_box())] {
+            for limits in [PathLimits { max_depth: -1, rr_depth: 5 }, PathLimits { max_depth: 3, rr_depth: 1 }] {
+                let want = paths(&scene, limits, None, 7);
+                // The scalar wavefront is the per-path integrator on the same rays.
+                let tracer = BruteForce::new(&scene);
+                let frame = scene.camera().frame(24, 24);
+                let stream = StreamSampler::new(7, StreamKind::Pt);
+                for (k, (l, first)) in want.iter().enumerate().step_by(37) {
+                    let (pixel, s) = ((k / 2) as u32, (k % 2) as u32);
+                    let smp = stream.sample(pixel as u64, s);
+                    let ray = frame.ray(pixel % 24, pixel / 24, smp.get2d(dims::PIXEL));
+                    let mut fh = FirstHit::default();
+                    let v = radiance_from_hit(&scene, &tracer, limits, ray, tracer.intersect(&ray), &smp, Some(&mut fh));
+                    assert_eq!((bits(v), fh), (bits(*l), *first), "{name}: path {k}, scalar wavefront against the integrator");
+                }
+                assert!(want.iter().filter(|(l, _)| *l != Vec3A::ZERO).count() > want.len() / 4, "{name}: too few lit paths to compare");
+                for (isa, kernel) in &builds {
+                    let got = paths(&scene, limits, Some(*kernel), 7);
+                    for (k, (a, b)) in got.iter().zip(&want).enumerate() {
+                        assert_eq!((bits(a.0), a.1), (bits(b.0), b.1), "{name}, {limits:?}: path {k} with the {isa:?} lanes");
+                    }
+                }
+            }
+        }
+    }
+}
