@@ -35,7 +35,8 @@ named_enum! {
 /// CRN colour distance `δ_rgb = Σ(ḡ_c − ḡ_j)² / (ε + Σ(ḡ_c² + ḡ_j²)/2)`, σ_s = radius. The CRN
 /// image is the guide because its noise is shared by neighbours, so its local structure is far
 /// cleaner than the PT image's; the relative distance makes the filter independent of exposure.
-/// Feature terms are used when the stream set has features.
+/// Feature terms are used when the stream set has features. The default is the filter of
+/// `ours`' declared defaults, where its parameters are declared.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CbfOptions {
     /// Window radius in pixels (window side 2·radius + 1).
@@ -56,13 +57,6 @@ pub struct CbfOptions {
 
 /// Largest supported filter radius.
 pub const MAX_RADIUS: usize = 15;
-
-impl Default for CbfOptions {
-    /// The filter of `ours`' declared defaults.
-    fn default() -> Self {
-        crate::ImperfectCvOptions::default().cbf
-    }
-}
 
 impl CbfOptions {
     pub fn validate(&self) -> Result<(), ReconError> {

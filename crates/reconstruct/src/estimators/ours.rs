@@ -142,6 +142,13 @@ impl Default for ImperfectCvOptions {
     }
 }
 
+impl Default for CbfOptions {
+    /// The filter of `ours`' declared defaults.
+    fn default() -> Self {
+        ImperfectCvOptions::default().cbf
+    }
+}
+
 impl ImperfectCvOptions {
     /// The options of the declared parameters.
     pub fn from_params(p: &Params) -> Self {
