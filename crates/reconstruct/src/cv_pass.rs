@@ -21,9 +21,10 @@ use crate::control_variate::combine;
 use crate::floor::{blend_towards_centre, Floor, FloorMode};
 use crate::panel::{Panel, Rows, System, MAX_SYSTEMS};
 use crate::penalty::Penalty;
-use crate::selection::{SelectScratch, Selector};
+use crate::selection::{SelectScratch, Selector, MAX_SEARCH_WINDOW};
 use crate::simd::{Portable, Simd};
 use crate::solve::{Form, Outcome, Workspace, MAX_BATCHES, MAX_K};
+use crate::ReconError;
 use cvtrace_streams::{Image, Stream, StreamSet};
 use rayon::prelude::*;
 use std::ops::Range;
@@ -69,6 +70,30 @@ pub struct CentreFree {
     pub floored: bool,
     /// The degrees-of-freedom allowance of its predicted variance.
     pub dof: Dof,
+}
+
+/// Checks the settings of a control-variate pass that `ours` and `cv` declare: `k` pixels per
+/// set, centre included (at most [`MAX_K`] and what the window holds), an odd search window of
+/// at most [`MAX_SEARCH_WINDOW`], and the ridge, reported under its command-line name
+/// `ridge_option`.
+pub fn check_selection(k: usize, search_window: usize, ridge: f64, ridge_option: &'static str) -> Result<(), ReconError> {
+    if k == 0 || k > MAX_K {
+        return Err(ReconError::option("k", k, format!("must be between 1 and {MAX_K}")));
+    }
+    if search_window == 0 || search_window.is_multiple_of(2) || search_window > MAX_SEARCH_WINDOW {
+        return Err(ReconError::option("search-window", search_window, format!("must be odd, between 1 and {MAX_SEARCH_WINDOW}")));
+    }
+    if k > search_window * search_window {
+        return Err(ReconError::option(
+            "k",
+            k,
+            format!("cannot choose more pixels than the {search_window}x{search_window} search window holds; raise --search-window"),
+        ));
+    }
+    if !(ridge >= 0.0 && ridge.is_finite()) {
+        return Err(ReconError::option(ridge_option, ridge, "must be a finite number ≥ 0"));
+    }
+    Ok(())
 }
 
 /// What a pass returns: the image, its predicted variance when asked for, and the statistics.
@@ -121,9 +146,9 @@ crate::named::named_enum! {
 
 impl Folds {
     /// Cross-fitting splits the batches into two equal halves, so it needs an even count.
-    pub fn check(self, origin: &str, method: &'static str, batches: usize) -> Result<(), crate::ReconError> {
+    pub fn check(self, origin: &str, method: &'static str, batches: usize) -> Result<(), ReconError> {
         if self == Folds::Halves && batches % 2 == 1 {
-            return Err(crate::ReconError::BatchCount {
+            return Err(ReconError::BatchCount {
                 origin: origin.to_string(),
                 method,
                 requirement: "an even number of".into(),

@@ -71,10 +71,11 @@ mod simd;
 mod solve;
 mod spec;
 pub mod synthetic;
+mod two_stage;
 mod window;
 
 pub use batch_stats::variance_of_mean;
-pub use cv_pass::Folds;
+pub use cv_pass::{Dof, Folds};
 /// The input types, re-exported so that library callers need no second import.
 pub use cvtrace_streams::{Features, Image, Stream, StreamMeta, StreamSet};
 pub use demodulate::Demodulation;
@@ -104,14 +105,27 @@ pub use spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples, Val
 ///   error estimates and the cross-bilateral filter guided by the CRN image and features.
 /// - [`CvPass`](blocks::CvPass): the whole image pass of `ours` and `cv` (select, gather,
 ///   solve, combine), parallel over rows and bit-identical for any thread count; its
-///   [`PassStats`](blocks::PassStats) report the shares of regularised and degenerate solves.
+///   [`PassStats`](blocks::PassStats) report the shares of regularised and degenerate solves,
+///   [`check_selection`](blocks::check_selection) checks the set size, search window and
+///   ridge its callers declare.
+/// - [`two_stage`](blocks::two_stage): the two-stage estimate of `cv` and `ours`, control
+///   variates without the centre ([`centre_free_pass`](blocks::centre_free_pass), or
+///   [`centre_free`](blocks::centre_free) inside a joint pass) combined with the centre's PT
+///   mean by inverse variance ([`combine_with_centre`](blocks::combine_with_centre)), as an
+///   [`Estimate`](blocks::Estimate) with its predicted variance.
+/// - [`restore_low_frequencies`](blocks::restore_low_frequencies) and
+///   [`low_pass_variance`](blocks::low_pass_variance): the low frequencies of an estimate from
+///   the PT mean, and the variance that adds.
+/// - [`Floor`](blocks::Floor) and [`Penalty`](blocks::Penalty): the noise floor of `ours` on
+///   the CRN covariance, and the symmetric penalty on the neighbours' PT error estimates.
 pub mod blocks {
     pub use crate::batch_stats::{group_means, variance_of_mean, BatchCube};
-    pub use crate::cv_pass::{CentreFree, CentreFreeOutput, CvPass, Folds, PassOutput, PassStats};
+    pub use crate::cv_pass::{check_selection, CentreFree, CentreFreeOutput, CvPass, Dof, Folds, PassOutput, PassStats};
     pub use crate::floor::{Floor, FloorMode, FloorSource};
     pub use crate::low_pass::{low_pass_variance, restore_low_frequencies};
     pub use crate::penalty::Penalty;
     pub use crate::pt_error::{cross_bilateral, pt_errors, CbfOptions, ErrorEstimate};
     pub use crate::selection::{SelectScratch, Selection, Selector, MAX_SEARCH_WINDOW};
     pub use crate::solve::{Form, Outcome, Workspace, MAX_BATCHES, MAX_K};
+    pub use crate::two_stage::{centre_free, centre_free_pass, combine_with_centre, two_stage, Estimate, Solve, CENTRE_FREE_RIDGE};
 }
