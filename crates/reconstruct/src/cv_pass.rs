@@ -22,7 +22,7 @@ use crate::floor::{blend_towards_centre, Floor, FloorMode};
 use crate::panel::{Panel, Rows, System, MAX_SYSTEMS};
 use crate::penalty::Penalty;
 use crate::selection::{SelectScratch, Selector, MAX_SEARCH_WINDOW};
-use crate::simd::{Portable, Simd};
+use crate::simd::{self, Kernel, Simd};
 use crate::solve::{Form, Outcome, Workspace, MAX_BATCHES, MAX_K};
 use crate::ReconError;
 use cvtrace_streams::{Image, Stream, StreamSet};
@@ -339,6 +339,36 @@ struct RowOut<'r> {
 /// A pixel's joint and centre-free estimates, each (value, predicted variance).
 type PixelOut = [([f32; 3], [f32; 3]); 2];
 
+/// One image row of a pass (its pixels `out.xs`), with the task's buffers and the row's
+/// statistics (joint, centre-free): what [`simd::dispatch`] runs.
+struct Row<'a, 'h, const P: usize> {
+    pass: &'a CvPass<'a>,
+    halves: &'h [Half<'h>],
+    y: usize,
+    out: RowOut<'a>,
+    sc: &'a mut Scratch<'h, P>,
+    st: &'a mut [PassStats; 2],
+}
+
+impl<const P: usize> Kernel for Row<'_, '_, P> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<S: Simd>(self, simd: S) {
+        let Row { pass, halves, y, out, sc, st } = self;
+        let fused = pass.centre_free.is_some();
+        for x in out.xs.clone() {
+            let [(value, variance), (free_value, free_variance)] = pass.pixel::<P, S>(simd, halves, x, y, sc, st);
+            out.image[x] = value;
+            out.variance[x] = variance;
+            if fused {
+                out.free_image[x] = free_value;
+                out.free_variance[x] = free_variance;
+            }
+        }
+    }
+}
+
 /// Columns per strip of the pass (see [`CvPass::run_width`]).
 const STRIP: usize = 64;
 
@@ -436,13 +466,7 @@ impl CvPass<'_> {
                     || Scratch::<P>::new(&halves[0].cube),
                     |sc, (y, (((image, variance), (free_image, free_variance)), st))| {
                         let out = RowOut { xs: xs.clone(), image, variance, free_image, free_variance };
-                        #[cfg(target_arch = "x86_64")]
-                        if crate::simd::use_avx2() {
-                            // SAFETY: the CPU supports AVX2 (checked just above).
-                            unsafe { self.row_avx2::<P>(halves, y, out, sc, st) };
-                            return;
-                        }
-                        self.row::<P, Portable>(halves, y, out, sc, st);
+                        simd::dispatch(Row { pass: self, halves, y, out, sc, st });
                     },
                 );
         }
@@ -456,40 +480,6 @@ impl CvPass<'_> {
             variance: self.variance.then_some(variance),
             stats,
             centre_free: fused.then_some(CentreFreeOutput { image: free_image, variance: free_variance, stats: free_stats }),
-        }
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn row_avx2<'h, const P: usize>(
-        &self,
-        halves: &'h [Half],
-        y: usize,
-        out: RowOut,
-        sc: &mut Scratch<'h, P>,
-        st: &mut [PassStats; 2],
-    ) {
-        self.row::<P, crate::simd::Avx2>(halves, y, out, sc, st);
-    }
-
-    #[inline(always)]
-    fn row<'h, const P: usize, S: Simd>(
-        &self,
-        halves: &'h [Half],
-        y: usize,
-        out: RowOut,
-        sc: &mut Scratch<'h, P>,
-        st: &mut [PassStats; 2],
-    ) {
-        let fused = self.centre_free.is_some();
-        for x in out.xs.clone() {
-            let [(value, variance), (free_value, free_variance)] = self.pixel::<P, S>(halves, x, y, sc, st);
-            out.image[x] = value;
-            out.variance[x] = variance;
-            if fused {
-                out.free_image[x] = free_value;
-                out.free_variance[x] = free_variance;
-            }
         }
     }
 
@@ -597,6 +587,7 @@ impl CvPass<'_> {
     #[inline(always)]
     fn pixel<'h, const P: usize, S: Simd>(
         &self,
+        simd: S,
         halves: &'h [Half],
         x: usize,
         y: usize,
@@ -604,7 +595,7 @@ impl CvPass<'_> {
         st: &mut [PassStats; 2],
     ) -> PixelOut {
         let c = y * self.set.width + x;
-        let n = self.selector.select_with::<S>(x, y, &mut sc.select, &mut sc.idx);
+        let n = self.selector.select_with(simd, x, y, &mut sc.select, &mut sc.idx);
         let idx = &sc.idx[..n];
         let hm = &self.set.pt.mean.pixels;
         let nh = halves.len();
@@ -653,8 +644,8 @@ impl CvPass<'_> {
                     let i = i as usize;
                     let (gi, hi) = (target[i], hm[i]);
                     for ch in 0..3 {
-                        crate::simd::prefetch(cube.row_padded::<P>(i, ch));
-                        crate::simd::prefetch(plain.row_padded::<P>(i, ch));
+                        simd::prefetch(cube.row_padded::<P>(i, ch));
+                        simd::prefetch(plain.row_padded::<P>(i, ch));
                     }
                     for ch in 0..3 {
                         rows.d[ch][j] = cube.row_padded::<P>(i, ch);
@@ -699,7 +690,7 @@ impl CvPass<'_> {
                         want_press: f.dof.wants_press(),
                     });
                 }
-                let outcomes = p.solve::<S>(rows, &systems[..if free.is_some() { 6 } else { 3 }], s);
+                let outcomes = p.solve(simd, rows, &systems[..if free.is_some() { 6 } else { 3 }], s);
                 let solved = outcomes.map(|o| matches!(o, Outcome::Solved | Outcome::Regularised));
                 let mut shrink = [1.0; 3];
                 for ch in 0..3 {

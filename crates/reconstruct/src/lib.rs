@@ -46,6 +46,10 @@
 // Numeric kernels index several parallel arrays by one loop variable; iterator chains would
 // hide that structure.
 #![allow(clippy::needless_range_loop)]
+// The vector kernels (`simd`) are the only code that needs `unsafe`: intrinsics that require
+// their CPU features, and raw-pointer loads and stores.
+#![deny(unsafe_code)]
+#![warn(clippy::undocumented_unsafe_blocks)]
 
 mod batch_stats;
 pub mod control_variate;
@@ -67,6 +71,7 @@ mod pt_error;
 mod registry;
 mod rng;
 mod selection;
+#[allow(unsafe_code)]
 mod simd;
 mod solve;
 mod spec;
