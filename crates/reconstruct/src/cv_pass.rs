@@ -263,20 +263,26 @@ impl PassStats {
     }
 }
 
-/// Per-task buffers. `P = 0` means the general f64 workspace (shared coefficients, or at
-/// least as many batches as control variates).
+/// Per-task buffers. `P = 0` means the general f64 solve (shared coefficients, or at least as
+/// many batches as control variates).
 struct Scratch<'h, const P: usize> {
     select: SelectScratch,
     idx: [u32; MAX_K],
-    gs: [f64; MAX_K],
-    hs: [f64; MAX_K],
     gs3: [[f64; MAX_K]; 3],
     hs3: [[f64; MAX_K]; 3],
     /// The joint solve's three channels, and the centre-free one's next to them.
     panel: Option<Box<Panel<P>>>,
     /// The panel's rows, overwritten pixel by pixel (as far as each pixel's set reaches).
     rows: Option<Box<Rows<'h, P>>>,
-    ws: Option<Box<Workspace>>,
+    general: Option<General>,
+}
+
+/// The buffers of the general solve: its workspace, and one channel's CRN and PT means of the
+/// control variates.
+struct General {
+    ws: Box<Workspace>,
+    gs: [f64; MAX_K],
+    hs: [f64; MAX_K],
 }
 
 impl<'h, const P: usize> Scratch<'h, P> {
@@ -285,8 +291,6 @@ impl<'h, const P: usize> Scratch<'h, P> {
         Scratch {
             select: SelectScratch::new(),
             idx: [0; MAX_K],
-            gs: [0.0; MAX_K],
-            hs: [0.0; MAX_K],
             gs3: [[0.0; MAX_K]; 3],
             hs3: [[0.0; MAX_K]; 3],
             panel: (P > 0).then(Panel::<P>::boxed),
@@ -294,7 +298,7 @@ impl<'h, const P: usize> Scratch<'h, P> {
                 let r = cube.row_padded::<P>(0, 0);
                 Box::new(Rows { d: [[r; MAX_K]; MAX_SYSTEMS], dc: [r; MAX_SYSTEMS] })
             }),
-            ws: (P == 0).then(Workspace::boxed),
+            general: (P == 0).then(|| General { ws: Workspace::boxed(), gs: [0.0; MAX_K], hs: [0.0; MAX_K] }),
         }
     }
 }
@@ -312,6 +316,33 @@ struct Half<'a> {
 impl Half<'_> {
     fn plain(&self) -> &BatchCube {
         self.plain.as_ref().unwrap_or(&self.cube)
+    }
+}
+
+/// The deviations one solve's coefficients are estimated from, and the CRN values they weight:
+/// a [`Half`]'s cube (or, for the centre-free solve, its deviations without the floor) and mean.
+#[derive(Clone, Copy)]
+struct Fold<'a> {
+    cube: &'a BatchCube,
+    target: &'a [[f32; 3]],
+}
+
+/// One stage's results for a pixel: its sums over the folds (the combination and its predicted
+/// variance, per channel), and the row's statistics its solves are counted in.
+struct Tally<'s> {
+    value: [f64; 3],
+    variance: [f64; 3],
+    stats: &'s mut PassStats,
+}
+
+impl<'s> Tally<'s> {
+    fn new(stats: &'s mut PassStats) -> Self {
+        Tally { value: [0.0; 3], variance: [0.0; 3], stats }
+    }
+
+    /// The average over `folds` folds: the pixel's value and predicted variance.
+    fn finish(&self, folds: usize) -> ([f32; 3], [f32; 3]) {
+        (self.value.map(|v| (v / folds as f64) as f32), self.variance.map(|v| (v / folds as f64) as f32))
     }
 }
 
@@ -624,11 +655,9 @@ impl CvPass<'_> {
         debug_assert!(self.floor.filter(|f| f.mode == FloorMode::Independent).is_none() || (self.include_centre && idx[0] as usize == c));
         debug_assert!(free.is_none() || (nh == 1 && idx[0] as usize == c));
         let free = free.filter(|_| n >= 2);
-        let mut acc = [0.0f64; 3];
-        let mut var = [0.0f64; 3];
-        let mut free_acc = [0.0f64; 3];
-        let mut free_var = [0.0f64; 3];
-        let finish = |acc: [f64; 3], var: [f64; 3], nh: usize| (acc.map(|v| (v / nh as f64) as f32), var.map(|v| (v / nh as f64) as f32));
+        let [joint_stats, free_stats] = st;
+        let mut tally = Tally::new(joint_stats);
+        let mut free_tally = Tally::new(free_stats);
         if let Some(p) = sc.panel.as_deref_mut() {
             for half in halves {
                 let cube = &half.cube;
@@ -711,13 +740,13 @@ impl CvPass<'_> {
                 let n_obs = (b - 1 + usize::from(common)) as f64;
                 for ch in 0..3 {
                     let [beta_sum, correction, pt] = sums[ch];
-                    st[0].count(outcomes[ch], if self.include_centre { p.beta[ch][0] } else { 0.0 }, beta_sum);
-                    acc[ch] += target[c][ch] as f64 - correction;
+                    tally.stats.count(outcomes[ch], if self.include_centre { p.beta[ch][0] } else { 0.0 }, beta_sum);
+                    tally.value[ch] += target[c][ch] as f64 - correction;
                     if self.variance {
                         let factor =
                             if solved[ch] { self.dof.factor(P as f64 - p.trace_inv[ch], n_obs, p.resid_sq[ch], p.press[ch]) } else { 1.0 };
                         let crn = s * if solved[ch] { shrink[ch] * shrink[ch] * p.resid_sq[ch] } else { f64::from(cube.sq[c][ch]) };
-                        var[ch] += factor * crn + pt;
+                        tally.variance[ch] += factor * crn + pt;
                     }
                 }
                 if let Some(f) = free {
@@ -729,46 +758,36 @@ impl CvPass<'_> {
                         let [beta_sum, correction, pt] = sums[q];
                         let factor =
                             if solved[q] { f.dof.factor(P as f64 - p.trace_inv[q], n_obs, p.resid_sq[q], p.press[q]) } else { 1.0 };
-                        st[1].count(outcomes[q], 0.0, beta_sum);
-                        free_acc[ch] += target[c][ch] as f64 - correction;
+                        free_tally.stats.count(outcomes[q], 0.0, beta_sum);
+                        free_tally.value[ch] += target[c][ch] as f64 - correction;
                         let crn = s * if solved[q] { p.resid_sq[q] } else { f64::from(plain.sq[c][ch]) };
-                        free_var[ch] += factor * crn + pt;
+                        free_tally.variance[ch] += factor * crn + pt;
                     }
                 }
             }
         } else {
-            let ws = sc.ws.as_deref_mut().expect("general workspace");
+            let bufs = sc.general.as_mut().expect("general buffers");
             let joint = self.joint();
             for half in halves {
-                self.general(&joint, &half.cube, half.mean, idx, c, ws, (&mut sc.gs, &mut sc.hs), &mut st[0], (&mut acc, &mut var));
+                self.general(&joint, Fold { cube: &half.cube, target: half.mean }, idx, c, bufs, &mut tally);
             }
             if let Some(f) = free {
                 let half = &halves[0];
-                let out = (&mut free_acc, &mut free_var);
-                self.general(&f, half.plain(), half.mean, &idx[1..], c, ws, (&mut sc.gs, &mut sc.hs), &mut st[1], out);
+                self.general(&f, Fold { cube: half.plain(), target: half.mean }, &idx[1..], c, bufs, &mut free_tally);
             }
         }
-        let free_out = if free.is_some() { finish(free_acc, free_var, 1) } else { crn_only };
-        [finish(acc, var, nh), free_out]
+        let free_out = if free.is_some() { free_tally.finish(1) } else { crn_only };
+        [tally.finish(nh), free_out]
     }
 
     /// One fold's solve in the general f64 workspace (shared coefficients, or at least as many
-    /// batches as control variates): gathers the rows of `idx` from `cube`, solves with the
-    /// `stage`'s settings and adds the combination and its variance to `out`.
-    #[allow(clippy::too_many_arguments)]
+    /// batches as control variates) for centre `c`: gathers the rows of the control variates
+    /// `idx` from the fold's cube, solves with the `stage`'s settings and adds the combination
+    /// and its variance to `tally`.
     #[inline(always)]
-    fn general(
-        &self,
-        stage: &Stage,
-        cube: &BatchCube,
-        target: &[[f32; 3]],
-        idx: &[u32],
-        c: usize,
-        ws: &mut Workspace,
-        (gs, hs): (&mut [f64; MAX_K], &mut [f64; MAX_K]),
-        st: &mut PassStats,
-        (acc, var): (&mut [f64; 3], &mut [f64; 3]),
-    ) {
+    fn general(&self, stage: &Stage, fold: Fold, idx: &[u32], c: usize, bufs: &mut General, tally: &mut Tally) {
+        let Fold { cube, target } = fold;
+        let General { ws, gs, hs } = bufs;
         let n = idx.len();
         let b = cube.batches;
         let s = scale(self.set.batch_count(), b);
@@ -810,17 +829,17 @@ impl CvPass<'_> {
                 blend_towards_centre(&mut ws.beta[..n], delta_c, 1.0 / (ws.w[0] + ws.lambda));
             }
             let beta = &mut ws.beta[..n];
-            st.record(outcome, beta, stage.include_centre);
+            tally.stats.record(outcome, beta, stage.include_centre);
             let out_channels: &[usize] = if self.shared { &[0, 1, 2] } else { std::slice::from_ref(&ch) };
             for &oc in out_channels {
                 for (j, &i) in idx.iter().enumerate() {
                     gs[j] = target[i as usize][oc] as f64;
                     hs[j] = hm[i as usize][oc] as f64;
                 }
-                acc[oc] += combine(target[c][oc] as f64, &gs[..n], &hs[..n], beta);
+                tally.value[oc] += combine(target[c][oc] as f64, &gs[..n], &hs[..n], beta);
                 if stage.variance {
                     let (crn, pt) = self.predicted_variance(cube, c, idx, beta, oc, s);
-                    var[oc] += factor * crn + pt;
+                    tally.variance[oc] += factor * crn + pt;
                 }
             }
         }
