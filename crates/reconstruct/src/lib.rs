@@ -102,7 +102,7 @@ pub use spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples, Val
 ///
 /// - [`Selector`](blocks::Selector): the `k` control-variate pixels of a centre pixel in its
 ///   search window (k-NN by CRN colour, spatial window, random, G-buffer), deterministic.
-/// - [`BatchCube`](blocks::BatchCube) and [`variance_of_mean`](blocks::variance_of_mean),
+/// - [`BatchCube`](blocks::BatchCube) and [`variance_of_mean`],
 ///   [`group_means`](blocks::group_means): batch deviations, covariances and sub-buffers.
 /// - [`Workspace`](blocks::Workspace): the small SPD solve of the coefficients
 ///   `(W + s·D·Dᵀ) β = s·D·d_c`, directly or through Woodbury, with an adaptive ridge.
@@ -121,7 +121,7 @@ pub use spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples, Val
 /// - [`restore_low_frequencies`](blocks::restore_low_frequencies) and
 ///   [`low_pass_variance`](blocks::low_pass_variance): the low frequencies of an estimate from
 ///   the PT mean, and the variance that adds.
-/// - [`Floor`](blocks::Floor) and [`Penalty`](blocks::Penalty): the noise floor of `ours` on
+/// - [`Floor`](blocks::Floor) and [`Penalty`]: the noise floor of `ours` on
 ///   the CRN covariance, and the symmetric penalty on the neighbours' PT error estimates.
 pub mod blocks {
     pub use crate::batch_stats::{group_means, variance_of_mean, BatchCube};

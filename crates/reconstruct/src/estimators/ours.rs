@@ -109,7 +109,8 @@ pub struct ImperfectCvOptions {
     /// Which CRN batches β is estimated from and applied to ([`Folds`]): with `halves` the
     /// coefficients are independent of the CRN values they weight.
     pub folds: Folds,
-    /// σ (pixels) of the low-pass correction towards the PT mean ([`crate::low_pass`]); 0 = off.
+    /// σ (pixels) of the low-pass correction towards the PT mean
+    /// ([`restore_low_frequencies`]); 0 = off.
     pub low_pass_sigma: f64,
     /// Weight of the two-stage estimate in the output (0 = the joint solve alone).
     pub two_stage_weight: f64,
@@ -120,7 +121,7 @@ pub struct ImperfectCvOptions {
     /// The correlation of the two mixed estimates that the variance layer assumes.
     pub mix_correlation: MixCorrelation,
     /// Reconstruct illumination (radiance ÷ first-hit albedo) and multiply the albedo back
-    /// ([`crate::demodulate`]).
+    /// ([`Demodulation`]).
     pub demodulate: Demodulation,
 }
 
