@@ -12,6 +12,9 @@
 //! (`w = ½`) and the control variates.
 //!
 //! Register it with `registry.register(&cvtrace_ivw::SPEC)` (cvtrace does in `src/lib.rs`).
+
+// An estimator made of the public blocks needs no `unsafe` of its own.
+#![forbid(unsafe_code)]
 use cvtrace_reconstruct::blocks::{self, CbfOptions};
 use cvtrace_reconstruct::{
     BatchNeed, Bounds, Diagnostics, Estimator, EstimatorSpec, Image, Input, Needs, Output, ParamKind, ParamSpec, Params, ReconError,

@@ -21,9 +21,10 @@ use crate::control_variate::combine;
 use crate::floor::{blend_towards_centre, Floor, FloorMode};
 use crate::panel::{Panel, Rows, System, MAX_SYSTEMS};
 use crate::penalty::Penalty;
-use crate::selection::{SelectScratch, Selector};
-use crate::simd::{Portable, Simd};
+use crate::selection::{SelectScratch, Selector, MAX_SEARCH_WINDOW};
+use crate::simd::{self, Kernel, Simd};
 use crate::solve::{Form, Outcome, Workspace, MAX_BATCHES, MAX_K};
+use crate::ReconError;
 use cvtrace_streams::{Image, Stream, StreamSet};
 use rayon::prelude::*;
 use std::ops::Range;
@@ -69,6 +70,30 @@ pub struct CentreFree {
     pub floored: bool,
     /// The degrees-of-freedom allowance of its predicted variance.
     pub dof: Dof,
+}
+
+/// Checks the settings of a control-variate pass that `ours` and `cv` declare: `k` pixels per
+/// set, centre included (at most [`MAX_K`] and what the window holds), an odd search window of
+/// at most [`MAX_SEARCH_WINDOW`], and the ridge, reported under its command-line name
+/// `ridge_option`.
+pub fn check_selection(k: usize, search_window: usize, ridge: f64, ridge_option: &'static str) -> Result<(), ReconError> {
+    if k == 0 || k > MAX_K {
+        return Err(ReconError::option("k", k, format!("must be between 1 and {MAX_K}")));
+    }
+    if search_window == 0 || search_window.is_multiple_of(2) || search_window > MAX_SEARCH_WINDOW {
+        return Err(ReconError::option("search-window", search_window, format!("must be odd, between 1 and {MAX_SEARCH_WINDOW}")));
+    }
+    if k > search_window * search_window {
+        return Err(ReconError::option(
+            "k",
+            k,
+            format!("cannot choose more pixels than the {search_window}x{search_window} search window holds; raise --search-window"),
+        ));
+    }
+    if !(ridge >= 0.0 && ridge.is_finite()) {
+        return Err(ReconError::option(ridge_option, ridge, "must be a finite number ≥ 0"));
+    }
+    Ok(())
 }
 
 /// What a pass returns: the image, its predicted variance when asked for, and the statistics.
@@ -121,9 +146,9 @@ crate::named::named_enum! {
 
 impl Folds {
     /// Cross-fitting splits the batches into two equal halves, so it needs an even count.
-    pub fn check(self, origin: &str, method: &'static str, batches: usize) -> Result<(), crate::ReconError> {
+    pub fn check(self, origin: &str, method: &'static str, batches: usize) -> Result<(), ReconError> {
         if self == Folds::Halves && batches % 2 == 1 {
-            return Err(crate::ReconError::BatchCount {
+            return Err(ReconError::BatchCount {
                 origin: origin.to_string(),
                 method,
                 requirement: "an even number of".into(),
@@ -238,20 +263,26 @@ impl PassStats {
     }
 }
 
-/// Per-task buffers. `P = 0` means the general f64 workspace (shared coefficients, or at
-/// least as many batches as control variates).
+/// Per-task buffers. `P = 0` means the general f64 solve (shared coefficients, or at least as
+/// many batches as control variates).
 struct Scratch<'h, const P: usize> {
     select: SelectScratch,
     idx: [u32; MAX_K],
-    gs: [f64; MAX_K],
-    hs: [f64; MAX_K],
     gs3: [[f64; MAX_K]; 3],
     hs3: [[f64; MAX_K]; 3],
     /// The joint solve's three channels, and the centre-free one's next to them.
     panel: Option<Box<Panel<P>>>,
     /// The panel's rows, overwritten pixel by pixel (as far as each pixel's set reaches).
     rows: Option<Box<Rows<'h, P>>>,
-    ws: Option<Box<Workspace>>,
+    general: Option<General>,
+}
+
+/// The buffers of the general solve: its workspace, and one channel's CRN and PT means of the
+/// control variates.
+struct General {
+    ws: Box<Workspace>,
+    gs: [f64; MAX_K],
+    hs: [f64; MAX_K],
 }
 
 impl<'h, const P: usize> Scratch<'h, P> {
@@ -260,8 +291,6 @@ impl<'h, const P: usize> Scratch<'h, P> {
         Scratch {
             select: SelectScratch::new(),
             idx: [0; MAX_K],
-            gs: [0.0; MAX_K],
-            hs: [0.0; MAX_K],
             gs3: [[0.0; MAX_K]; 3],
             hs3: [[0.0; MAX_K]; 3],
             panel: (P > 0).then(Panel::<P>::boxed),
@@ -269,7 +298,7 @@ impl<'h, const P: usize> Scratch<'h, P> {
                 let r = cube.row_padded::<P>(0, 0);
                 Box::new(Rows { d: [[r; MAX_K]; MAX_SYSTEMS], dc: [r; MAX_SYSTEMS] })
             }),
-            ws: (P == 0).then(Workspace::boxed),
+            general: (P == 0).then(|| General { ws: Workspace::boxed(), gs: [0.0; MAX_K], hs: [0.0; MAX_K] }),
         }
     }
 }
@@ -287,6 +316,33 @@ struct Half<'a> {
 impl Half<'_> {
     fn plain(&self) -> &BatchCube {
         self.plain.as_ref().unwrap_or(&self.cube)
+    }
+}
+
+/// The deviations one solve's coefficients are estimated from, and the CRN values they weight:
+/// a [`Half`]'s cube (or, for the centre-free solve, its deviations without the floor) and mean.
+#[derive(Clone, Copy)]
+struct Fold<'a> {
+    cube: &'a BatchCube,
+    target: &'a [[f32; 3]],
+}
+
+/// One stage's results for a pixel: its sums over the folds (the combination and its predicted
+/// variance, per channel), and the row's statistics its solves are counted in.
+struct Tally<'s> {
+    value: [f64; 3],
+    variance: [f64; 3],
+    stats: &'s mut PassStats,
+}
+
+impl<'s> Tally<'s> {
+    fn new(stats: &'s mut PassStats) -> Self {
+        Tally { value: [0.0; 3], variance: [0.0; 3], stats }
+    }
+
+    /// The average over `folds` folds: the pixel's value and predicted variance.
+    fn finish(&self, folds: usize) -> ([f32; 3], [f32; 3]) {
+        (self.value.map(|v| (v / folds as f64) as f32), self.variance.map(|v| (v / folds as f64) as f32))
     }
 }
 
@@ -313,6 +369,36 @@ struct RowOut<'r> {
 
 /// A pixel's joint and centre-free estimates, each (value, predicted variance).
 type PixelOut = [([f32; 3], [f32; 3]); 2];
+
+/// One image row of a pass (its pixels `out.xs`), with the task's buffers and the row's
+/// statistics (joint, centre-free): what [`simd::dispatch`] runs.
+struct Row<'a, 'h, const P: usize> {
+    pass: &'a CvPass<'a>,
+    halves: &'h [Half<'h>],
+    y: usize,
+    out: RowOut<'a>,
+    sc: &'a mut Scratch<'h, P>,
+    st: &'a mut [PassStats; 2],
+}
+
+impl<const P: usize> Kernel for Row<'_, '_, P> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<S: Simd>(self, simd: S) {
+        let Row { pass, halves, y, out, sc, st } = self;
+        let fused = pass.centre_free.is_some();
+        for x in out.xs.clone() {
+            let [(value, variance), (free_value, free_variance)] = pass.pixel::<P, S>(simd, halves, x, y, sc, st);
+            out.image[x] = value;
+            out.variance[x] = variance;
+            if fused {
+                out.free_image[x] = free_value;
+                out.free_variance[x] = free_variance;
+            }
+        }
+    }
+}
 
 /// Columns per strip of the pass (see [`CvPass::run_width`]).
 const STRIP: usize = 64;
@@ -411,13 +497,7 @@ impl CvPass<'_> {
                     || Scratch::<P>::new(&halves[0].cube),
                     |sc, (y, (((image, variance), (free_image, free_variance)), st))| {
                         let out = RowOut { xs: xs.clone(), image, variance, free_image, free_variance };
-                        #[cfg(target_arch = "x86_64")]
-                        if crate::simd::use_avx2() {
-                            // SAFETY: the CPU supports AVX2 (checked just above).
-                            unsafe { self.row_avx2::<P>(halves, y, out, sc, st) };
-                            return;
-                        }
-                        self.row::<P, Portable>(halves, y, out, sc, st);
+                        simd::dispatch(Row { pass: self, halves, y, out, sc, st });
                     },
                 );
         }
@@ -431,40 +511,6 @@ impl CvPass<'_> {
             variance: self.variance.then_some(variance),
             stats,
             centre_free: fused.then_some(CentreFreeOutput { image: free_image, variance: free_variance, stats: free_stats }),
-        }
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn row_avx2<'h, const P: usize>(
-        &self,
-        halves: &'h [Half],
-        y: usize,
-        out: RowOut,
-        sc: &mut Scratch<'h, P>,
-        st: &mut [PassStats; 2],
-    ) {
-        self.row::<P, crate::simd::Avx2>(halves, y, out, sc, st);
-    }
-
-    #[inline(always)]
-    fn row<'h, const P: usize, S: Simd>(
-        &self,
-        halves: &'h [Half],
-        y: usize,
-        out: RowOut,
-        sc: &mut Scratch<'h, P>,
-        st: &mut [PassStats; 2],
-    ) {
-        let fused = self.centre_free.is_some();
-        for x in out.xs.clone() {
-            let [(value, variance), (free_value, free_variance)] = self.pixel::<P, S>(halves, x, y, sc, st);
-            out.image[x] = value;
-            out.variance[x] = variance;
-            if fused {
-                out.free_image[x] = free_value;
-                out.free_variance[x] = free_variance;
-            }
         }
     }
 
@@ -572,6 +618,7 @@ impl CvPass<'_> {
     #[inline(always)]
     fn pixel<'h, const P: usize, S: Simd>(
         &self,
+        simd: S,
         halves: &'h [Half],
         x: usize,
         y: usize,
@@ -579,7 +626,7 @@ impl CvPass<'_> {
         st: &mut [PassStats; 2],
     ) -> PixelOut {
         let c = y * self.set.width + x;
-        let n = self.selector.select_with::<S>(x, y, &mut sc.select, &mut sc.idx);
+        let n = self.selector.select_with(simd, x, y, &mut sc.select, &mut sc.idx);
         let idx = &sc.idx[..n];
         let hm = &self.set.pt.mean.pixels;
         let nh = halves.len();
@@ -608,11 +655,9 @@ impl CvPass<'_> {
         debug_assert!(self.floor.filter(|f| f.mode == FloorMode::Independent).is_none() || (self.include_centre && idx[0] as usize == c));
         debug_assert!(free.is_none() || (nh == 1 && idx[0] as usize == c));
         let free = free.filter(|_| n >= 2);
-        let mut acc = [0.0f64; 3];
-        let mut var = [0.0f64; 3];
-        let mut free_acc = [0.0f64; 3];
-        let mut free_var = [0.0f64; 3];
-        let finish = |acc: [f64; 3], var: [f64; 3], nh: usize| (acc.map(|v| (v / nh as f64) as f32), var.map(|v| (v / nh as f64) as f32));
+        let [joint_stats, free_stats] = st;
+        let mut tally = Tally::new(joint_stats);
+        let mut free_tally = Tally::new(free_stats);
         if let Some(p) = sc.panel.as_deref_mut() {
             for half in halves {
                 let cube = &half.cube;
@@ -628,8 +673,8 @@ impl CvPass<'_> {
                     let i = i as usize;
                     let (gi, hi) = (target[i], hm[i]);
                     for ch in 0..3 {
-                        crate::simd::prefetch(cube.row_padded::<P>(i, ch));
-                        crate::simd::prefetch(plain.row_padded::<P>(i, ch));
+                        simd::prefetch(cube.row_padded::<P>(i, ch));
+                        simd::prefetch(plain.row_padded::<P>(i, ch));
                     }
                     for ch in 0..3 {
                         rows.d[ch][j] = cube.row_padded::<P>(i, ch);
@@ -674,7 +719,7 @@ impl CvPass<'_> {
                         want_press: f.dof.wants_press(),
                     });
                 }
-                let outcomes = p.solve::<S>(rows, &systems[..if free.is_some() { 6 } else { 3 }], s);
+                let outcomes = p.solve(simd, rows, &systems[..if free.is_some() { 6 } else { 3 }], s);
                 let solved = outcomes.map(|o| matches!(o, Outcome::Solved | Outcome::Regularised));
                 let mut shrink = [1.0; 3];
                 for ch in 0..3 {
@@ -695,13 +740,13 @@ impl CvPass<'_> {
                 let n_obs = (b - 1 + usize::from(common)) as f64;
                 for ch in 0..3 {
                     let [beta_sum, correction, pt] = sums[ch];
-                    st[0].count(outcomes[ch], if self.include_centre { p.beta[ch][0] } else { 0.0 }, beta_sum);
-                    acc[ch] += target[c][ch] as f64 - correction;
+                    tally.stats.count(outcomes[ch], if self.include_centre { p.beta[ch][0] } else { 0.0 }, beta_sum);
+                    tally.value[ch] += target[c][ch] as f64 - correction;
                     if self.variance {
                         let factor =
                             if solved[ch] { self.dof.factor(P as f64 - p.trace_inv[ch], n_obs, p.resid_sq[ch], p.press[ch]) } else { 1.0 };
                         let crn = s * if solved[ch] { shrink[ch] * shrink[ch] * p.resid_sq[ch] } else { f64::from(cube.sq[c][ch]) };
-                        var[ch] += factor * crn + pt;
+                        tally.variance[ch] += factor * crn + pt;
                     }
                 }
                 if let Some(f) = free {
@@ -713,46 +758,36 @@ impl CvPass<'_> {
                         let [beta_sum, correction, pt] = sums[q];
                         let factor =
                             if solved[q] { f.dof.factor(P as f64 - p.trace_inv[q], n_obs, p.resid_sq[q], p.press[q]) } else { 1.0 };
-                        st[1].count(outcomes[q], 0.0, beta_sum);
-                        free_acc[ch] += target[c][ch] as f64 - correction;
+                        free_tally.stats.count(outcomes[q], 0.0, beta_sum);
+                        free_tally.value[ch] += target[c][ch] as f64 - correction;
                         let crn = s * if solved[q] { p.resid_sq[q] } else { f64::from(plain.sq[c][ch]) };
-                        free_var[ch] += factor * crn + pt;
+                        free_tally.variance[ch] += factor * crn + pt;
                     }
                 }
             }
         } else {
-            let ws = sc.ws.as_deref_mut().expect("general workspace");
+            let bufs = sc.general.as_mut().expect("general buffers");
             let joint = self.joint();
             for half in halves {
-                self.general(&joint, &half.cube, half.mean, idx, c, ws, (&mut sc.gs, &mut sc.hs), &mut st[0], (&mut acc, &mut var));
+                self.general(&joint, Fold { cube: &half.cube, target: half.mean }, idx, c, bufs, &mut tally);
             }
             if let Some(f) = free {
                 let half = &halves[0];
-                let out = (&mut free_acc, &mut free_var);
-                self.general(&f, half.plain(), half.mean, &idx[1..], c, ws, (&mut sc.gs, &mut sc.hs), &mut st[1], out);
+                self.general(&f, Fold { cube: half.plain(), target: half.mean }, &idx[1..], c, bufs, &mut free_tally);
             }
         }
-        let free_out = if free.is_some() { finish(free_acc, free_var, 1) } else { crn_only };
-        [finish(acc, var, nh), free_out]
+        let free_out = if free.is_some() { free_tally.finish(1) } else { crn_only };
+        [tally.finish(nh), free_out]
     }
 
     /// One fold's solve in the general f64 workspace (shared coefficients, or at least as many
-    /// batches as control variates): gathers the rows of `idx` from `cube`, solves with the
-    /// `stage`'s settings and adds the combination and its variance to `out`.
-    #[allow(clippy::too_many_arguments)]
+    /// batches as control variates) for centre `c`: gathers the rows of the control variates
+    /// `idx` from the fold's cube, solves with the `stage`'s settings and adds the combination
+    /// and its variance to `tally`.
     #[inline(always)]
-    fn general(
-        &self,
-        stage: &Stage,
-        cube: &BatchCube,
-        target: &[[f32; 3]],
-        idx: &[u32],
-        c: usize,
-        ws: &mut Workspace,
-        (gs, hs): (&mut [f64; MAX_K], &mut [f64; MAX_K]),
-        st: &mut PassStats,
-        (acc, var): (&mut [f64; 3], &mut [f64; 3]),
-    ) {
+    fn general(&self, stage: &Stage, fold: Fold, idx: &[u32], c: usize, bufs: &mut General, tally: &mut Tally) {
+        let Fold { cube, target } = fold;
+        let General { ws, gs, hs } = bufs;
         let n = idx.len();
         let b = cube.batches;
         let s = scale(self.set.batch_count(), b);
@@ -794,17 +829,17 @@ impl CvPass<'_> {
                 blend_towards_centre(&mut ws.beta[..n], delta_c, 1.0 / (ws.w[0] + ws.lambda));
             }
             let beta = &mut ws.beta[..n];
-            st.record(outcome, beta, stage.include_centre);
+            tally.stats.record(outcome, beta, stage.include_centre);
             let out_channels: &[usize] = if self.shared { &[0, 1, 2] } else { std::slice::from_ref(&ch) };
             for &oc in out_channels {
                 for (j, &i) in idx.iter().enumerate() {
                     gs[j] = target[i as usize][oc] as f64;
                     hs[j] = hm[i as usize][oc] as f64;
                 }
-                acc[oc] += combine(target[c][oc] as f64, &gs[..n], &hs[..n], beta);
+                tally.value[oc] += combine(target[c][oc] as f64, &gs[..n], &hs[..n], beta);
                 if stage.variance {
                     let (crn, pt) = self.predicted_variance(cube, c, idx, beta, oc, s);
-                    var[oc] += factor * crn + pt;
+                    tally.variance[oc] += factor * crn + pt;
                 }
             }
         }

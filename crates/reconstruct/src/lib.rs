@@ -46,6 +46,10 @@
 // Numeric kernels index several parallel arrays by one loop variable; iterator chains would
 // hide that structure.
 #![allow(clippy::needless_range_loop)]
+// The vector kernels (`simd`) are the only code that needs `unsafe`: intrinsics that require
+// their CPU features, and raw-pointer loads and stores.
+#![deny(unsafe_code)]
+#![warn(clippy::undocumented_unsafe_blocks)]
 
 mod batch_stats;
 pub mod control_variate;
@@ -58,6 +62,7 @@ pub mod estimators;
 mod fast_exp;
 mod floor;
 mod input;
+mod instance;
 mod low_pass;
 mod named;
 mod panel;
@@ -66,23 +71,26 @@ mod pt_error;
 mod registry;
 mod rng;
 mod selection;
+#[allow(unsafe_code)]
 mod simd;
 mod solve;
 mod spec;
 pub mod synthetic;
+mod two_stage;
 mod window;
 
 pub use batch_stats::variance_of_mean;
-pub use cv_pass::Folds;
+pub use cv_pass::{Dof, Folds};
 /// The input types, re-exported so that library callers need no second import.
 pub use cvtrace_streams::{Features, Image, Stream, StreamMeta, StreamSet};
 pub use demodulate::Demodulation;
 pub use diagnostics::{DiagValue, Diagnostics};
 pub use error::{ParseNameError, ReconError};
-pub use estimator::{Estimator, Instance, Output};
+pub use estimator::{Estimator, Output};
 pub use estimators::{ClassicCvOptions, IduwOptions, ImperfectCvOptions, GAMMA_GRID};
 pub use floor::{FloorMode, FloorSource};
 pub use input::{stream_set_from_batches, BatchNeed, Input, Needs, MAX_VALUE};
+pub use instance::Instance;
 pub use penalty::Penalty;
 pub use pt_error::{CbfOptions, ErrorEstimate};
 pub use registry::{build, Overrides, Registry, RESERVED_NAMES};
@@ -94,7 +102,7 @@ pub use spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples, Val
 ///
 /// - [`Selector`](blocks::Selector): the `k` control-variate pixels of a centre pixel in its
 ///   search window (k-NN by CRN colour, spatial window, random, G-buffer), deterministic.
-/// - [`BatchCube`](blocks::BatchCube) and [`variance_of_mean`](blocks::variance_of_mean),
+/// - [`BatchCube`](blocks::BatchCube) and [`variance_of_mean`],
 ///   [`group_means`](blocks::group_means): batch deviations, covariances and sub-buffers.
 /// - [`Workspace`](blocks::Workspace): the small SPD solve of the coefficients
 ///   `(W + s·D·Dᵀ) β = s·D·d_c`, directly or through Woodbury, with an adaptive ridge.
@@ -102,14 +110,27 @@ pub use spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples, Val
 ///   error estimates and the cross-bilateral filter guided by the CRN image and features.
 /// - [`CvPass`](blocks::CvPass): the whole image pass of `ours` and `cv` (select, gather,
 ///   solve, combine), parallel over rows and bit-identical for any thread count; its
-///   [`PassStats`](blocks::PassStats) report the shares of regularised and degenerate solves.
+///   [`PassStats`](blocks::PassStats) report the shares of regularised and degenerate solves,
+///   [`check_selection`](blocks::check_selection) checks the set size, search window and
+///   ridge its callers declare.
+/// - [`two_stage`](blocks::two_stage): the two-stage estimate of `cv` and `ours`, control
+///   variates without the centre ([`centre_free_pass`](blocks::centre_free_pass), or
+///   [`centre_free`](blocks::centre_free) inside a joint pass) combined with the centre's PT
+///   mean by inverse variance ([`combine_with_centre`](blocks::combine_with_centre)), as an
+///   [`Estimate`](blocks::Estimate) with its predicted variance.
+/// - [`restore_low_frequencies`](blocks::restore_low_frequencies) and
+///   [`low_pass_variance`](blocks::low_pass_variance): the low frequencies of an estimate from
+///   the PT mean, and the variance that adds.
+/// - [`Floor`](blocks::Floor) and [`Penalty`]: the noise floor of `ours` on
+///   the CRN covariance, and the symmetric penalty on the neighbours' PT error estimates.
 pub mod blocks {
     pub use crate::batch_stats::{group_means, variance_of_mean, BatchCube};
-    pub use crate::cv_pass::{CentreFree, CentreFreeOutput, CvPass, Folds, PassOutput, PassStats};
+    pub use crate::cv_pass::{check_selection, CentreFree, CentreFreeOutput, CvPass, Dof, Folds, PassOutput, PassStats};
     pub use crate::floor::{Floor, FloorMode, FloorSource};
     pub use crate::low_pass::{low_pass_variance, restore_low_frequencies};
     pub use crate::penalty::Penalty;
     pub use crate::pt_error::{cross_bilateral, pt_errors, CbfOptions, ErrorEstimate};
     pub use crate::selection::{SelectScratch, Selection, Selector, MAX_SEARCH_WINDOW};
     pub use crate::solve::{Form, Outcome, Workspace, MAX_BATCHES, MAX_K};
+    pub use crate::two_stage::{centre_free, centre_free_pass, combine_with_centre, two_stage, Estimate, Solve, CENTRE_FREE_RIDGE};
 }

@@ -12,6 +12,7 @@
 //!
 //! Each output pixel is a fixed-order sum over its own footprint, so the result is
 //! bit-identical for any thread count.
+use crate::simd::{self, Kernel, Simd};
 use cvtrace_streams::Image;
 use rayon::prelude::*;
 
@@ -26,15 +27,7 @@ fn taps(sigma: f64, longest_side: usize) -> Vec<f64> {
 fn blur_1d(src: &[[f64; 3]], w: usize, h: usize, taps: &[f64], along_columns: bool, squared: bool) -> Vec<[f64; 3]> {
     let mut out = vec![[0.0f64; 3]; w * h];
     let pass = Pass { src, w, h, taps, along_columns, squared };
-    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        #[cfg(target_arch = "x86_64")]
-        if crate::simd::use_avx2() {
-            // SAFETY: AVX2 support was just checked.
-            unsafe { pass.row_avx2(y, row) };
-            return;
-        }
-        pass.row(y, row);
-    });
+    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| simd::dispatch(PassRow { pass: &pass, y, row }));
     out
 }
 
@@ -48,13 +41,24 @@ struct Pass<'a> {
     squared: bool,
 }
 
-impl Pass<'_> {
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn row_avx2(&self, y: usize, row: &mut [[f64; 3]]) {
-        self.row(y, row);
-    }
+/// One output row of a [`Pass`], for [`simd::dispatch`]: plain loops the compiler
+/// vectorises, at the width of the build's features.
+struct PassRow<'a> {
+    pass: &'a Pass<'a>,
+    y: usize,
+    row: &'a mut [[f64; 3]],
+}
 
+impl Kernel for PassRow<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<S: Simd>(self, _: S) {
+        self.pass.row(self.y, self.row);
+    }
+}
+
+impl Pass<'_> {
     /// Output row `y` (zeros on entry). Each output value is `Σ_t a_t·v_t` over its footprint
     /// in increasing `t`, divided by the normalisation, as one pixel at a time computes it;
     /// where pixels share their footprint's weights (every pixel of a row in the pass along
@@ -231,7 +235,7 @@ mod tests {
             }
         };
         run();
-        crate::simd::force_portable(run);
+        simd::force_portable(run);
     }
 
     #[test]

@@ -114,10 +114,11 @@ impl<const P: usize> Panel<P> {
         self.winv[q][0]
     }
 
-    /// β of each system (`systems[q]` with rows `rows.d[q]`, weights `w[q]` and norms `sq[q]`);
-    /// per system the same contract as [`crate::solve::Workspace::solve`].
+    /// β of each system (`systems[q]` with rows `rows.d[q]`, weights `w[q]` and norms `sq[q]`),
+    /// with the vector build `simd`; per system the same contract as
+    /// [`crate::solve::Workspace::solve`].
     #[inline(always)]
-    pub fn solve<S: Simd>(&mut self, rows: &Rows<P>, systems: &[System], s: f64) -> [Outcome; MAX_SYSTEMS] {
+    pub fn solve<S: Simd>(&mut self, simd: S, rows: &Rows<P>, systems: &[System], s: f64) -> [Outcome; MAX_SYSTEMS] {
         let n = systems.len();
         assert!(n <= MAX_SYSTEMS && systems.iter().all(|q| q.k <= MAX_K), "at most {MAX_SYSTEMS} systems of {MAX_K} rows");
         let mut out = [Outcome::Solved; MAX_SYSTEMS];
@@ -152,7 +153,7 @@ impl<const P: usize> Panel<P> {
             if !pending.iter().any(|p| *p) {
                 break;
             }
-            let ok = self.try_solve::<S>(rows, systems, s, lambda, live);
+            let ok = self.try_solve(simd, rows, systems, s, lambda, live);
             for q in 0..n {
                 if !pending[q] {
                     continue;
@@ -180,6 +181,7 @@ impl<const P: usize> Panel<P> {
     #[inline(always)]
     fn try_solve<S: Simd>(
         &mut self,
+        simd: S,
         rows: &Rows<P>,
         systems: &[System],
         s: f64,
@@ -205,21 +207,21 @@ impl<const P: usize> Panel<P> {
                 let (c, r) = (self.c32[j], rows.d[q][j]);
                 self.scaled[j] = std::array::from_fn(|a| c * r[a]);
             }
-            S::gram_lower(&rows.d[q][..k], &self.scaled[..k], &mut self.blocks[q]);
+            simd.gram_lower(&rows.d[q][..k], &self.scaled[..k], &mut self.blocks[q]);
         }
         // To the lane layout; the unused lanes repeat system 0, so that they stay finite.
         let from = |lane: usize| if lane < n { lane } else { 0 };
         for a in 0..P {
             for b0 in (0..=a).step_by(8) {
-                let t = S::transpose8(std::array::from_fn(|lane| block8(&self.blocks[from(lane)][a], b0)));
+                let t = simd.transpose8(std::array::from_fn(|lane| block8(&self.blocks[from(lane)][a], b0)));
                 for (l, v) in t.iter().enumerate().take(a + 1 - b0) {
                     self.g[a][b0 + l] = *v;
                 }
             }
-            let diagonal = S::add8(S::load8(&self.g[a][a]), S::splat8(1.0));
-            S::store8(&mut self.g[a][a], diagonal);
+            let diagonal = simd.add8(simd.load8(&self.g[a][a]), simd.splat8(1.0));
+            simd.store8(&mut self.g[a][a], diagonal);
         }
-        let zero = S::splat8(0.0);
+        let zero = simd.splat8(0.0);
         // Right-looking Cholesky; L ends up in the lower triangle. The elements left of column
         // j would only receive ±0, which changes none of them.
         for j in 0..P {
@@ -227,22 +229,22 @@ impl<const P: usize> Panel<P> {
             for (o, p) in ok.iter_mut().zip(pivot) {
                 *o &= p > 0.5 && p.is_finite();
             }
-            let ljj = S::sqrt8(S::load8(&pivot));
-            let inv = S::div8(S::splat8(1.0), ljj);
-            S::store8(&mut self.inv_diag[j], inv);
+            let ljj = simd.sqrt8(simd.load8(&pivot));
+            let inv = simd.div8(simd.splat8(1.0), ljj);
+            simd.store8(&mut self.inv_diag[j], inv);
             let mut col = [zero; P];
             for i in j + 1..P {
-                col[i] = S::mul8(S::load8(&self.g[i][j]), inv);
+                col[i] = simd.mul8(simd.load8(&self.g[i][j]), inv);
             }
             for i in j + 1..P {
-                let a = S::neg8(col[i]);
+                let a = simd.neg8(col[i]);
                 for m in j + 1..i + 1 {
-                    let updated = S::add8(S::load8(&self.g[i][m]), S::mul8(a, col[m]));
-                    S::store8(&mut self.g[i][m], updated);
+                    let updated = simd.add8(simd.load8(&self.g[i][m]), simd.mul8(a, col[m]));
+                    simd.store8(&mut self.g[i][m], updated);
                 }
-                S::store8(&mut self.g[i][j], col[i]);
+                simd.store8(&mut self.g[i][j], col[i]);
             }
-            S::store8(&mut self.g[j][j], ljj);
+            simd.store8(&mut self.g[j][j], ljj);
         }
         let want_press = systems.iter().any(|q| q.want_press);
         if want_press {
@@ -256,7 +258,7 @@ impl<const P: usize> Panel<P> {
             // first one's on: fixed-length steps, four independent chains.
             let mut tr = [0.0f64; LANES];
             for i in 0..P {
-                let inv = S::load8(&self.inv_diag[i]);
+                let inv = simd.load8(&self.inv_diag[i]);
                 // ‖X_i‖² in f64, element l to partial sum l mod 4 (the zeros right of i would
                 // add nothing).
                 let mut acc = [[0.0f64; LANES]; 4];
@@ -264,21 +266,21 @@ impl<const P: usize> Panel<P> {
                     // No closure here: it would not inherit the vector build's target features.
                     let mut r = [zero; 4];
                     if i - l0 < 4 {
-                        r[i - l0] = S::splat8(1.0);
+                        r[i - l0] = simd.splat8(1.0);
                     }
                     for t in l0..i {
-                        let a = S::neg8(S::load8(&self.g[i][t]));
+                        let a = simd.neg8(simd.load8(&self.g[i][t]));
                         for (m, r) in r.iter_mut().enumerate() {
-                            *r = S::add8(*r, S::mul8(a, S::load8(&self.inv_rows[t][(l0 + m).min(P - 1)])));
+                            *r = simd.add8(*r, simd.mul8(a, simd.load8(&self.inv_rows[t][(l0 + m).min(P - 1)])));
                         }
                     }
                     for (m, a) in acc.iter_mut().enumerate().take(i + 1 - l0) {
-                        let v = S::mul8(r[m], inv);
-                        S::store8(&mut self.inv_rows[i][l0 + m], v);
-                        S::square_add8(a, v);
+                        let v = simd.mul8(r[m], inv);
+                        simd.store8(&mut self.inv_rows[i][l0 + m], v);
+                        simd.square_add8(a, v);
                         if want_press {
                             // (G⁻¹)_ll = Σ_i X_il², summed down the rows.
-                            S::square_add8(&mut self.inv_diag_g[l0 + m], v);
+                            simd.square_add8(&mut self.inv_diag_g[l0 + m], v);
                         }
                     }
                 }
@@ -292,9 +294,9 @@ impl<const P: usize> Panel<P> {
         // y in eight lane sums combined pairwise, where the elements from i on are zero.
         let mut dc = [zero; P];
         for b0 in (0..P).step_by(8) {
-            let t = S::transpose8(std::array::from_fn(|lane| block8(rows.dc[from(lane)], b0)));
+            let t = simd.transpose8(std::array::from_fn(|lane| block8(rows.dc[from(lane)], b0)));
             for (d, v) in dc[b0..b0 + 8].iter_mut().zip(&t) {
-                *d = S::load8(v);
+                *d = simd.load8(v);
             }
         }
         let mut y = [zero; P];
@@ -303,33 +305,33 @@ impl<const P: usize> Panel<P> {
             for c0 in (0..P).step_by(8) {
                 for (l, a) in acc.iter_mut().enumerate() {
                     let m = c0 + l;
-                    *a = S::add8(*a, if m < i { S::mul8(S::load8(&self.g[i][m]), y[m]) } else { zero });
+                    *a = simd.add8(*a, if m < i { simd.mul8(simd.load8(&self.g[i][m]), y[m]) } else { zero });
                 }
             }
-            let dot = S::add8(
-                S::add8(S::add8(acc[0], acc[1]), S::add8(acc[2], acc[3])),
-                S::add8(S::add8(acc[4], acc[5]), S::add8(acc[6], acc[7])),
+            let dot = simd.add8(
+                simd.add8(simd.add8(acc[0], acc[1]), simd.add8(acc[2], acc[3])),
+                simd.add8(simd.add8(acc[4], acc[5]), simd.add8(acc[6], acc[7])),
             );
-            y[i] = S::mul8(S::sub8(dc[i], dot), S::load8(&self.inv_diag[i]));
+            y[i] = simd.mul8(simd.sub8(dc[i], dot), simd.load8(&self.inv_diag[i]));
         }
         let mut z = [ZERO; P];
         for i in (0..P).rev() {
-            let zi = S::mul8(y[i], S::load8(&self.inv_diag[i]));
-            S::store8(&mut z[i], zi);
-            let a = S::neg8(zi);
+            let zi = simd.mul8(y[i], simd.load8(&self.inv_diag[i]));
+            simd.store8(&mut z[i], zi);
+            let a = simd.neg8(zi);
             for m in 0..i {
-                y[m] = S::add8(y[m], S::mul8(a, S::load8(&self.g[i][m])));
+                y[m] = simd.add8(y[m], simd.mul8(a, simd.load8(&self.g[i][m])));
             }
         }
         // ‖z‖² in f64, element m to partial sum m mod 4.
         let mut acc = [[0.0f64; LANES]; 4];
         for (m, v) in z.iter().enumerate() {
-            S::square_add8(&mut acc[m % 4], S::load8(v));
+            simd.square_add8(&mut acc[m % 4], simd.load8(v));
         }
         // β_j = s·w_j⁻¹·D_jᵀz, eight rows at a time, with z back along the batches.
         let mut zs = [[0.0f32; P]; LANES];
         for b0 in (0..P).step_by(8) {
-            let t = S::transpose8(std::array::from_fn(|l| &z[b0 + l]));
+            let t = simd.transpose8(std::array::from_fn(|l| &z[b0 + l]));
             for (dst, src) in zs.iter_mut().zip(&t) {
                 dst[b0..b0 + 8].copy_from_slice(src);
             }
@@ -340,7 +342,7 @@ impl<const P: usize> Panel<P> {
             }
             let k = sys.k;
             for j0 in (0..k).step_by(8) {
-                let dots = S::dot32x8(std::array::from_fn(|r| rows.d[q][(j0 + r).min(k - 1)]), &zs[q]);
+                let dots = simd.dot32x8(std::array::from_fn(|r| rows.d[q][(j0 + r).min(k - 1)]), &zs[q]);
                 for (r, d) in dots.iter().enumerate().take(k - j0) {
                     self.beta[q][j0 + r] = s * self.winv[q][j0 + r] * *d as f64;
                 }
@@ -367,7 +369,7 @@ fn block8<const P: usize>(row: &[f32; P], b0: usize) -> &[f32; 8] {
 mod tests {
     use super::*;
     use crate::rng::{hash4, uniform};
-    use crate::simd::Portable;
+    use crate::simd::{Portable, Simd};
     use crate::solve::{Form, Workspace};
 
     /// (k, B, ridge, scale of W): the default shape, the `cv` shape (W = 0), few batches, many
@@ -456,7 +458,7 @@ mod tests {
         for case in CASES.iter().filter(|c| c.1 <= P) {
             let c = Case::<P>::new(*case);
             let mut p = c.panel();
-            let got = p.solve::<Portable>(&c.rows(), &c.systems(), c.s);
+            let got = p.solve(Portable, &c.rows(), &c.systems(), c.s);
             for ch in 0..3 {
                 assert_eq!(got[ch], c.want[ch].0, "P={P} {case:?} ch={ch}");
                 if matches!(got[ch], Outcome::Solved | Outcome::Regularised) {
@@ -494,7 +496,7 @@ mod tests {
         for case in CASES.iter().filter(|c| c.1 <= P) {
             let c = Case::<P>::new(*case);
             let mut p = c.panel();
-            let got = p.solve::<Portable>(&c.rows(), &c.systems(), c.s);
+            let got = p.solve(Portable, &c.rows(), &c.systems(), c.s);
             for ch in 0..3 {
                 if !matches!(got[ch], Outcome::Solved | Outcome::Regularised) {
                     continue;
@@ -582,7 +584,7 @@ mod tests {
         let mut g = vec![[0.0f32; P]; P];
         for a0 in (0..P).step_by(8) {
             for b0 in (0..=a0).step_by(8) {
-                let acc = Portable::gram_block(&d[..k], &scaled, a0, b0);
+                let acc = Portable.gram_block(&d[..k], &scaled, a0, b0);
                 for q in 0..8 {
                     g[a0 + q][b0..b0 + 8].copy_from_slice(&acc[q]);
                 }
@@ -643,7 +645,7 @@ mod tests {
         }
         let mut y = [0.0f32; P];
         for i in 0..P {
-            y[i] = (dc[i] - Portable::dot32(&g[i], &y)) * inv_diag[i];
+            y[i] = (dc[i] - Portable.dot32(&g[i], &y)) * inv_diag[i];
         }
         let mut z = [0.0f32; P];
         for i in (0..P).rev() {
@@ -651,7 +653,7 @@ mod tests {
             z[i] = zi;
             axpy(&mut y, -zi, &g[i]);
         }
-        let beta = (0..k).map(|j| s * winv[j] * Portable::dot32(d[j], &z) as f64).collect();
+        let beta = (0..k).map(|j| s * winv[j] * Portable.dot32(d[j], &z) as f64).collect();
         let press = z.iter().zip(&diag_g).map(|(z, g)| (f64::from(*z) / g).powi(2)).sum();
         Some(Alone { beta, winv0: winv[0], trace_inv, resid_sq: norm_sq(&z), press })
     }
@@ -728,20 +730,11 @@ mod tests {
         }
     }
 
-    /// The panel of `draw` against each system alone, bit for bit; returns the outcomes seen.
-    fn lanes_equal_alone<const P: usize>(p: &mut Panel<P>, draw: &Systems<P>, avx2: bool) -> Vec<Outcome> {
+    /// The panel of `draw`, solved with the vector build `simd`, against each system alone in
+    /// the portable build, bit for bit; returns the outcomes seen.
+    fn lanes_equal_alone<const P: usize, S: Simd>(simd: S, p: &mut Panel<P>, draw: &Systems<P>) -> Vec<Outcome> {
         let rows = draw.load(p);
-        let got = if avx2 {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: the caller checked that the CPU has AVX2.
-            unsafe {
-                solve_avx2(p, &rows, &draw.systems, draw.s)
-            }
-            #[cfg(not(target_arch = "x86_64"))]
-            unreachable!("AVX2 only on x86_64")
-        } else {
-            p.solve::<Portable>(&rows, &draw.systems, draw.s)
-        };
+        let got = p.solve(simd, &rows, &draw.systems, draw.s);
         let mut seen = vec![];
         for (q, sys) in draw.systems.iter().enumerate() {
             let (want, one) = alone(&rows.d[q], rows.dc[q], &draw.w[q], &draw.sq[q], draw.s, *sys);
@@ -764,42 +757,41 @@ mod tests {
     }
 
     /// [`lanes_equal_alone`] over sixty draws of one to six systems, on one panel.
-    fn every_draw<const P: usize>(avx2: bool) -> Vec<Outcome> {
+    fn every_draw<const P: usize, S: Simd>(simd: S) -> Vec<Outcome> {
         let mut seen = vec![];
         let mut p = Panel::<P>::boxed();
         for seed in 0..60 {
             let count = 1 + seed as usize % MAX_SYSTEMS;
-            seen.extend(lanes_equal_alone(&mut p, &Systems::<P>::draw(seed, count), avx2));
+            seen.extend(lanes_equal_alone(simd, &mut p, &Systems::<P>::draw(seed, count)));
         }
         seen
     }
 
     #[test]
     fn systems_side_by_side_give_the_bits_of_each_solved_alone() {
-        let mut seen = every_draw::<8>(false);
-        seen.extend(every_draw::<16>(false));
-        seen.extend(every_draw::<32>(false));
-        seen.extend(every_draw::<64>(false));
+        let mut seen = every_draw::<8, _>(Portable);
+        seen.extend(every_draw::<16, _>(Portable));
+        seen.extend(every_draw::<32, _>(Portable));
+        seen.extend(every_draw::<64, _>(Portable));
         for o in [Outcome::Solved, Outcome::Regularised, Outcome::Degenerate, Outcome::Failed] {
             assert!(seen.contains(&o), "no system came out {o:?}");
         }
     }
 
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn solve_avx2<const P: usize>(p: &mut Panel<P>, rows: &Rows<P>, systems: &[System], s: f64) -> [Outcome; MAX_SYSTEMS] {
-        p.solve::<crate::simd::Avx2>(rows, systems, s)
-    }
-
-    #[cfg(target_arch = "x86_64")]
     #[test]
     fn avx2_and_portable_panel_solves_agree_bit_for_bit_at_every_width() {
-        if !std::is_x86_feature_detected!("avx2") {
+        let Some(avx2) = crate::simd::Avx2::detect() else {
             eprintln!("no AVX2 on this CPU: nothing to compare");
             return;
-        }
+        };
         // Each AVX2 solve against each system alone in the portable build: the same bits.
-        let n = [every_draw::<8>(true).len(), every_draw::<16>(true).len(), every_draw::<32>(true).len(), every_draw::<64>(true).len()];
+        let n = [
+            every_draw::<8, _>(avx2).len(),
+            every_draw::<16, _>(avx2).len(),
+            every_draw::<32, _>(avx2).len(),
+            every_draw::<64, _>(avx2).len(),
+        ];
         assert!(n.iter().all(|n| *n > 0), "systems compared per width: {n:?}");
     }
 }

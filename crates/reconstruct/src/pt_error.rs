@@ -7,7 +7,7 @@
 //! variance over similar pixels with a cross-bilateral filter removes most of both effects.
 use crate::batch_stats::variance_of_mean;
 use crate::named::named_enum;
-use crate::simd::{Portable, Simd};
+use crate::simd::{self, Kernel, Simd};
 use crate::ReconError;
 use cvtrace_streams::{Image, StreamSet};
 use rayon::prelude::*;
@@ -35,7 +35,8 @@ named_enum! {
 /// CRN colour distance `δ_rgb = Σ(ḡ_c − ḡ_j)² / (ε + Σ(ḡ_c² + ḡ_j²)/2)`, σ_s = radius. The CRN
 /// image is the guide because its noise is shared by neighbours, so its local structure is far
 /// cleaner than the PT image's; the relative distance makes the filter independent of exposure.
-/// Feature terms are used when the stream set has features.
+/// Feature terms are used when the stream set has features. The default is the filter of
+/// `ours`' declared defaults, where its parameters are declared.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CbfOptions {
     /// Window radius in pixels (window side 2·radius + 1).
@@ -56,13 +57,6 @@ pub struct CbfOptions {
 
 /// Largest supported filter radius.
 pub const MAX_RADIUS: usize = 15;
-
-impl Default for CbfOptions {
-    /// The filter of `ours`' declared defaults.
-    fn default() -> Self {
-        crate::ImperfectCvOptions::default().cbf
-    }
-}
 
 impl CbfOptions {
     pub fn validate(&self) -> Result<(), ReconError> {
@@ -102,26 +96,9 @@ pub fn pt_errors(kind: ErrorEstimate, set: &StreamSet, reference: Option<&Image>
 /// Smooths per-pixel values with the cross-bilateral filter described in [`CbfOptions`].
 pub fn cross_bilateral(values: &[[f32; 3]], set: &StreamSet, o: &CbfOptions) -> Vec<[f32; 3]> {
     let (w, h) = (set.width, set.height);
-    let g = &set.crn.mean.pixels;
-    let mean_sq = g.iter().map(|p| p.iter().map(|v| (*v as f64).powi(2)).sum::<f64>()).sum::<f64>() / g.len().max(1) as f64;
-    let planes = Planes::new(values, set, (1e-3 * mean_sq).max(1e-30) as f32);
-    let r = o.radius;
-    let k = Gains {
-        colour: 0.5 / (o.sigma_colour * o.sigma_colour),
-        albedo: 0.5 / (o.sigma_albedo * o.sigma_albedo),
-        normal: 0.5 / (o.sigma_normal * o.sigma_normal),
-    };
-    let spatial: Vec<f32> = (0..=2 * r).map(|i| (i as f32 - r as f32).powi(2) * 0.5 / (r as f32 * r as f32)).collect();
+    let filter = Filter::new(values, set, o);
     let mut out = vec![[0.0f32; 3]; w * h];
-    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        #[cfg(target_arch = "x86_64")]
-        if crate::simd::use_avx2() {
-            // SAFETY: AVX2 support was just checked.
-            unsafe { cbf_row_avx2(&planes, &k, &spatial, r, o.exclude_centre, y, row) };
-            return;
-        }
-        cbf_row::<Portable>(&planes, &k, &spatial, r, o.exclude_centre, y, row);
-    });
+    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| simd::dispatch(FilterRow { filter: &filter, y, row }));
     out
 }
 
@@ -166,125 +143,170 @@ struct Gains {
     normal: f32,
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn cbf_row_avx2(p: &Planes, k: &Gains, spatial: &[f32], r: usize, exclude: bool, y: usize, row: &mut [[f32; 3]]) {
-    cbf_row::<crate::simd::Avx2>(p, k, spatial, r, exclude, y, row)
+/// The filter of one call: the planes, the gains of the exponent's terms, its spatial term per
+/// offset `−r … r`, the radius `r`, and whether a pixel's own value is left out.
+struct Filter {
+    planes: Planes,
+    gains: Gains,
+    spatial: Vec<f32>,
+    r: usize,
+    exclude: bool,
 }
 
-#[inline(always)]
-fn cbf_row<S: Simd>(p: &Planes, k: &Gains, spatial: &[f32], r: usize, exclude: bool, y: usize, row: &mut [[f32; 3]]) {
-    // Centres whose window lies whole within the row go eight at a time, one per lane (see
-    // `cbf_eight`); the others, near the left and right borders, one at a time.
-    let mut x = 0;
-    while x < p.w {
-        if x >= r && x + 8 + r <= p.w {
-            cbf_eight::<S>(p, k, spatial, r, exclude, y, x, (&mut row[x..x + 8]).try_into().expect("eight centres"));
-            x += 8;
-        } else {
-            row[x] = cbf_centre::<S>(p, k, spatial, r, exclude, y, x);
-            x += 1;
-        }
+/// One image row of the filter's output, for [`simd::dispatch`].
+struct FilterRow<'a> {
+    filter: &'a Filter,
+    y: usize,
+    row: &'a mut [[f32; 3]],
+}
+
+impl Kernel for FilterRow<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<S: Simd>(self, simd: S) {
+        self.filter.row(simd, self.y, self.row);
     }
 }
 
-/// The filter's value at centre `(x, y)`.
-#[inline(always)]
-fn cbf_centre<S: Simd>(p: &Planes, k: &Gains, spatial: &[f32], r: usize, exclude: bool, y: usize, x: usize) -> [f32; 3] {
-    let (w, h) = (p.w, p.h);
-    let mut tbuf = [0.0f32; 2 * MAX_RADIUS + 1];
-    let c = y * w + x;
-    let (gc, g2c) = ([p.g[0][c], p.g[1][c], p.g[2][c]], p.g2[c]);
-    let mut acc = [[0.0f32; 8]; 4];
-    let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(w));
-    for yy in y.saturating_sub(r)..(y + r + 1).min(h) {
-        let dy2 = spatial[yy + r - y];
-        let (a, b) = (yy * w + x0, yy * w + x1);
-        let sp = &spatial[x0 + r - x..x1 + r - x];
-        let (g0, g1, g2, n2) = (&p.g[0][a..b], &p.g[1][a..b], &p.g[2][a..b], &p.g2[a..b]);
-        let (v0, v1, v2) = (&p.v[0][a..b], &p.v[1][a..b], &p.v[2][a..b]);
-        let n = b - a;
-        // Exponents first (element-wise, vectorises), then weights, then the sums.
-        let t = &mut tbuf[..n];
-        for j in 0..n {
-            t[j] = colour_exponent(p, k, gc, g2c, [g0[j], g1[j], g2[j]], n2[j]) + (sp[j] + dy2);
+impl Filter {
+    /// The filter of `o` for `values` guided by `set`.
+    fn new(values: &[[f32; 3]], set: &StreamSet, o: &CbfOptions) -> Self {
+        let g = &set.crn.mean.pixels;
+        let mean_sq = g.iter().map(|p| p.iter().map(|v| (*v as f64).powi(2)).sum::<f64>()).sum::<f64>() / g.len().max(1) as f64;
+        let r = o.radius;
+        Filter {
+            planes: Planes::new(values, set, (1e-3 * mean_sq).max(1e-30) as f32),
+            gains: Gains {
+                colour: 0.5 / (o.sigma_colour * o.sigma_colour),
+                albedo: 0.5 / (o.sigma_albedo * o.sigma_albedo),
+                normal: 0.5 / (o.sigma_normal * o.sigma_normal),
+            },
+            spatial: (0..=2 * r).map(|i| (i as f32 - r as f32).powi(2) * 0.5 / (r as f32 * r as f32)).collect(),
+            r,
+            exclude: o.exclude_centre,
         }
-        if let Some((al, nm)) = &p.features {
-            let (ac, nc) = ([al[0][c], al[1][c], al[2][c]], [nm[0][c], nm[1][c], nm[2][c]]);
-            for j in 0..n {
-                t[j] += feature_exponent(k, ac, nc, [al[0][a + j], al[1][a + j], al[2][a + j]], [nm[0][a + j], nm[1][a + j], nm[2][a + j]]);
+    }
+
+    /// Output row `y`.
+    #[inline(always)]
+    fn row<S: Simd>(&self, simd: S, y: usize, row: &mut [[f32; 3]]) {
+        let (p, r) = (&self.planes, self.r);
+        // Centres whose window lies whole within the row go eight at a time, one per lane (see
+        // `Filter::eight`); the others, near the left and right borders, one at a time.
+        let mut x = 0;
+        while x < p.w {
+            if x >= r && x + 8 + r <= p.w {
+                self.eight(simd, y, x, (&mut row[x..x + 8]).try_into().expect("eight centres"));
+                x += 8;
+            } else {
+                row[x] = self.centre(simd, y, x);
+                x += 1;
             }
         }
-        S::exp_neg_in_place(t);
-        for j in 0..n {
-            let (l, wt) = (j % 8, t[j]);
-            acc[0][l] += wt;
-            acc[1][l] += wt * v0[j];
-            acc[2][l] += wt * v1[j];
-            acc[3][l] += wt * v2[j];
-        }
     }
-    let sum = |a: &[f32; 8]| ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]));
-    finish(p, exclude, c, sum(&acc[0]), [sum(&acc[1]), sum(&acc[2]), sum(&acc[3])])
-}
 
-/// [`cbf_centre`] for the eight centres `x0 … x0 + 7` of row `y`, whose windows lie whole
-/// within the row (`x0 ≥ r`, `x0 + 7 + r < w`): lane `l` is centre `x0 + l`, so every window
-/// element is one vector operation for the eight, the exponentials run eight at a time, and
-/// the loads stream along the window's rows. Element `dx` of each window row goes to the
-/// centre's partial sum `dx mod 8`, in the order `cbf_centre` adds it: the same bits.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn cbf_eight<S: Simd>(p: &Planes, k: &Gains, spatial: &[f32], r: usize, exclude: bool, y: usize, x0: usize, out: &mut [[f32; 3]; 8]) {
-    let (w, h) = (p.w, p.h);
-    let c0 = y * w + x0;
-    let lanes = |plane: &[f32], at: usize| -> [f32; 8] { plane[at..at + 8].try_into().expect("eight lanes") };
-    let gc = [lanes(&p.g[0], c0), lanes(&p.g[1], c0), lanes(&p.g[2], c0)];
-    let g2c = lanes(&p.g2, c0);
-    let centre_features = p.features.as_ref().map(|(al, nm)| {
-        ([lanes(&al[0], c0), lanes(&al[1], c0), lanes(&al[2], c0)], [lanes(&nm[0], c0), lanes(&nm[1], c0), lanes(&nm[2], c0)])
-    });
-    // [partial][weight, three weighted values][lane]
-    let mut acc = [[[0.0f32; 8]; 4]; 8];
-    for yy in y.saturating_sub(r)..(y + r + 1).min(h) {
-        let dy2 = spatial[yy + r - y];
-        for dx in 0..=2 * r {
-            let a = yy * w + x0 + dx - r;
-            let (g, n2) = ([lanes(&p.g[0], a), lanes(&p.g[1], a), lanes(&p.g[2], a)], lanes(&p.g2, a));
-            let sp = spatial[dx] + dy2;
-            let mut t: [f32; 8] = std::array::from_fn(|l| {
-                colour_exponent(p, k, [gc[0][l], gc[1][l], gc[2][l]], g2c[l], [g[0][l], g[1][l], g[2][l]], n2[l]) + sp
-            });
-            if let (Some((al, nm)), Some((ac, nc))) = (&p.features, &centre_features) {
-                let (an, nn) =
-                    ([lanes(&al[0], a), lanes(&al[1], a), lanes(&al[2], a)], [lanes(&nm[0], a), lanes(&nm[1], a), lanes(&nm[2], a)]);
-                for l in 0..8 {
-                    t[l] += feature_exponent(
-                        k,
-                        [ac[0][l], ac[1][l], ac[2][l]],
-                        [nc[0][l], nc[1][l], nc[2][l]],
-                        [an[0][l], an[1][l], an[2][l]],
-                        [nn[0][l], nn[1][l], nn[2][l]],
-                    );
+    /// The filter's value at centre `(x, y)`.
+    #[inline(always)]
+    fn centre<S: Simd>(&self, simd: S, y: usize, x: usize) -> [f32; 3] {
+        let (p, k, spatial, r, exclude) = (&self.planes, &self.gains, &self.spatial[..], self.r, self.exclude);
+        let (w, h) = (p.w, p.h);
+        let mut tbuf = [0.0f32; 2 * MAX_RADIUS + 1];
+        let c = y * w + x;
+        let (gc, g2c) = ([p.g[0][c], p.g[1][c], p.g[2][c]], p.g2[c]);
+        let mut acc = [[0.0f32; 8]; 4];
+        let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(w));
+        for yy in y.saturating_sub(r)..(y + r + 1).min(h) {
+            let dy2 = spatial[yy + r - y];
+            let (a, b) = (yy * w + x0, yy * w + x1);
+            let sp = &spatial[x0 + r - x..x1 + r - x];
+            let (g0, g1, g2, n2) = (&p.g[0][a..b], &p.g[1][a..b], &p.g[2][a..b], &p.g2[a..b]);
+            let (v0, v1, v2) = (&p.v[0][a..b], &p.v[1][a..b], &p.v[2][a..b]);
+            let n = b - a;
+            // Exponents first (element-wise, vectorises), then weights, then the sums.
+            let t = &mut tbuf[..n];
+            for j in 0..n {
+                t[j] = colour_exponent(p, k, gc, g2c, [g0[j], g1[j], g2[j]], n2[j]) + (sp[j] + dy2);
+            }
+            if let Some((al, nm)) = &p.features {
+                let (ac, nc) = ([al[0][c], al[1][c], al[2][c]], [nm[0][c], nm[1][c], nm[2][c]]);
+                for j in 0..n {
+                    t[j] +=
+                        feature_exponent(k, ac, nc, [al[0][a + j], al[1][a + j], al[2][a + j]], [nm[0][a + j], nm[1][a + j], nm[2][a + j]]);
                 }
             }
-            S::exp_neg_in_place(&mut t);
-            let (v0, v1, v2) = (lanes(&p.v[0], a), lanes(&p.v[1], a), lanes(&p.v[2], a));
-            let part = &mut acc[dx % 8];
-            for l in 0..8 {
-                part[0][l] += t[l];
-                part[1][l] += t[l] * v0[l];
-                part[2][l] += t[l] * v1[l];
-                part[3][l] += t[l] * v2[l];
+            simd.exp_neg_in_place(t);
+            for j in 0..n {
+                let (l, wt) = (j % 8, t[j]);
+                acc[0][l] += wt;
+                acc[1][l] += wt * v0[j];
+                acc[2][l] += wt * v1[j];
+                acc[3][l] += wt * v2[j];
             }
         }
+        let sum = |a: &[f32; 8]| ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]));
+        finish(p, exclude, c, sum(&acc[0]), [sum(&acc[1]), sum(&acc[2]), sum(&acc[3])])
     }
-    for (l, o) in out.iter_mut().enumerate() {
-        let sum = |q: usize| {
-            ((acc[0][q][l] + acc[1][q][l]) + (acc[2][q][l] + acc[3][q][l]))
-                + ((acc[4][q][l] + acc[5][q][l]) + (acc[6][q][l] + acc[7][q][l]))
-        };
-        *o = finish(p, exclude, c0 + l, sum(0), [sum(1), sum(2), sum(3)]);
+
+    /// [`Filter::centre`] for the eight centres `x0 … x0 + 7` of row `y`, whose windows lie
+    /// whole within the row (`x0 ≥ r`, `x0 + 7 + r < w`): lane `l` is centre `x0 + l`, so every
+    /// window element is one vector operation for the eight, the exponentials run eight at a
+    /// time, and the loads stream along the window's rows. Element `dx` of each window row goes
+    /// to the centre's partial sum `dx mod 8`, in the order `Filter::centre` adds it: the same
+    /// bits.
+    #[inline(always)]
+    fn eight<S: Simd>(&self, simd: S, y: usize, x0: usize, out: &mut [[f32; 3]; 8]) {
+        let (p, k, spatial, r, exclude) = (&self.planes, &self.gains, &self.spatial[..], self.r, self.exclude);
+        let (w, h) = (p.w, p.h);
+        let c0 = y * w + x0;
+        let lanes = |plane: &[f32], at: usize| -> [f32; 8] { plane[at..at + 8].try_into().expect("eight lanes") };
+        let gc = [lanes(&p.g[0], c0), lanes(&p.g[1], c0), lanes(&p.g[2], c0)];
+        let g2c = lanes(&p.g2, c0);
+        let centre_features = p.features.as_ref().map(|(al, nm)| {
+            ([lanes(&al[0], c0), lanes(&al[1], c0), lanes(&al[2], c0)], [lanes(&nm[0], c0), lanes(&nm[1], c0), lanes(&nm[2], c0)])
+        });
+        // [partial][weight, three weighted values][lane]
+        let mut acc = [[[0.0f32; 8]; 4]; 8];
+        for yy in y.saturating_sub(r)..(y + r + 1).min(h) {
+            let dy2 = spatial[yy + r - y];
+            for dx in 0..=2 * r {
+                let a = yy * w + x0 + dx - r;
+                let (g, n2) = ([lanes(&p.g[0], a), lanes(&p.g[1], a), lanes(&p.g[2], a)], lanes(&p.g2, a));
+                let sp = spatial[dx] + dy2;
+                let mut t: [f32; 8] = std::array::from_fn(|l| {
+                    colour_exponent(p, k, [gc[0][l], gc[1][l], gc[2][l]], g2c[l], [g[0][l], g[1][l], g[2][l]], n2[l]) + sp
+                });
+                if let (Some((al, nm)), Some((ac, nc))) = (&p.features, &centre_features) {
+                    let (an, nn) =
+                        ([lanes(&al[0], a), lanes(&al[1], a), lanes(&al[2], a)], [lanes(&nm[0], a), lanes(&nm[1], a), lanes(&nm[2], a)]);
+                    for l in 0..8 {
+                        t[l] += feature_exponent(
+                            k,
+                            [ac[0][l], ac[1][l], ac[2][l]],
+                            [nc[0][l], nc[1][l], nc[2][l]],
+                            [an[0][l], an[1][l], an[2][l]],
+                            [nn[0][l], nn[1][l], nn[2][l]],
+                        );
+                    }
+                }
+                simd.exp_neg_in_place(&mut t);
+                let (v0, v1, v2) = (lanes(&p.v[0], a), lanes(&p.v[1], a), lanes(&p.v[2], a));
+                let part = &mut acc[dx % 8];
+                for l in 0..8 {
+                    part[0][l] += t[l];
+                    part[1][l] += t[l] * v0[l];
+                    part[2][l] += t[l] * v1[l];
+                    part[3][l] += t[l] * v2[l];
+                }
+            }
+        }
+        for (l, o) in out.iter_mut().enumerate() {
+            let sum = |q: usize| {
+                ((acc[0][q][l] + acc[1][q][l]) + (acc[2][q][l] + acc[3][q][l]))
+                    + ((acc[4][q][l] + acc[5][q][l]) + (acc[6][q][l] + acc[7][q][l]))
+            };
+            *o = finish(p, exclude, c0 + l, sum(0), [sum(1), sum(2), sum(3)]);
+        }
     }
 }
 
@@ -323,6 +345,7 @@ fn finish(p: &Planes, exclude: bool, c: usize, mut ws: f32, mut s: [f32; 3]) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::simd::Portable;
     use cvtrace_streams::{Stream, StreamMeta};
 
     fn flat_set(crn: Image) -> StreamSet {
@@ -352,19 +375,11 @@ mod tests {
                     for (radius, exclude_centre) in [(3, false), (1, true), (5, false), (2, true)] {
                         let o = CbfOptions { radius, exclude_centre, ..Default::default() };
                         let got = cross_bilateral(&values, s, &o);
-                        let g = &s.crn.mean.pixels;
-                        let mean_sq = g.iter().map(|p| p.iter().map(|v| (*v as f64).powi(2)).sum::<f64>()).sum::<f64>() / g.len() as f64;
-                        let planes = Planes::new(&values, s, (1e-3 * mean_sq).max(1e-30) as f32);
-                        let k = Gains {
-                            colour: 0.5 / (o.sigma_colour * o.sigma_colour),
-                            albedo: 0.5 / (o.sigma_albedo * o.sigma_albedo),
-                            normal: 0.5 / (o.sigma_normal * o.sigma_normal),
-                        };
+                        let filter = Filter::new(&values, s, &o);
                         let r = radius;
-                        let spatial: Vec<f32> = (0..=2 * r).map(|i| (i as f32 - r as f32).powi(2) * 0.5 / (r as f32 * r as f32)).collect();
                         for y in 0..h {
                             for x in 0..w {
-                                let want = cbf_centre::<Portable>(&planes, &k, &spatial, r, exclude_centre, y, x);
+                                let want = filter.centre(Portable, y, x);
                                 let features = s.features.is_some();
                                 assert_eq!(
                                     got[y * w + x].map(f32::to_bits),
@@ -378,7 +393,7 @@ mod tests {
             }
         };
         run();
-        crate::simd::force_portable(run);
+        simd::force_portable(run);
     }
 
     #[test]

@@ -5,7 +5,7 @@
 //! spatial distance and then by position, so the choice is deterministic.
 use crate::named::named_enum;
 use crate::rng::hash4;
-use crate::simd::{Portable, Simd, KNN_KEYS_SLACK};
+use crate::simd::{dist2, knn_key, CandidateRow, Portable, Simd, KNN_KEYS_SLACK};
 use crate::window::shifted_range;
 use cvtrace_streams::StreamSet;
 
@@ -88,13 +88,13 @@ impl<'a> Selector<'a> {
     /// Writes the chosen pixel indices to `out` (the centre first when included) and returns
     /// how many there are: `k`, or fewer when the image has fewer pixels.
     pub fn select(&self, x: usize, y: usize, scratch: &mut SelectScratch, out: &mut [u32]) -> usize {
-        self.select_with::<Portable>(x, y, scratch, out)
+        self.select_with(Portable, x, y, scratch, out)
     }
 
-    /// [`Selector::select`] with the k-NN keys built by the vector kernels `S` (the same keys,
+    /// [`Selector::select`] with the k-NN keys built by the vector build `simd` (the same keys,
     /// so the same selection in the same order).
     #[inline(always)]
-    pub(crate) fn select_with<S: Simd>(&self, x: usize, y: usize, scratch: &mut SelectScratch, out: &mut [u32]) -> usize {
+    pub(crate) fn select_with<S: Simd>(&self, simd: S, x: usize, y: usize, scratch: &mut SelectScratch, out: &mut [u32]) -> usize {
         let (w, c) = (self.width, y * self.width + x);
         let xr = shifted_range(x, self.search, w);
         let yr = shifted_range(y, self.search, self.height);
@@ -107,7 +107,8 @@ impl<'a> Selector<'a> {
             for yy in yr.clone() {
                 let local0 = ((yy - yr.start) * span) as u32;
                 let (dx0, dy) = (xr.start as i32 - x as i32, yy as i32 - y as i32);
-                S::knn_keys(planes, self.crn[c], yy * w + xr.start, span, [dx0, dy], local0, &mut scratch.keys[n..]);
+                let row = CandidateRow { p0: yy * w + xr.start, n: span, offset: [dx0, dy], local0 };
+                simd.knn_keys(planes, self.crn[c], row, &mut scratch.keys[n..]);
                 if yy == y {
                     let at = n + x - xr.start;
                     scratch.keys.copy_within(at + 1..n + span, at);
@@ -159,19 +160,6 @@ impl<'a> Selector<'a> {
         }
         count
     }
-}
-
-/// A candidate's sort key: the primary distance's bits, then the squared spatial distance
-/// (capped), then the position in the window.
-#[inline(always)]
-pub(crate) fn knn_key(primary: u32, spatial: u64, local: u64) -> u64 {
-    (primary as u64) << 32 | spatial.min(0xfff) << 20 | local
-}
-
-#[inline]
-pub(crate) fn dist2(a: &[f32; 3], b: &[f32; 3]) -> f32 {
-    let d = [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
-    d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
 }
 
 #[cfg(test)]
@@ -253,10 +241,9 @@ mod tests {
     }
 
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn chosen_avx2(sel: &Selector, x: usize, y: usize) -> Vec<u32> {
+    fn chosen_avx2(avx2: crate::simd::Avx2, sel: &Selector, x: usize, y: usize) -> Vec<u32> {
         let mut out = [0u32; 64];
-        let n = sel.select_with::<crate::simd::Avx2>(x, y, &mut SelectScratch::new(), &mut out);
+        let n = sel.select_with(avx2, x, y, &mut SelectScratch::new(), &mut out);
         out[..n].to_vec()
     }
 
@@ -266,7 +253,8 @@ mod tests {
     #[test]
     fn knn_keys_by_rows_select_what_the_per_candidate_keys_select() {
         use crate::synthetic::{RenderSpec, SoftShadowScene};
-        let avx2 = cfg!(target_arch = "x86_64") && std::is_x86_feature_detected!("avx2");
+        #[cfg(target_arch = "x86_64")]
+        let avx2 = crate::simd::Avx2::detect();
         let mut compared = 0;
         for (w, h) in [(37, 29), (9, 40), (40, 6)] {
             let scene = SoftShadowScene::default().render(&RenderSpec { width: w, height: h, spp: 8, batches: 4, seed: 3 }).unwrap();
@@ -284,9 +272,8 @@ mod tests {
                             let want = chosen(&per_candidate, x, y);
                             assert_eq!(chosen(&rows, x, y), want, "portable, {w}x{h} k={k} search={search} at ({x}, {y})");
                             #[cfg(target_arch = "x86_64")]
-                            if avx2 {
-                                // SAFETY: AVX2 detected above.
-                                assert_eq!(unsafe { chosen_avx2(&rows, x, y) }, want, "AVX2, {w}x{h} k={k} search={search} at ({x}, {y})");
+                            if let Some(avx2) = avx2 {
+                                assert_eq!(chosen_avx2(avx2, &rows, x, y), want, "AVX2, {w}x{h} k={k} search={search} at ({x}, {y})");
                             }
                             compared += 1;
                         }

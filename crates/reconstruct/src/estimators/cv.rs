@@ -16,17 +16,15 @@
 //! `cv-classic` variant) takes the PT means as exact expectations (`V_h = 0`); nothing then
 //! guards against the PT noise it copies in, and with fewer batches than control variates `V_g`
 //! is singular, so the ridge is essential. See docs/estimators.md for both, measured.
-use super::ours::check_selection;
-use crate::cv_pass::{CentreFree, CvPass, Dof, Folds, PassStats};
-use crate::floor::Floor;
+use crate::cv_pass::{check_selection, Dof, Folds};
 use crate::input::BatchNeed;
 use crate::low_pass::restore_low_frequencies;
-use crate::penalty::Penalty;
 use crate::pt_error::{pt_errors, CbfOptions, ErrorEstimate};
 use crate::selection::{Selection, Selector, MAX_SEARCH_WINDOW};
 use crate::solve::{MAX_BATCHES, MAX_K};
 use crate::spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples, Variant};
-use crate::{Diagnostics, Estimator, Image, Input, Needs, Output, ReconError, StreamSet};
+use crate::two_stage::{centre_free_pass, two_stage, Solve};
+use crate::{Diagnostics, Estimator, Input, Needs, Output, ReconError};
 
 pub static SPEC: EstimatorSpec = EstimatorSpec {
     name: "cv",
@@ -235,7 +233,7 @@ impl Estimator for ClassicCv {
                 (two.image, stats)
             }
             _ => {
-                let out = cv_pass(set, selector, o.solve(), errors.as_deref(), None).run();
+                let out = centre_free_pass(set, selector, o.solve(), errors.as_deref(), None).run();
                 (out.image, out.stats)
             }
         };
@@ -247,96 +245,20 @@ impl Estimator for ClassicCv {
     }
 }
 
-/// The settings of a centre-free control-variate solve.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Solve {
-    /// Control variates per pixel (the centre not among them).
-    pub neighbours: usize,
-    /// Ridge, relative to the mean diagonal of the system.
-    pub ridge: f64,
-    /// One coefficient vector for the three channels.
-    pub shared: bool,
-    /// Which CRN batches β is estimated from and applied to.
-    pub folds: Folds,
-}
-
 impl ClassicCvOptions {
     fn solve(&self) -> Solve {
         Solve { neighbours: self.neighbours, ridge: self.ridge, shared: self.shared_coefficients, folds: self.folds }
     }
 }
 
-/// The control-variate pass of `cv`: the centre left out, the PT noise modelled when `errors`
-/// are given (with the `avg` penalty); `variance` asks for the predicted variance with that
-/// degrees-of-freedom allowance.
-fn cv_pass<'a>(
-    set: &'a StreamSet,
-    selector: Selector<'a>,
-    solve: Solve,
-    errors: Option<&'a [[f32; 3]]>,
-    variance: Option<Dof>,
-) -> CvPass<'a> {
-    CvPass {
-        set,
-        selector,
-        k: solve.neighbours,
-        errors,
-        penalty: if errors.is_some() { Penalty::Avg } else { Penalty::None },
-        ridge: solve.ridge,
-        shared: solve.shared,
-        include_centre: false,
-        floor: None,
-        folds: solve.folds,
-        variance: variance.is_some(),
-        dof: variance.unwrap_or(Dof::None),
-        centre_free: None,
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::two_stage::CENTRE_FREE_RIDGE;
+
+    /// `ours` solves its two-stage estimate's first stage with `cv`'s default ridge.
+    #[test]
+    fn the_two_stage_ridge_is_the_declared_default() {
+        assert_eq!(ClassicCvOptions::default().ridge.to_bits(), CENTRE_FREE_RIDGE.to_bits());
     }
-}
-
-/// The control-variate solve of [`two_stage`] as the centre-free part of a joint pass with the
-/// same selection (PT errors modelled, so the `avg` penalty of [`cv_pass`]).
-pub(crate) fn centre_free(ridge: f64, dof: Dof, floored: bool) -> CentreFree {
-    CentreFree { penalty: Penalty::Avg, ridge, dof, floored }
-}
-
-/// An estimate and its predicted variance per pixel and channel.
-pub(crate) struct Estimate {
-    pub image: Image,
-    pub variance: Image,
-}
-
-/// The two-stage estimate: control variates without the centre (`selector` must leave it out),
-/// then combined with the centre's PT mean by inverse variance. `errors` are the PT error
-/// estimates (variances of the PT means); `dof` is the allowance of the first stage's variance,
-/// which weights the two.
-pub(crate) fn two_stage(
-    set: &StreamSet,
-    selector: Selector<'_>,
-    solve: Solve,
-    errors: &[[f32; 3]],
-    dof: Dof,
-    floor: Option<Floor<'_>>,
-) -> (Estimate, PassStats) {
-    let out = CvPass { floor, ..cv_pass(set, selector, solve, Some(errors), Some(dof)) }.run();
-    let v_f = out.variance.expect("asked for the variance");
-    (combine_with_centre(&out.image, &v_f, &set.pt.mean, errors), out.stats)
-}
-
-/// The inverse-variance combination of the control-variate estimate `f` (variance `v_f`) with the
-/// centre's PT mean `h` (error estimate `e`), per pixel and channel, and its variance
-/// `e·v_f / (e + v_f)`. Where both variances are 0 (a black, noiseless pixel) the two agree and
-/// `f` is kept.
-pub(crate) fn combine_with_centre(f: &Image, v_f: &Image, h: &Image, e: &[[f32; 3]]) -> Estimate {
-    let (mut image, mut variance) = (f.clone(), v_f.clone());
-    for ((((o, v), vf), hc), ec) in image.pixels.iter_mut().zip(&mut variance.pixels).zip(&v_f.pixels).zip(&h.pixels).zip(e) {
-        for ch in 0..3 {
-            let (vf, ec) = (f64::from(vf[ch].max(0.0)), f64::from(ec[ch].max(0.0)));
-            let total = vf + ec;
-            if total > 0.0 && total.is_finite() {
-                o[ch] = ((ec * f64::from(o[ch]) + vf * f64::from(hc[ch])) / total) as f32;
-                v[ch] = (ec * vf / total) as f32;
-            }
-        }
-    }
-    Estimate { image, variance }
 }

@@ -14,9 +14,7 @@
 //! regular sub-lattice of pixels (≥ 32k of them), an unbiased estimate of the image mean.
 use crate::batch_stats::group_means;
 use crate::input::BatchNeed;
-#[cfg(target_arch = "x86_64")]
-use crate::simd::Avx2;
-use crate::simd::{Portable, Simd};
+use crate::simd::{self, IduwPlanes, Kernel, Pairs, SharedWeights, Simd, Windows};
 use crate::spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples};
 use crate::window::mirror;
 use crate::{Diagnostics, Estimator, Input, Needs, Output, ReconError};
@@ -126,23 +124,17 @@ pub struct Iduw {
 }
 
 /// One way to combine, for one colour channel: the estimates `h` (PT) and `g` (CRN), and the
-/// two CRN halves `x`, `y` whose disagreement sets the weights, with `m` samples per half.
-#[derive(Clone, Copy)]
-struct Pass<'a> {
-    h: &'a [f32],
-    g: &'a [f32],
-    x: &'a [f32],
-    y: &'a [f32],
-    m: f32,
-}
+/// two CRN halves `x`, `y` whose disagreement sets the weights, with `m` samples per half (the
+/// planes the vector kernels read).
+type Pass<'a> = IduwPlanes<'a>;
 
 impl Pass<'_> {
     /// Fills `t = m·v` and `d = (g_c − g_i) − (h_c − h_i)` for every position of the mirrored
     /// window around (cx, cy), row by row. The centre is included: its `d` is exactly 0, so it
     /// adds nothing to `Σ w·d` (and exactly 1 to `Σ w`). Interior rows are contiguous slices.
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    fn window(&self, cx: usize, cy: usize, w: usize, h: usize, r: usize, t: &mut [f32], d: &mut [f32]) {
+    fn window(&self, cx: usize, cy: usize, geo: Geometry, t: &mut [f32], d: &mut [f32]) {
+        let Geometry { w, h, r, .. } = geo;
         let c = cy * w + cx;
         let (hc, gc, xc, yc) = (self.h[c], self.g[c], self.x[c], self.y[c]);
         let side = 2 * r + 1;
@@ -311,30 +303,33 @@ enum Blocks<'a> {
     Given { first: usize, sums: &'a [([f32; 8], [f32; 8])] },
 }
 
-/// The final output of one channel for one image row; returns Σ of the normalised weights, added
-/// centre by centre in column order. Blocks of eight centres take their sums from `blocks`, the
-/// other centres the per-centre kernel.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn row_outputs<S: Simd>(
-    pass: &Pass,
+/// The final output of one channel: the planes, the window, γ, the channel `ch` it writes,
+/// and whether rows whose windows are not mirrored vertically share pair weights (see
+/// [`PairRing`]).
+#[derive(Clone, Copy)]
+struct Final<'a> {
+    pass: &'a Pass<'a>,
     geo: Geometry,
     gamma: f32,
-    y: usize,
-    out: &mut [[f32; 3]],
     ch: usize,
-    sc: &mut Scratch,
-    blocks: Blocks,
-) -> f64 {
+    pairs: bool,
+}
+
+/// The final output of one image row; returns Σ of the normalised weights, added centre by
+/// centre in column order. Blocks of eight centres take their sums from `blocks`, the other
+/// centres the per-centre kernel.
+#[inline(always)]
+fn row_outputs<S: Simd>(simd: S, fin: &Final, y: usize, out: &mut [[f32; 3]], sc: &mut Scratch, blocks: Blocks) -> f64 {
+    let Final { pass, geo, gamma, ch, .. } = *fin;
     let n = (2 * geo.r + 1).pow(2);
-    let planes = [pass.h, pass.g, pass.x, pass.y];
     let mut wsum = 0.0f64;
     let mut x = 0;
     while x < geo.w {
         let c = y * geo.w + x;
         let sums = match blocks {
             Blocks::Kernel if interior8(x, geo) => {
-                S::iduw_sums8(planes, c, x - geo.r, &sc.offsets, pass.m, &[gamma], &mut sc.acc[0], &mut sc.wt);
+                let win = Windows { c0: c, n0: x - geo.r, offsets: &sc.offsets };
+                simd.iduw_sums8(pass, win, &[gamma], &mut sc.acc[0], &mut sc.wt);
                 Some((sc.acc[0][0], sc.wt[0]))
             }
             Blocks::Given { first, sums } if x >= first && x < first + 8 * sums.len() => Some(sums[(x - first) / 8]),
@@ -348,8 +343,8 @@ fn row_outputs<S: Simd>(
             x += 8;
             continue;
         }
-        pass.window(x, y, geo.w, geo.h, geo.r, &mut sc.t[..n], &mut sc.d[..n]);
-        let (acc, wt) = S::exp_weighted(&sc.t[..n], &sc.d[..n], gamma);
+        pass.window(x, y, geo, &mut sc.t[..n], &mut sc.d[..n]);
+        let (acc, wt) = simd.exp_weighted(&sc.t[..n], &sc.d[..n], gamma);
         out[x][ch] = pass.h[c] + acc * geo.norm;
         wsum += ((wt - 1.0) * geo.norm) as f64;
         x += 1;
@@ -357,12 +352,12 @@ fn row_outputs<S: Simd>(
     wsum
 }
 
-/// The final output of one channel for one image row, every centre computing its own weights;
-/// returns Σ of the normalised weights.
+/// The final output of one image row, every centre computing its own weights; returns Σ of the
+/// normalised weights.
 #[inline(always)]
-fn final_row<S: Simd>(pass: &Pass, geo: Geometry, gamma: f32, y: usize, out: &mut [[f32; 3]], ch: usize, sc: &mut Scratch) -> f64 {
-    row_offsets(y, geo, &mut sc.offsets);
-    row_outputs::<S>(pass, geo, gamma, y, out, ch, sc, Blocks::Kernel)
+fn final_row<S: Simd>(simd: S, fin: &Final, y: usize, out: &mut [[f32; 3]], sc: &mut Scratch) -> f64 {
+    row_offsets(y, fin.geo, &mut sc.offsets);
+    row_outputs(simd, fin, y, out, sc, Blocks::Kernel)
 }
 
 /// The final pass's weights of pairs of pixels, kept until both centres of a pair have used
@@ -426,21 +421,24 @@ impl PairRing {
     }
 
     /// The centre's own weight (`v = 0`), computed by the same kernel as every other weight.
-    fn fill_centre<S: Simd>(&mut self, pass: &Pass, gamma: f32) {
+    #[inline(always)]
+    fn fill_centre<S: Simd>(&mut self, simd: S, pass: &Pass, gamma: f32) {
         let at = self.start(self.offsets.len(), 0);
         let w = self.geo.w;
-        S::iduw_pair_weights(pass.x, pass.y, 0, 0, w, pass.m, gamma, &mut self.weights[at..at + w]);
+        simd.iduw_pair_weights(pass, Pairs { p0: 0, off: 0, n: w }, gamma, &mut self.weights[at..at + w]);
     }
 
     /// The weights of every pair whose upper pixel lies in row `y` (which needs `y + r < h`).
-    fn fill_row<S: Simd>(&mut self, pass: &Pass, gamma: f32, y: usize) {
+    #[inline(always)]
+    fn fill_row<S: Simd>(&mut self, simd: S, pass: &Pass, gamma: f32, y: usize) {
         let w = self.geo.w;
         for (k, &(dy, dx)) in self.offsets.iter().enumerate() {
             // Every p whose partner q = p + (dy, dx) lies in the image.
             let (lo, hi) = ((-dx).max(0) as usize, (w as isize - dx).min(w as isize) as usize);
             let at = self.start(k, y) + lo;
             let off = (dy * w) as isize + dx;
-            S::iduw_pair_weights(pass.x, pass.y, y * w + lo, off as usize, hi - lo, pass.m, gamma, &mut self.weights[at..at + hi - lo]);
+            let pairs = Pairs { p0: y * w + lo, off: off as usize, n: hi - lo };
+            simd.iduw_pair_weights(pass, pairs, gamma, &mut self.weights[at..at + hi - lo]);
         }
     }
 
@@ -467,17 +465,8 @@ impl PairRing {
 /// [`final_row`] for a row whose windows are not mirrored vertically, from the pair weights of
 /// `ring` (filled up to row `y`): the same outputs, bit for bit.
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn paired_row<S: Simd>(
-    pass: &Pass,
-    geo: Geometry,
-    gamma: f32,
-    y: usize,
-    out: &mut [[f32; 3]],
-    ch: usize,
-    sc: &mut Scratch,
-    ring: &mut PairRing,
-) -> f64 {
+fn paired_row<S: Simd>(simd: S, fin: &Final, y: usize, out: &mut [[f32; 3]], sc: &mut Scratch, ring: &mut PairRing) -> f64 {
+    let geo = fin.geo;
     row_offsets(y, geo, &mut sc.offsets);
     ring.sources(y);
     // The blocks of eight centres from column r on whose windows are not mirrored (as
@@ -485,92 +474,70 @@ fn paired_row<S: Simd>(
     let blocks = (geo.w - 2 * geo.r) / 8;
     ring.sums.resize(blocks, ([0.0; 8], [0.0; 8]));
     ring.part.resize(blocks, [[0.0; 8]; 16]);
-    S::iduw_row_sums_weighted(pass.h, pass.g, y * geo.w + geo.r, 0, &sc.offsets, &ring.weights, &ring.src, &mut ring.part, &mut ring.sums);
-    row_outputs::<S>(pass, geo, gamma, y, out, ch, sc, Blocks::Given { first: geo.r, sums: &ring.sums })
+    let win = Windows { c0: y * geo.w + geo.r, n0: 0, offsets: &sc.offsets };
+    let weights = SharedWeights { values: &ring.weights, src: &ring.src };
+    simd.iduw_row_sums_weighted(fin.pass, win, weights, &mut ring.part, &mut ring.sums);
+    row_outputs(simd, fin, y, out, sc, Blocks::Given { first: geo.r, sums: &ring.sums })
 }
 
-/// The final output of one channel for the rows `y0..y0 + wsum.len()` (`out` holds them);
-/// adds each row's Σ of normalised weights to `wsum`. With `pairs`, rows whose windows are not
-/// mirrored vertically take their weights from a [`PairRing`] (the ring is warmed up on the
-/// `r` rows above the band), which halves the exponentials and changes no bit.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn final_band<S: Simd>(
-    pass: &Pass,
-    geo: Geometry,
-    gamma: f32,
+/// The final output for the rows `y0..y0 + wsum.len()` (`out` holds them), with the task's
+/// buffers; adds each row's Σ of normalised weights to `wsum`. With [`Final::pairs`], rows
+/// whose windows are not mirrored vertically take their weights from a [`PairRing`] (the ring
+/// is warmed up on the `r` rows above the band), which halves the exponentials and changes no
+/// bit.
+struct Band<'a> {
+    fin: &'a Final<'a>,
     y0: usize,
-    out: &mut [[f32; 3]],
-    wsum: &mut [f64],
-    ch: usize,
-    sc: &mut Scratch,
-    ring: &mut Option<PairRing>,
-    pairs: bool,
-) {
-    let (w, h, r) = (geo.w, geo.h, geo.r);
-    let rows = y0..y0 + wsum.len();
-    let paired = pairs && h > 2 * r && w >= 2 * r + 8;
-    let interior = rows.start.max(r)..rows.end.min(h.saturating_sub(r));
-    let mut ring = if paired && !interior.is_empty() {
-        let ring = ring.get_or_insert_with(|| PairRing::new(geo));
-        ring.fill_centre::<S>(pass, gamma);
-        Some(ring)
-    } else {
-        None
-    };
-    let mut next = interior.start.saturating_sub(r);
-    for (k, y) in rows.enumerate() {
-        let row = &mut out[k * w..(k + 1) * w];
-        match ring.as_deref_mut().filter(|_| interior.contains(&y)) {
-            Some(ring) => {
-                while next <= y {
-                    ring.fill_row::<S>(pass, gamma, next);
-                    next += 1;
+    out: &'a mut [[f32; 3]],
+    wsum: &'a mut [f64],
+    sc: &'a mut Scratch,
+    ring: &'a mut Option<PairRing>,
+}
+
+impl Kernel for Band<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<S: Simd>(self, simd: S) {
+        let Band { fin, y0, out, wsum, sc, ring } = self;
+        let Final { pass, geo, gamma, .. } = *fin;
+        let (w, h, r) = (geo.w, geo.h, geo.r);
+        let rows = y0..y0 + wsum.len();
+        let paired = fin.pairs && h > 2 * r && w >= 2 * r + 8;
+        let interior = rows.start.max(r)..rows.end.min(h.saturating_sub(r));
+        let mut ring = if paired && !interior.is_empty() {
+            let ring = ring.get_or_insert_with(|| PairRing::new(geo));
+            ring.fill_centre(simd, pass, gamma);
+            Some(ring)
+        } else {
+            None
+        };
+        let mut next = interior.start.saturating_sub(r);
+        for (k, y) in rows.enumerate() {
+            let row = &mut out[k * w..(k + 1) * w];
+            match ring.as_deref_mut().filter(|_| interior.contains(&y)) {
+                Some(ring) => {
+                    while next <= y {
+                        ring.fill_row(simd, pass, gamma, next);
+                        next += 1;
+                    }
+                    wsum[k] += paired_row(simd, fin, y, row, sc, ring);
                 }
-                wsum[k] += paired_row::<S>(pass, geo, gamma, y, row, ch, sc, ring);
+                None => wsum[k] += final_row(simd, fin, y, row, sc),
             }
-            None => wsum[k] += final_row::<S>(pass, geo, gamma, y, row, ch, sc),
         }
     }
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[allow(clippy::too_many_arguments)]
-unsafe fn final_band_avx2(
-    pass: &Pass,
-    geo: Geometry,
-    gamma: f32,
-    y0: usize,
-    out: &mut [[f32; 3]],
-    wsum: &mut [f64],
-    ch: usize,
-    sc: &mut Scratch,
-    ring: &mut Option<PairRing>,
-    pairs: bool,
-) {
-    final_band::<Avx2>(pass, geo, gamma, y0, out, wsum, ch, sc, ring, pairs)
-}
-
-/// The final output of channel `ch` into `image`, in bands of `band` rows run in parallel;
+/// The final output of channel `fin.ch` into `image`, in bands of `band` rows run in parallel;
 /// `wsum` receives each row's Σ of normalised weights. The bits depend on neither `band`,
-/// `pairs` nor the thread count.
-#[allow(clippy::too_many_arguments)]
-fn final_pass(pass: &Pass, geo: Geometry, gamma: f32, image: &mut Image, ch: usize, wsum: &mut [f64], band: usize, pairs: bool) {
-    let n = (2 * geo.r + 1).pow(2);
-    let w = geo.w;
+/// `fin.pairs` nor the thread count.
+fn final_pass(fin: &Final, image: &mut Image, wsum: &mut [f64], band: usize) {
+    let n = (2 * fin.geo.r + 1).pow(2);
+    let w = fin.geo.w;
     image.pixels.par_chunks_mut(w * band).zip(wsum.par_chunks_mut(band)).enumerate().for_each_init(
         || (Scratch::new(n, 1), None),
-        |(sc, ring), (b, (out, ws))| {
-            let y0 = b * band;
-            #[cfg(target_arch = "x86_64")]
-            if crate::simd::use_avx2() {
-                // SAFETY: AVX2 support was just checked.
-                unsafe { final_band_avx2(pass, geo, gamma, y0, out, ws, ch, sc, ring, pairs) };
-                return;
-            }
-            final_band::<Portable>(pass, geo, gamma, y0, out, ws, ch, sc, ring, pairs);
-        },
+        |(sc, ring), (b, (out, wsum))| simd::dispatch(Band { fin, y0: b * band, out, wsum, sc, ring }),
     );
 }
 
@@ -581,76 +548,75 @@ fn band_rows(h: usize, r: usize) -> usize {
     h.div_ceil(4 * threads).max(4 * r).clamp(1, h.max(1))
 }
 
-/// The γ criterion of one channel over the lattice pixels `xs` of row `y`, added to `crit`.
-/// Runs of eight adjacent lattice pixels (stride 1) with unmirrored windows go at once.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn criterion_row<S: Simd>(
-    halves: &[Pass; 2],
-    pt: &[f32],
+/// The γ criterion of one channel: the two halves' planes, the PT plane, the window, the γ
+/// values, and the lattice columns `xs` it is evaluated at in every lattice row.
+struct Criterion<'a> {
+    halves: [Pass<'a>; 2],
+    pt: &'a [f32],
     geo: Geometry,
-    gammas: &[f32],
-    y: usize,
-    xs: &[usize],
-    crit: &mut [f64],
-    sc: &mut Scratch,
-) {
-    let n = (2 * geo.r + 1).pow(2);
-    row_offsets(y, geo, &mut sc.offsets);
-    let mut k = 0;
-    while k < xs.len() {
-        let x = xs[k];
-        let c = y * geo.w + x;
-        if k + 8 <= xs.len() && xs[k + 7] == x + 7 && interior8(x, geo) {
-            for (half, acc) in halves.iter().zip(&mut sc.acc) {
-                S::iduw_sums8([half.h, half.g, half.x, half.y], c, x - geo.r, &sc.offsets, half.m, gammas, acc, &mut sc.wt);
-            }
-            for l in 0..8 {
-                let pbar = window_mean_interior(pt, x + l - geo.r, &sc.offsets);
-                let denom = (pbar * pbar) as f64 + 0.01;
-                for (gi, cr) in crit.iter_mut().enumerate() {
-                    let oa = halves[0].h[c + l] + sc.acc[0][gi][l] * geo.norm;
-                    let ob = halves[1].h[c + l] + sc.acc[1][gi][l] * geo.norm;
-                    *cr += ((oa - ob) as f64).powi(2) / denom;
-                }
-            }
-            k += 8;
-            continue;
-        }
-        // The same sum in the same order; the interior form skips a mirror per element.
-        let pbar = if x >= geo.r && x + geo.r < geo.w {
-            window_mean_interior(pt, x - geo.r, &sc.offsets)
-        } else {
-            window_mean(pt, x, y, geo.w, geo.h, geo.r)
-        };
-        let denom = (pbar * pbar) as f64 + 0.01;
-        halves[0].window(x, y, geo.w, geo.h, geo.r, &mut sc.t[..n], &mut sc.d[..n]);
-        halves[1].window(x, y, geo.w, geo.h, geo.r, &mut sc.t2[..n], &mut sc.d2[..n]);
-        S::exp_weighted_gammas(&sc.t[..n], &sc.d[..n], gammas, &mut sc.sums[0]);
-        S::exp_weighted_gammas(&sc.t2[..n], &sc.d2[..n], gammas, &mut sc.sums[1]);
-        for (gi, cr) in crit.iter_mut().enumerate() {
-            let oa = halves[0].h[c] + sc.sums[0][gi].0 * geo.norm;
-            let ob = halves[1].h[c] + sc.sums[1][gi].0 * geo.norm;
-            *cr += ((oa - ob) as f64).powi(2) / denom;
-        }
-        k += 1;
-    }
+    gammas: &'a [f32],
+    xs: &'a [usize],
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[allow(clippy::too_many_arguments)]
-unsafe fn criterion_row_avx2(
-    halves: &[Pass; 2],
-    pt: &[f32],
-    geo: Geometry,
-    gammas: &[f32],
+/// The criterion over the lattice pixels of row `y`, added to `crit`, with the task's buffers.
+struct CriterionRow<'a> {
+    criterion: &'a Criterion<'a>,
     y: usize,
-    xs: &[usize],
-    crit: &mut [f64],
-    sc: &mut Scratch,
-) {
-    criterion_row::<Avx2>(halves, pt, geo, gammas, y, xs, crit, sc)
+    crit: &'a mut [f64],
+    sc: &'a mut Scratch,
+}
+
+impl Kernel for CriterionRow<'_> {
+    type Output = ();
+
+    /// Runs of eight adjacent lattice pixels (stride 1) with unmirrored windows go at once.
+    #[inline(always)]
+    fn run<S: Simd>(self, simd: S) {
+        let CriterionRow { criterion, y, crit, sc } = self;
+        let Criterion { halves, pt, geo, gammas, xs } = criterion;
+        let geo = *geo;
+        let n = (2 * geo.r + 1).pow(2);
+        row_offsets(y, geo, &mut sc.offsets);
+        let mut k = 0;
+        while k < xs.len() {
+            let x = xs[k];
+            let c = y * geo.w + x;
+            if k + 8 <= xs.len() && xs[k + 7] == x + 7 && interior8(x, geo) {
+                for (half, acc) in halves.iter().zip(&mut sc.acc) {
+                    let win = Windows { c0: c, n0: x - geo.r, offsets: &sc.offsets };
+                    simd.iduw_sums8(half, win, gammas, acc, &mut sc.wt);
+                }
+                for l in 0..8 {
+                    let pbar = window_mean_interior(pt, x + l - geo.r, &sc.offsets);
+                    let denom = (pbar * pbar) as f64 + 0.01;
+                    for (gi, cr) in crit.iter_mut().enumerate() {
+                        let oa = halves[0].h[c + l] + sc.acc[0][gi][l] * geo.norm;
+                        let ob = halves[1].h[c + l] + sc.acc[1][gi][l] * geo.norm;
+                        *cr += ((oa - ob) as f64).powi(2) / denom;
+                    }
+                }
+                k += 8;
+                continue;
+            }
+            // The same sum in the same order; the interior form skips a mirror per element.
+            let pbar = if x >= geo.r && x + geo.r < geo.w {
+                window_mean_interior(pt, x - geo.r, &sc.offsets)
+            } else {
+                window_mean(pt, x, y, geo.w, geo.h, geo.r)
+            };
+            let denom = (pbar * pbar) as f64 + 0.01;
+            halves[0].window(x, y, geo, &mut sc.t[..n], &mut sc.d[..n]);
+            halves[1].window(x, y, geo, &mut sc.t2[..n], &mut sc.d2[..n]);
+            simd.exp_weighted_gammas(&sc.t[..n], &sc.d[..n], gammas, &mut sc.sums[0]);
+            simd.exp_weighted_gammas(&sc.t2[..n], &sc.d2[..n], gammas, &mut sc.sums[1]);
+            for (gi, cr) in crit.iter_mut().enumerate() {
+                let oa = halves[0].h[c] + sc.sums[0][gi].0 * geo.norm;
+                let ob = halves[1].h[c] + sc.sums[1][gi].0 * geo.norm;
+                *cr += ((oa - ob) as f64).powi(2) / denom;
+            }
+            k += 1;
+        }
+    }
 }
 
 impl Iduw {
@@ -701,23 +667,23 @@ impl Iduw {
             pl.fill(p, set, ch, true);
             let pl = &*pl;
             let s = &pl.crn_subs;
-            let halves = [
-                Pass { h: &pl.pt_halves[0], g: &pl.crn_halves[0], x: &s[0], y: &s[1], m: p.spp / 4.0 },
-                Pass { h: &pl.pt_halves[1], g: &pl.crn_halves[1], x: &s[2], y: &s[3], m: p.spp / 4.0 },
-            ];
+            let criterion = Criterion {
+                halves: [
+                    Pass { h: &pl.pt_halves[0], g: &pl.crn_halves[0], x: &s[0], y: &s[1], m: p.spp / 4.0 },
+                    Pass { h: &pl.pt_halves[1], g: &pl.crn_halves[1], x: &s[2], y: &s[3], m: p.spp / 4.0 },
+                ],
+                pt: &pl.pt,
+                geo,
+                gammas,
+                xs: &xs,
+            };
             let rows: Vec<Vec<f64>> = ys
                 .par_iter()
                 .map_init(
                     || Scratch::new(n, gammas.len()),
                     |sc, &y| {
                         let mut crit = vec![0.0f64; gammas.len()];
-                        #[cfg(target_arch = "x86_64")]
-                        if crate::simd::use_avx2() {
-                            // SAFETY: AVX2 support was just checked.
-                            unsafe { criterion_row_avx2(&halves, &pl.pt, geo, gammas, y, &xs, &mut crit, sc) };
-                            return crit;
-                        }
-                        criterion_row::<Portable>(&halves, &pl.pt, geo, gammas, y, &xs, &mut crit, sc);
+                        simd::dispatch(CriterionRow { criterion: &criterion, y, crit: &mut crit, sc });
                         crit
                     },
                 )
@@ -765,7 +731,7 @@ impl Estimator for Iduw {
             planes.fill(&p, set, ch, false);
             let pl = &planes;
             let full = Pass { h: &pl.pt, g: &pl.crn, x: &pl.crn_halves[0], y: &pl.crn_halves[1], m: p.spp / 2.0 };
-            final_pass(&full, geo, gamma, &mut image, ch, &mut wsum, band, true);
+            final_pass(&Final { pass: &full, geo, gamma, ch, pairs: true }, &mut image, &mut wsum, band);
         }
         let win = self.options.window;
         d.float("gamma", gamma as f64)
@@ -795,11 +761,11 @@ mod tests {
                 for &gamma in &[0.0f32, 0.01, 2.5] {
                     let mut want = Image::new(w, h);
                     let mut want_sum = vec![0.0f64; h];
-                    final_pass(&pass, geo, gamma, &mut want, 1, &mut want_sum, h, false);
+                    final_pass(&Final { pass: &pass, geo, gamma, ch: 1, pairs: false }, &mut want, &mut want_sum, h);
                     for band in [1, 3, 16, h] {
                         let mut got = Image::new(w, h);
                         let mut got_sum = vec![0.0f64; h];
-                        final_pass(&pass, geo, gamma, &mut got, 1, &mut got_sum, band, true);
+                        final_pass(&Final { pass: &pass, geo, gamma, ch: 1, pairs: true }, &mut got, &mut got_sum, band);
                         let differ = got.pixels.iter().zip(&want.pixels).filter(|(a, b)| a[1].to_bits() != b[1].to_bits()).count();
                         assert_eq!(differ, 0, "{w}×{h}, γ {gamma}, band {band}: {differ} pixels differ");
                         assert_eq!(
@@ -814,6 +780,6 @@ mod tests {
             compared
         };
         assert_eq!(run(), 84);
-        assert_eq!(crate::simd::force_portable(run), 84);
+        assert_eq!(simd::force_portable(run), 84);
     }
 }

@@ -9,9 +9,8 @@
 //! inverse variance): the two weight the centre differently, their errors are not the same, and
 //! their average measured lower relMSE on the bundled scenes than either. See
 //! docs/estimators.md for the defaults and their measurements.
-use super::cv::{centre_free, combine_with_centre, two_stage, ClassicCvOptions, Estimate, Solve};
 use crate::batch_stats::{trimmed_variance_of_mean, variance_of_mean};
-use crate::cv_pass::{CvPass, Dof, Folds};
+use crate::cv_pass::{check_selection, CvPass, Dof, Folds};
 use crate::demodulate::{self, Demodulation};
 use crate::floor::{capped_errors, Floor, FloorMode, FloorSource};
 use crate::input::BatchNeed;
@@ -21,6 +20,7 @@ use crate::pt_error::{cross_bilateral, pt_errors, CbfOptions, ErrorEstimate, MAX
 use crate::selection::{Selection, Selector, MAX_SEARCH_WINDOW};
 use crate::solve::{MAX_BATCHES, MAX_K};
 use crate::spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples, Variant};
+use crate::two_stage::{centre_free, combine_with_centre, two_stage, Estimate, Solve, CENTRE_FREE_RIDGE};
 use crate::{Diagnostics, Estimator, Input, Needs, Output, ReconError, StreamSet};
 use std::time::Instant;
 
@@ -109,7 +109,8 @@ pub struct ImperfectCvOptions {
     /// Which CRN batches β is estimated from and applied to ([`Folds`]): with `halves` the
     /// coefficients are independent of the CRN values they weight.
     pub folds: Folds,
-    /// σ (pixels) of the low-pass correction towards the PT mean ([`crate::low_pass`]); 0 = off.
+    /// σ (pixels) of the low-pass correction towards the PT mean
+    /// ([`restore_low_frequencies`]); 0 = off.
     pub low_pass_sigma: f64,
     /// Weight of the two-stage estimate in the output (0 = the joint solve alone).
     pub two_stage_weight: f64,
@@ -120,7 +121,7 @@ pub struct ImperfectCvOptions {
     /// The correlation of the two mixed estimates that the variance layer assumes.
     pub mix_correlation: MixCorrelation,
     /// Reconstruct illumination (radiance ÷ first-hit albedo) and multiply the albedo back
-    /// ([`crate::demodulate`]).
+    /// ([`Demodulation`]).
     pub demodulate: Demodulation,
 }
 
@@ -139,6 +140,13 @@ crate::named::named_enum! {
 impl Default for ImperfectCvOptions {
     fn default() -> Self {
         ImperfectCvOptions::from_params(&Params::defaults(&SPEC))
+    }
+}
+
+impl Default for CbfOptions {
+    /// The filter of `ours`' declared defaults.
+    fn default() -> Self {
+        ImperfectCvOptions::default().cbf
     }
 }
 
@@ -184,28 +192,6 @@ fn needs(o: &ImperfectCvOptions) -> Needs {
         spp: false,
         bounded_values: true,
     }
-}
-
-/// Checks the options shared by `ours` and `cv`: `k` pixels per set, centre included, and the
-/// ridge under its command-line name.
-pub(crate) fn check_selection(k: usize, search_window: usize, ridge: f64, ridge_option: &'static str) -> Result<(), ReconError> {
-    if k == 0 || k > MAX_K {
-        return Err(ReconError::option("k", k, format!("must be between 1 and {MAX_K}")));
-    }
-    if search_window == 0 || search_window.is_multiple_of(2) || search_window > MAX_SEARCH_WINDOW {
-        return Err(ReconError::option("search-window", search_window, format!("must be odd, between 1 and {MAX_SEARCH_WINDOW}")));
-    }
-    if k > search_window * search_window {
-        return Err(ReconError::option(
-            "k",
-            k,
-            format!("cannot choose more pixels than the {search_window}x{search_window} search window holds; raise --search-window"),
-        ));
-    }
-    if !(ridge >= 0.0 && ridge.is_finite()) {
-        return Err(ReconError::option(ridge_option, ridge, "must be a finite number ≥ 0"));
-    }
-    Ok(())
 }
 
 impl ImperfectCvOptions {
@@ -312,7 +298,6 @@ impl ImperfectCv {
             values: floor_variance.as_deref().unwrap_or(&errors),
         });
         let t_prepare = start.elapsed().as_secs_f64();
-        let two_stage_ridge = ClassicCvOptions::default().ridge;
         let mut pass = CvPass {
             set,
             selector: Selector::new(o.select, o.k, o.search_window, true, o.seed, set),
@@ -326,7 +311,7 @@ impl ImperfectCv {
             folds: o.folds,
             variance: true,
             dof: o.variance_dof,
-            centre_free: (o.two_stage_weight > 0.0).then(|| centre_free(two_stage_ridge, o.variance_dof, o.two_stage_floor)),
+            centre_free: (o.two_stage_weight > 0.0).then(|| centre_free(CENTRE_FREE_RIDGE, o.variance_dof, o.two_stage_floor)),
         };
         if how == Pass::Separate || !pass.fuses() {
             pass.centre_free = None;
@@ -339,7 +324,7 @@ impl ImperfectCv {
                 Some(f) => combine_with_centre(&f.image, &f.variance, &set.pt.mean, &errors),
                 None => {
                     let neighbours = Selector::new(o.select, o.k - 1, o.search_window, false, o.seed, set);
-                    let solve = Solve { neighbours: o.k - 1, ridge: two_stage_ridge, shared: o.shared_coefficients, folds: Folds::All };
+                    let solve = Solve { neighbours: o.k - 1, ridge: CENTRE_FREE_RIDGE, shared: o.shared_coefficients, folds: Folds::All };
                     let floor = floor.filter(|f| o.two_stage_floor && f.mode == FloorMode::Common);
                     two_stage(set, neighbours, solve, &errors, o.variance_dof, floor).0
                 }
