@@ -136,6 +136,7 @@ impl Study<'_> {
                     relmse: s.relmse_mean,
                     relmse_se: s.relmse_se,
                     seconds: Some(t.total()),
+                    bias2: s.bias2,
                 });
             }
             if last {
