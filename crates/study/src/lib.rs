@@ -12,6 +12,7 @@
 //! analytic soft-shadow scene of `cvtrace_reconstruct::synthetic`, which needs no renderer.
 //! What a study asks of its source is planned from what its estimators declare they need
 //! ([`Study::check_needs`] runs before the first image is made).
+#![forbid(unsafe_code)]
 mod columns;
 mod diagnostics;
 pub mod files;
