@@ -1,4 +1,4 @@
-"""Shared I/O, metrics and OIDN wrapper of the research behind `ours-oidn` (docs/estimators.md).
+"""Shared I/O, metrics and OIDN wrapper of the research behind `blend` (docs/estimators.md).
 
 Data: $CVTRACE_STUDIES/<scene>/spp000NN/seed-00S.{streams,pt2n}.exr (read-only), the study folders
 of `cvtrace study scenes/<scene>/scene.gltf --spp 32,96 --seeds 4 --batches 16 ... -o $CVTRACE_STUDIES/<scene>`.

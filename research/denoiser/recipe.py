@@ -1,4 +1,4 @@
-"""Reference implementation of the final ours+OIDN combination ("ours-oidn"), research40.
+"""Reference implementation of the `blend` estimator's recipe (ours and OIDN by shrinkage).
 
 Inputs (all H x W x 3 float32, rows top to bottom, as in the stream file):
   pt       the PT stream mean (stream file channels pt.R/G/B)

@@ -46,22 +46,22 @@ fn oidn_and_pt2n_oidn_have_less_error_than_the_images_they_denoise() {
 }
 
 #[test]
-fn ours_oidn_is_ours_with_an_unbiased_share_of_one_and_between_its_parts_otherwise() {
+fn the_blend_is_ours_with_an_unbiased_share_of_one_and_between_its_parts_otherwise() {
     let scene = SoftShadowScene::default();
     let set = scene.render(&RenderSpec { width: SIDE, height: SIDE, spp: 16, batches: 8, seed: 5 }).unwrap();
     let input = Input::new(&set);
     let r = registry();
     let ours = build(&r, "ours", &[]).run(&input).unwrap().image;
-    let all_ours = build(&r, "ours-oidn", &["ours-oidn.unbiased_share=1"]).run(&input).unwrap().image;
+    let all_ours = build(&r, "blend", &["blend.unbiased_share=1"]).run(&input).unwrap().image;
     assert_eq!(all_ours, ours, "ω = 1 gives ours' image");
     // With ω = 0 and no noise allowed (κ = 0), w = 1 wherever the images differ: ours again.
-    let trusting_ours = build(&r, "ours-oidn", &["ours-oidn.unbiased_share=0", "ours-oidn.noise_scale=0"]).run(&input).unwrap().image;
+    let trusting_ours = build(&r, "blend", &["blend.unbiased_share=0", "blend.noise_scale=0"]).run(&input).unwrap().image;
     assert_eq!(trusting_ours, ours, "κ = 0 leaves no difference to the denoiser");
     // The default output lies between ours and the denoised image, pixel by pixel.
-    let out = build(&r, "ours-oidn", &[]).run(&input).unwrap();
+    let out = build(&r, "blend", &[]).run(&input).unwrap();
     let w = out.diagnostics.get("ours_weight_mean").and_then(|v| v.as_f64()).unwrap();
     assert!((0.0..=1.0).contains(&w), "{w}");
-    let denoised_mix = build(&r, "ours-oidn", &["ours-oidn.unbiased_share=0", "ours-oidn.noise_scale=1e30"]).run(&input).unwrap().image;
+    let denoised_mix = build(&r, "blend", &["blend.unbiased_share=0", "blend.noise_scale=1e30"]).run(&input).unwrap().image;
     for ((o, u), d) in out.image.pixels.iter().zip(&ours.pixels).zip(&denoised_mix.pixels) {
         for c in 0..3 {
             let (lo, hi) = (u[c].min(d[c]), u[c].max(d[c]));

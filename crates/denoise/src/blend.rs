@@ -1,4 +1,4 @@
-//! `ours-oidn`: `ours` and Intel Open Image Denoise combined by shrinkage, with `ours`'
+//! `blend`: `ours` and Intel Open Image Denoise combined by shrinkage, with `ours`'
 //! predicted variance telling how far to trust the denoiser.
 //!
 //! 1. `ours` with its defaults: an unbiased image `U` and its predicted variance `v`.
@@ -24,9 +24,9 @@ use cvtrace_reconstruct::{
 use rayon::prelude::*;
 
 pub static SPEC: EstimatorSpec = EstimatorSpec {
-    name: "ours-oidn",
+    name: "blend",
     label: "Ours + OIDN (shrinkage)",
-    short: "Ours+OIDN",
+    short: "Blend",
     summary: "`ours` and OIDN on the PT stream combined per pixel by positive-part James–Stein shrinkage, with ours' predicted variance as the noise it allows.",
     colour: [0xf0, 0xc0, 0x4a],
     samples: Samples::BothStreams,
@@ -70,12 +70,12 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
         pt2n: false,
         bounded_values: true,
     },
-    build: |p| Ok(Box::new(OursOidn::from_params(p)?)),
+    build: |p| Ok(Box::new(Blend::from_params(p)?)),
     variants: &[],
 };
 
-/// The `ours-oidn` estimator.
-pub struct OursOidn {
+/// The `blend` estimator.
+pub struct Blend {
     ours: Instance,
     pt_share: f32,
     radius: usize,
@@ -84,9 +84,9 @@ pub struct OursOidn {
     options: DenoiseOptions,
 }
 
-impl OursOidn {
+impl Blend {
     pub fn from_params(p: &Params) -> Result<Self, ReconError> {
-        Ok(OursOidn {
+        Ok(Blend {
             ours: cvtrace_reconstruct::build("ours", &Overrides::default())?,
             pt_share: p.float("pt_share") as f32,
             radius: p.usize("radius"),
@@ -97,7 +97,7 @@ impl OursOidn {
     }
 }
 
-impl Estimator for OursOidn {
+impl Estimator for Blend {
     fn reconstruct(&self, input: &Input) -> Result<Output, ReconError> {
         let s = input.streams;
         let ours = self.ours.run(input)?;
