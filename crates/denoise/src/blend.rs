@@ -27,7 +27,7 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
     name: "blend",
     label: "Ours + OIDN (shrinkage)",
     short: "Blend",
-    summary: "`ours` and OIDN on the PT stream combined per pixel by positive-part James–Stein shrinkage, with ours' predicted variance as the noise it allows.",
+    summary: "OIDN on the PT stream mixed with `ours`, shrunk per pixel towards `ours` (positive-part James–Stein) where they differ by more than ours' predicted variance explains.",
     colour: [0xf0, 0xc0, 0x4a],
     samples: Samples::BothStreams,
     params: &[
