@@ -70,8 +70,24 @@ fn threads_bytes(threads: u64) -> u64 {
     threads * (stack + (64 << 10)) + threads.min(8 * cores) * (64 << 20) + (128 << 20)
 }
 
+/// Prints clap's help, version or error, and the exit code: 0 after help, 2 after an error, 1
+/// when the help cannot be written (a full disk; a closed pipe is no error).
+fn clap_exit(e: clap::Error) -> std::process::ExitCode {
+    let printed = e.print().and_then(|()| std::io::stdout().flush());
+    match printed {
+        Err(io) if !e.use_stderr() && io.kind() != std::io::ErrorKind::BrokenPipe => {
+            say_error(&format!("standard output: cannot write what the command prints: {io}"));
+            std::process::ExitCode::FAILURE
+        }
+        _ => std::process::ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2)),
+    }
+}
+
 fn main() -> std::process::ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return clap_exit(e),
+    };
     let filter = match tracing_subscriber::EnvFilter::try_from_default_env() {
         Ok(f) => f,
         // A directive that does not parse would be dropped with a note, and the run go on silent.
@@ -149,6 +165,8 @@ fn main() -> std::process::ExitCode {
     while cvtrace_streams::atomic::interrupted() {
         std::thread::park();
     }
+    // What the command printed is part of its result.
+    let result = result.and_then(|()| cli::stdout_result());
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
