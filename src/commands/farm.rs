@@ -77,7 +77,9 @@ pub struct JobArgs {
     /// job that then merges or summarises them.
     #[arg(long)]
     pub submit: bool,
-    /// An argument for sbatch (repeatable), e.g. --sbatch-arg=--partition=gpu.
+    /// An argument for sbatch (repeatable), e.g. --sbatch-arg=--partition=gpu: kept in the job
+    /// folder's scripts (`#SBATCH`) and given to every submission; a later run without any
+    /// keeps them, one with others replaces them.
     #[arg(long = "sbatch-arg", value_name = "ARG", allow_hyphen_values = true)]
     pub sbatch_args: Vec<String>,
 }
@@ -169,7 +171,7 @@ fn render(a: FarmRenderArgs) -> Result<()> {
             return Err(e.into());
         }
     }
-    let folder = JobFolder::create(&dir, plan)?;
+    let folder = JobFolder::create(&dir, plan, &a.job.sbatch_args)?;
     if new {
         tracing::info!("wrote the job folder {} ({} parts of {units} {what})", folder.dir.display(), a.parts);
     }
@@ -177,12 +179,12 @@ fn render(a: FarmRenderArgs) -> Result<()> {
         say!("job folder {}: submit it with\n{}or run this command again with --submit", folder.dir.display(), folder.how_to_submit());
         return Ok(());
     }
-    submit(&folder, &a.job.sbatch_args)
+    submit(&folder)
 }
 
-/// Submits what `folder` still needs and says what was submitted.
-fn submit(folder: &JobFolder, sbatch_args: &[String]) -> Result<()> {
-    let s = folder.submit(&Slurm, sbatch_args)?;
+/// Submits what `folder` still needs (with its sbatch arguments) and says what was submitted.
+fn submit(folder: &JobFolder) -> Result<()> {
+    let s = folder.submit(&Slurm, &folder.manifest.sbatch_args)?;
     let names = folder.manifest.scripts();
     let (task, last) = (names.task, names.last_name);
     let output = folder.manifest.final_output();
@@ -284,7 +286,7 @@ fn study(a: FarmStudyArgs) -> Result<()> {
         study: Some(StudyCells { spps, seeds: s.seeds }),
     };
     let new = !dir.join("manifest.json").exists();
-    let folder = JobFolder::create(&dir, plan)?;
+    let folder = JobFolder::create(&dir, plan, &a.job.sbatch_args)?;
     if new {
         tracing::info!("wrote the job folder {} ({cells} cells)", folder.dir.display());
     }
@@ -292,7 +294,7 @@ fn study(a: FarmStudyArgs) -> Result<()> {
         say!("job folder {}: submit it with\n{}or run this command again with --submit", folder.dir.display(), folder.how_to_submit());
         return Ok(());
     }
-    submit(&folder, &a.job.sbatch_args)
+    submit(&folder)
 }
 
 fn status(dir: &Path) -> Result<()> {
