@@ -14,7 +14,8 @@ use std::io::{IsTerminal, Write};
 )]
 struct Cli {
     /// Worker threads (default: all cores). Results are bit-identical for any count.
-    #[arg(short = 't', long, global = true)]
+    #[arg(short = 't', long, global = true, allow_hyphen_values = true,
+          value_parser = clap::builder::RangedI64ValueParser::<usize>::new().range(1..=MAX_THREADS as i64))]
     threads: Option<usize>,
     /// Log level filter (error, warn, info, debug, trace); RUST_LOG overrides it.
     #[arg(long, global = true, default_value = "info")]

@@ -1,7 +1,7 @@
 //! `cvtrace farm`: a render as parts, or a study as cells, on a Slurm cluster (a job folder, its
 //! submission, its status). The bookkeeping is `cvtrace-farm`'s; this file maps flags to a plan
 //! and prints.
-use crate::cli::args::{default_batches, spp_parser, ViewArgs};
+use crate::cli::args::{batches_parser, count_parser, default_batches, parse_seed, spp_parser, ViewArgs};
 use crate::cli::say;
 use crate::cli::study_setup::{prepare, StudyArgs};
 use anyhow::{bail, Context, Result};
@@ -37,19 +37,19 @@ pub struct FarmRenderArgs {
     #[arg(long, value_parser = spp_parser(), allow_hyphen_values = true)]
     pub spp: u32,
     /// Batches per stream [default: the most of 16, 8, 4, 2, 1 that divide --spp].
-    #[arg(long)]
+    #[arg(long, value_parser = batches_parser(), allow_hyphen_values = true)]
     pub batches: Option<u32>,
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = parse_seed, allow_hyphen_values = true)]
     pub seed: u64,
     #[command(flatten)]
     pub view: ViewArgs,
     /// A reference: the parts are ranges of passes of --pass-spp samples.
     #[arg(long)]
     pub reference: bool,
-    #[arg(long, default_value_t = 64, requires = "reference")]
+    #[arg(long, default_value_t = 64, requires = "reference", value_parser = spp_parser(), allow_hyphen_values = true)]
     pub pass_spp: u32,
     /// Number of parts (array tasks): at most the number of batches (or passes).
-    #[arg(long)]
+    #[arg(long, value_parser = count_parser(), allow_hyphen_values = true)]
     pub parts: u32,
     #[command(flatten)]
     pub job: JobArgs,
