@@ -131,7 +131,12 @@ fn study_in_folder(
         None => {
             tracing::info!("{} does not exist: rendering a {reference_spp} spp reference first", args.reference.display());
             let job = ReferenceJob::replacing(args.reference.clone(), args.view.view(), reference_spp, REFERENCE_SEED);
-            session.render(&Job::Reference(job), &TerminalProgress::default())?;
+            // Its missing folders are made, as `render` makes them, and taken back if it fails.
+            let made = crate::cli::files::make_parent_folders(&args.reference)?;
+            if let Err(e) = session.render(&Job::Reference(job), &TerminalProgress::default()) {
+                crate::cli::files::remove_empty(&made);
+                return Err(e.into());
+            }
             read_reference(args)?
         }
     };

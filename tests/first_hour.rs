@@ -1,0 +1,82 @@
+//! The first hour of a new user: the README's PNG export, `compare`'s table and CSV, a method the
+//! README names, what `--k` sets, outputs into folders that do not exist yet, and log lines and
+//! an interrupt on a 100-column terminal.
+mod common;
+
+use common::{cvtrace, ok, scene, stdout, SMALL};
+use std::path::Path;
+
+fn inputs(dir: &Path) {
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    ok(&cvtrace(
+        dir,
+        &[&["--log", "warn", "render", sp, "--spp", "8", "--batches", "4", "--seed", "3", "-o", "s.streams.exr"][..], SMALL].concat(),
+    ));
+    ok(&cvtrace(
+        dir,
+        &[&["--log", "warn", "render", sp, "--reference", "--spp", "16", "--seed", "9", "-o", "ref.exr"][..], SMALL].concat(),
+    ));
+}
+
+#[test]
+fn compare_shows_only_what_it_measures_and_its_csv_agrees() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    inputs(d);
+    ok(&cvtrace(d, &["--log", "warn", "reconstruct", "s.streams.exr", "--method", "all", "-o", "out"]));
+    // Into folders that do not exist yet, as every other output.
+    let out = cvtrace(
+        d,
+        &[
+            "--log",
+            "warn",
+            "compare",
+            "--reference",
+            "ref.exr",
+            "out/pt.exr",
+            "out/ours.exr",
+            "--csv",
+            "tables/t.csv",
+            "--json",
+            "more/t.json",
+        ],
+    );
+    ok(&out);
+    let table = stdout(&out);
+    let header = table.lines().find(|l| l.starts_with("method")).unwrap_or_else(|| panic!("no table:\n{table}"));
+    for column in ["relMSE", "MSE", "spp", "FLIP", "recon s"] {
+        assert!(header.contains(column), "{column:?} missing: {header}");
+    }
+    // Columns of a study over seeds, always `–` or 0 for single images.
+    for column in ["± se", "/PT(2n)", "bias²", "variance", "render s"] {
+        assert!(!header.contains(column), "{column:?} in compare's table: {header}");
+    }
+    let csv = std::fs::read_to_string(d.join("tables/t.csv")).unwrap();
+    let columns: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let at = |name: &str| columns.iter().position(|c| *c == name).unwrap();
+    for row in csv.lines().skip(1) {
+        let cells: Vec<&str> = row.split(',').collect();
+        // The streams had 8 spp each; pt stands for 8 samples, ours for 16.
+        assert_eq!(cells[at("spp_per_stream")], "8", "{row}");
+        let total = if cells[at("method")] == "pt" { "8" } else { "16" };
+        assert_eq!(cells[at("spp_total")], total, "{row}");
+        assert!(table.lines().any(|l| l.contains(cells[at("method")]) && l.contains(&format!(" {total} "))), "{row} vs\n{table}");
+    }
+    assert!(d.join("more/t.json").is_file());
+}
+
+#[test]
+fn a_study_makes_the_folders_of_the_reference_it_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene();
+    let study = [
+        &["--log", "warn", "study", s.to_str().unwrap(), "--spp", "4", "--seeds", "1", "--batches", "4"][..],
+        &["--reference", "refs/new/ref.exr", "--reference-spp", "8", "-o", "st"],
+        SMALL,
+    ]
+    .concat();
+    ok(&cvtrace(d, &study));
+    assert!(d.join("refs/new/ref.exr").is_file() && d.join("st/results.json").is_file());
+}
