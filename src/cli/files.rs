@@ -106,4 +106,3 @@ pub fn check_input_file(path: &Path) -> Result<()> {
         Err(e) => bail!("{}: {e}", path.display()),
     }
 }
-

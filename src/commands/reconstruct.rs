@@ -132,6 +132,10 @@ fn reconstruct(args: &ReconstructArgs, input_path: PathBuf, output: PathBuf) -> 
     for p in &inputs {
         crate::cli::files::check_input_file(p)?;
     }
+    // A reference of another scene, camera or path length is the ground truth of another image.
+    if let (Some(r), None) = (&args.reference, parse_iduw_name(&input_path)) {
+        cvtrace_streams::Provenance::check_reference_of(r, &input_path)?;
+    }
     for (t, _) in &estimators {
         for out in std::iter::once(&t.exr).chain(&t.png) {
             crate::cli::files::refuse_overwriting_inputs(out, &inputs)?;
@@ -157,6 +161,12 @@ fn reconstruct(args: &ReconstructArgs, input_path: PathBuf, output: PathBuf) -> 
         );
     }
     let reference = args.reference.as_deref().map(read_rgb).transpose()?;
+    if let (Some(path), Some(image)) = (&args.reference, &reference) {
+        // Black, or negative pixels: relMSE is no measure against it.
+        if let Some(w) = cvtrace_eval::Reference::new(image.clone(), path.display().to_string())?.unusable_warning() {
+            tracing::warn!("{w}");
+        }
+    }
     tracing::info!(
         "read {} ({}x{}, {} spp per stream, {} batches) in {:.2} s",
         input_path.display(),

@@ -14,15 +14,22 @@ use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 /// Reads the reference and every image; errors name the file at fault (unreadable EXR,
-/// missing R/G/B, non-finite values, size different from the reference).
+/// missing R/G/B, non-finite values, size different from the reference, a reference of another
+/// scene, camera or path length than an image records).
 pub fn compare_files(reference: &Path, images: &[PathBuf]) -> Result<SceneResult, EvalError> {
     if images.is_empty() {
         return Err(EvalError::invalid("compare", "no images to compare"));
+    }
+    // An image of another scene, camera or path length is no estimate of this reference.
+    for path in images {
+        cvtrace_streams::Provenance::check_reference_of(reference, path)?;
     }
     let reference_img = Reference::read_exr(reference)?;
     let flip_reference = FlipReference::new(&reference_img.image, reference_img.label.clone())?;
     let mut names = BTreeSet::new();
     let mut methods = Vec::new();
+    // The samples per stream of the stream files the images were made from, as recorded.
+    let mut stream_spps = BTreeSet::new();
     for path in images {
         let label = path.display().to_string();
         let mut ch = ExrChannels::read(path)?;
