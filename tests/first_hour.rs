@@ -3,7 +3,7 @@
 //! an interrupt on a 100-column terminal.
 mod common;
 
-use common::{cvtrace, ok, scene, stdout, SMALL};
+use common::{cvtrace, ok, scene, stderr, stdout, SMALL};
 use std::path::Path;
 
 fn inputs(dir: &Path) {
@@ -64,6 +64,27 @@ fn compare_shows_only_what_it_measures_and_its_csv_agrees() {
         assert!(table.lines().any(|l| l.contains(cells[at("method")]) && l.contains(&format!(" {total} "))), "{row} vs\n{table}");
     }
     assert!(d.join("more/t.json").is_file());
+}
+
+#[test]
+fn a_variant_is_named_as_one_and_shared_flags_name_every_parameter() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    inputs(d);
+    // The README's `cv-classic` is an ablation variant, run by `study --ablations`.
+    let out = cvtrace(d, &["reconstruct", "s.streams.exr", "--method", "cv-classic", "-o", "x.exr"]);
+    let e = stderr(&out);
+    assert!(!out.status.success() && e.contains("cv-classic") && e.contains("variant") && e.contains("study --ablations"), "{e}");
+    // `--k` sets `ours.k` and `cv.k`: its help and its errors name both.
+    let help = stdout(&cvtrace(d, &["reconstruct", "--help"]));
+    let k = help.lines().find(|l| l.trim_start().starts_with("--k ")).unwrap_or_else(|| panic!("no --k in\n{help}"));
+    assert!(k.contains("ours.k") && k.contains("cv.k"), "{k}");
+    for value in ["1", "1000"] {
+        let out = cvtrace(d, &["reconstruct", "s.streams.exr", "--method", "pt", "--k", value, "-o", "x.exr"]);
+        let e = stderr(&out);
+        assert!(!out.status.success(), "--k {value}");
+        assert!(e.contains(&format!("--k {value}")) && e.contains("ours.k") && e.contains("cv.k"), "--k {value}: {e}");
+    }
 }
 
 #[test]

@@ -101,7 +101,10 @@ fn reconstruct_rejects_bad_inputs_with_the_file_named() {
         (&["reconstruct", "s.streams.exr", "--method", "ours", "-o", "x.png"], "x.png: this output is written as OpenEXR"),
         (&["reconstruct", "s.streams.exr", "--method", "pt", "--force", "-o", "s.streams.exr"], "s.streams.exr: is also an input"),
         (&["reconstruct", "s.streams.exr", "--method", "pt", "--exposure=nan", "-o", "x.exr"], "--exposure NaN"),
-        (&["reconstruct", "s.streams.exr", "--method", "cv", "--k", "1", "-o", "x.exr"], "--k 1 (cv.k): must be between 2"),
+        (
+            &["reconstruct", "s.streams.exr", "--method", "cv", "--k", "1", "-o", "x.exr"],
+            "--k 1 (sets cv.k and ours.k): cv.k must be between 2",
+        ),
         // A failed `--method all` does not leave its new directory behind.
         (&["reconstruct", "missing.streams.exr", "--method", "all", "-o", "new-dir"], "missing.streams.exr"),
     ];

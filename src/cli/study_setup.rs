@@ -158,8 +158,7 @@ pub fn prepare(args: &StudyArgs) -> Result<Prepared> {
     let pixels = plan.settings.width as u64 * plan.settings.height as u64;
     // Counts aside: they differ between the study's renders.
     let planned = plan.provenance.without_counts();
-    let overrides = args.options.overrides()?;
-    registry().check(&overrides)?;
+    let overrides = args.options.checked()?;
     let columns = cvtrace_study::columns(registry(), &overrides, args.ablations)?;
     let batches = args.batches.unwrap_or_else(|| default_batches(&spps));
     let headline = cvtrace_study::headline(&args.headline, &columns)?;

@@ -115,10 +115,9 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
 
 fn reconstruct(args: &ReconstructArgs, input_path: PathBuf, output: PathBuf) -> Result<()> {
     check_exposure(args.exposure)?;
-    let overrides = args.options.overrides()?;
     // Every option given is checked, also those of methods not run: `--method pt --k 0` is as
     // much a mistake as `--method ours --k 0`.
-    registry().check(&overrides)?;
+    let overrides = args.options.checked()?;
     // Build every estimator first: absurd options fail before any file is read.
     let estimators: Vec<(Target, Instance)> =
         targets(args, &output)?.into_iter().map(|t| registry().build(t.spec.name, &overrides).map(|e| (t, e))).collect::<Result<_, _>>()?;
