@@ -103,21 +103,18 @@ fn main() -> std::process::ExitCode {
             }
         },
     };
-    // Colour codes only for a terminal; a log line that cannot be written (a closed pipe) is
-    // dropped without a word, so that logging never ends the work.
+    // Colour codes only for a terminal, where lines wrap at 100 columns; a log line that cannot
+    // be written (a closed pipe) is dropped without a word, so that logging never ends the work.
     tracing_subscriber::fmt()
         .with_env_filter(filter)
-        .with_writer(std::io::stderr)
+        .with_writer(cli::log::Stderr::default())
         .with_target(false)
         .with_ansi(std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none())
         .log_internal_errors(false)
         .init();
+    // Far more threads than cores only costs memory (and at 10⁵ the pool never starts): clap
+    // takes 1 to MAX_THREADS.
     if let Some(n) = cli.threads {
-        // Far more threads than cores only costs memory (and at 10⁵ the pool never starts).
-        if n == 0 || n > MAX_THREADS {
-            say_error(&format!("--threads {n}: must be between 1 and {MAX_THREADS}"));
-            return std::process::ExitCode::from(2);
-        }
         // `render` and `study` start as many render threads again (the render session's pool). A thread that
         // gets its stack but not its signal stack aborts the process: so all the stacks must
         // fit in the address space (`ulimit -v`) before any thread starts.
@@ -140,12 +137,15 @@ fn main() -> std::process::ExitCode {
     // interrupted run leaves no half files (finished outputs and checkpoints stay).
     if let Err(e) = ctrlc::set_handler(|| {
         cvtrace_streams::atomic::remove_pending_temporaries();
+        // On a terminal the progress bar holds the current line (and stops drawing now that
+        // the run is interrupted): the note replaces it instead of following it.
+        let line = if std::io::stderr().is_terminal() { "\r\x1b[2K" } else { "" };
         match cli::files::interrupt_note() {
             Some(note) => {
-                let _ = writeln!(std::io::stderr(), "interrupted: {note}");
+                let _ = writeln!(std::io::stderr(), "{line}interrupted: {note}");
             }
             None => {
-                let _ = writeln!(std::io::stderr(), "interrupted");
+                let _ = writeln!(std::io::stderr(), "{line}interrupted");
             }
         }
         std::process::exit(130);

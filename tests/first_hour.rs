@@ -4,7 +4,10 @@
 mod common;
 
 use common::{cvtrace, ok, scene, stderr, stdout, SMALL};
+use std::io::{Read, Write};
 use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
 
 fn inputs(dir: &Path) {
     let s = scene();
@@ -17,6 +20,15 @@ fn inputs(dir: &Path) {
         dir,
         &[&["--log", "warn", "render", sp, "--reference", "--spp", "16", "--seed", "9", "-o", "ref.exr"][..], SMALL].concat(),
     ));
+}
+
+fn tool_missing(tool: &str) -> bool {
+    let have = Command::new("which").arg(tool).output().is_ok_and(|o| o.status.success());
+    assert!(have || std::env::var_os("CVTRACE_REQUIRE_TOOLS").is_none(), "{tool} is missing and CVTRACE_REQUIRE_TOOLS is set");
+    if !have {
+        eprintln!("skipped: needs {tool}");
+    }
+    !have
 }
 
 #[test]
@@ -100,4 +112,101 @@ fn a_study_makes_the_folders_of_the_reference_it_renders() {
     .concat();
     ok(&cvtrace(d, &study));
     assert!(d.join("refs/new/ref.exr").is_file() && d.join("st/results.json").is_file());
+}
+
+/// Bytes as a terminal shows them: each line's last overwrite (after its last `\r`), without
+/// colour and erase codes.
+fn screen_lines(bytes: &[u8]) -> Vec<String> {
+    let text = String::from_utf8_lossy(bytes);
+    text.split('\n')
+        .map(|line| {
+            let line = line.trim_end_matches('\r');
+            let shown = line.rsplit('\r').next().unwrap_or("");
+            let mut out = String::new();
+            let mut chars = shown.chars();
+            while let Some(c) = chars.next() {
+                if c == '\u{1b}' {
+                    // CSI: ESC [ parameters final-byte.
+                    if chars.next() == Some('[') {
+                        for f in chars.by_ref() {
+                            if ('@'..='~').contains(&f) {
+                                break;
+                            }
+                        }
+                    }
+                } else {
+                    out.push(c);
+                }
+            }
+            out
+        })
+        .collect()
+}
+
+/// `cvtrace args` on a pseudo-terminal (`script`), in `dir`; with `interrupt`, Ctrl-C is typed
+/// once its progress bar shows. Returns what the terminal received.
+fn on_a_terminal(dir: &Path, args: &[&str], interrupt: bool) -> Vec<u8> {
+    let line = std::iter::once(env!("CARGO_BIN_EXE_cvtrace").to_string())
+        .chain(args.iter().map(|a| format!("'{a}'")))
+        .collect::<Vec<_>>()
+        .join(" ");
+    let mut child = Command::new("script")
+        .args(["-qefc", &line, "/dev/null"])
+        .current_dir(dir)
+        .env("TERM", "xterm")
+        .env("COLUMNS", "100")
+        .env_remove("RUST_LOG")
+        .env_remove("NO_COLOR")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let mut stdout = child.stdout.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let mut all = Vec::new();
+        let _ = stdout.read_to_end(&mut all);
+        all
+    });
+    if interrupt {
+        // The bar is drawn a moment after the render starts; Ctrl-C goes through the terminal.
+        std::thread::sleep(Duration::from_secs(3));
+        stdin.write_all(b"\x03").unwrap();
+        stdin.flush().unwrap();
+    }
+    let start = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        assert!(start.elapsed() < Duration::from_secs(120), "{args:?} did not end");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    drop(stdin);
+    reader.join().unwrap()
+}
+
+#[test]
+fn log_lines_fit_100_columns_and_an_interrupt_gets_its_own_line() {
+    if tool_missing("script") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // An absolute scene path, as a user's shell completion gives it.
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    let screen = screen_lines(&on_a_terminal(
+        d,
+        &[&["--log", "info", "render", sp, "--spp", "8", "-o", "a.streams.exr"][..], SMALL].concat(),
+        false,
+    ));
+    assert!(screen.iter().any(|l| l.contains("INFO")), "no log on the terminal: {screen:#?}");
+    for l in &screen {
+        assert!(l.chars().count() <= 100, "{} columns: {l}", l.chars().count());
+    }
+    // A render long enough to be interrupted while its bar is drawn.
+    let long = ["--log", "warn", "render", sp, "--spp", "65536", "--width", "128", "--height", "128", "-o", "big.streams.exr"];
+    let screen = screen_lines(&on_a_terminal(d, &long, true));
+    let line = screen.iter().find(|l| l.contains("interrupted")).unwrap_or_else(|| panic!("no interrupt: {screen:#?}"));
+    assert!(line.starts_with("interrupted"), "the interrupt shares the progress bar's line: {line:?}");
+    assert!(!d.join("big.streams.exr").exists());
 }

@@ -1,6 +1,6 @@
 //! What the commands share (each command is one file in `src/commands/`, and no command
 //! imports another): flags, the estimators' parameters, the study's flags and checks, paths,
-//! progress.
+//! progress, the log's lines.
 
 /// `println!` for what a command prints as its result (tables, listings, instructions). A
 /// closed pipe (`| head -1`) is no error: the text is dropped and the command goes on writing
@@ -16,6 +16,7 @@ pub(crate) use say;
 pub mod args;
 pub mod estimator_args;
 pub mod files;
+pub mod log;
 pub mod progress;
 pub mod study_setup;
 

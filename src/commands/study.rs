@@ -105,7 +105,10 @@ impl Progress for StudyProgress {
     }
 
     fn advance(&self, samples: u64) {
-        self.bar.inc(samples);
+        // Interrupted, the process is ending: a bar drawn now would land after the note.
+        if !cvtrace_streams::atomic::interrupted() {
+            self.bar.inc(samples);
+        }
     }
 
     fn suspend(&self, f: &mut dyn FnMut()) {
