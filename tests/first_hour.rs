@@ -32,6 +32,40 @@ fn tool_missing(tool: &str) -> bool {
 }
 
 #[test]
+fn the_readmes_png_export_is_the_srgb_preview() {
+    if tool_missing("oiiotool") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene();
+    ok(&cvtrace(
+        d,
+        &[&["--log", "warn", "render", s.to_str().unwrap(), "--spp", "8", "-o", "s.streams.exr", "--preview", "s.png"][..], SMALL].concat(),
+    ));
+    let readme = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md")).unwrap();
+    let commands: Vec<&str> = readme
+        .split('`')
+        .skip(1)
+        .step_by(2)
+        .filter(|c| c.starts_with("oiiotool") && c.contains("x.streams.exr") && c.ends_with(".png"))
+        .collect();
+    assert!(!commands.is_empty(), "the README names no oiiotool command that writes a PNG");
+    for command in commands {
+        let line = command.replace("x.streams.exr", "s.streams.exr").replace("x.png", "o.png");
+        let out = Command::new("sh").args(["-c", &line]).current_dir(d).output().unwrap();
+        assert!(out.status.success(), "{line}: {}", String::from_utf8_lossy(&out.stderr));
+        // Within one 8-bit step of `render --preview` (which rounds the same sRGB values).
+        let diff = Command::new("oiiotool")
+            .args(["o.png", "--ch", "R,G,B", "s.png", "--fail", "0.0045", "--warn", "0.0045", "--diff"])
+            .current_dir(d)
+            .output()
+            .unwrap();
+        assert!(diff.status.success(), "the README's `{command}` is not the sRGB preview:\n{}", String::from_utf8_lossy(&diff.stdout));
+    }
+}
+
+#[test]
 fn compare_shows_only_what_it_measures_and_its_csv_agrees() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
