@@ -106,16 +106,10 @@ fn default_dir(output: &Path) -> PathBuf {
 fn render(a: FarmRenderArgs) -> Result<()> {
     crate::cli::files::check_input_file(&a.scene)?;
     cvtrace_streams::atomic::check_extension(&a.output, "exr")?;
-    if a.parts == 0 {
-        bail!("--parts 0: there must be at least one part");
-    }
     let mut render_args = vec!["--spp".to_string(), a.spp.to_string()];
     let (units, what, pass_spp) = if a.reference {
         if a.batches.is_some() {
             bail!("--batches does not apply to --reference renders (they have a single PT stream)");
-        }
-        if a.pass_spp == 0 {
-            bail!("--pass-spp must be at least 1");
         }
         render_args.extend(["--reference".into(), "--pass-spp".into(), a.pass_spp.to_string()]);
         (a.spp.div_ceil(a.pass_spp), "passes", Some(a.pass_spp))
