@@ -360,7 +360,7 @@ fn negative_numbers_are_values_out_of_range_not_flags() {
         [&["farm", "render", sp, "--spp", "8", "-o", "f.streams.exr", flag, value][..], SMALL].concat()
     };
     let cases: Vec<(Vec<&str>, &[&str])> = vec![
-        // They were read as the flags -1 and -6, with clap's tip to write `-- -16`.
+        // A value with a leading hyphen is the flag's value, out of range, and no flag of its own.
         (["render", sp, "--width", "-16", "-o", "x.exr"].to_vec(), &["--width", "-16", "1..=16384"]),
         (["render", sp, "--height", "-16", "-o", "x.exr"].to_vec(), &["--height", "-16", "1..=16384"]),
         (streams("--seed", "-1"), &["--seed", "-1", "0..=18446744073709551615"]),
