@@ -105,7 +105,10 @@ impl Progress for StudyProgress {
     }
 
     fn advance(&self, samples: u64) {
-        self.bar.inc(samples);
+        // Interrupted, the process is ending: a bar drawn now would land after the note.
+        if !cvtrace_streams::atomic::interrupted() {
+            self.bar.inc(samples);
+        }
     }
 
     fn suspend(&self, f: &mut dyn FnMut()) {
@@ -131,7 +134,12 @@ fn study_in_folder(
         None => {
             tracing::info!("{} does not exist: rendering a {reference_spp} spp reference first", args.reference.display());
             let job = ReferenceJob::replacing(args.reference.clone(), args.view.view(), reference_spp, REFERENCE_SEED);
-            session.render(&Job::Reference(job), &TerminalProgress::default())?;
+            // Its missing folders are made, as `render` makes them, and taken back if it fails.
+            let made = crate::cli::files::make_parent_folders(&args.reference)?;
+            if let Err(e) = session.render(&Job::Reference(job), &TerminalProgress::default()) {
+                crate::cli::files::remove_empty(&made);
+                return Err(e.into());
+            }
             read_reference(args)?
         }
     };

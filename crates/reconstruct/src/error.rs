@@ -48,6 +48,9 @@ pub enum ReconError {
     #[error("unknown estimator `{given}`; expected one of: {known}")]
     UnknownMethod { given: String, known: String },
 
+    #[error("`{given}` is a variant of `{method}` for ablations, not an estimator: `cvtrace study --ablations` runs it beside the others, and `--method {method} {params}` runs it alone")]
+    Variant { given: String, method: &'static str, params: String },
+
     #[error("`{method}` has no parameter `{param}`; its parameters: {known} (`cvtrace reconstruct --help-method {method}`)")]
     UnknownParam { method: String, param: String, known: String },
 

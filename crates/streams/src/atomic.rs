@@ -31,7 +31,8 @@ pub fn check_writable(path: &Path, overwrite: bool) -> Result<(), StreamError> {
     }
     let parent = parent_dir(path);
     if !parent.is_dir() {
-        return Err(StreamError::invalid(path, format!("output directory {} does not exist", parent.display())));
+        let why = if parent.exists() { "is a file, not a folder" } else { "does not exist" };
+        return Err(StreamError::invalid(path, format!("output directory {} {why}", parent.display())));
     }
     if path.file_name().is_some_and(|n| n.len() > NAME_MAX) {
         return Err(StreamError::invalid(path, format!("the file name is longer than {NAME_MAX} bytes")));
@@ -545,5 +546,11 @@ mod tests {
     fn missing_directory_is_reported() {
         let r = check_writable(Path::new("/nonexistent-dir-cvtrace/x.exr"), false);
         assert!(r.unwrap_err().to_string().contains("does not exist"));
+        // A file where the folder should be is named as a file.
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("file.exr");
+        std::fs::write(&file, b"x").unwrap();
+        let e = check_writable(&file.join("sub.exr"), false).unwrap_err().to_string();
+        assert!(e.contains("file.exr is a file, not a folder") && !e.contains("does not exist"), "{e}");
     }
 }

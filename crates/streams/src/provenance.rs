@@ -274,6 +274,24 @@ impl Provenance {
         Provenance::from_attributes(width, height, &attrs, path)
     }
 
+    /// Fails unless the file at `reference` can be the ground truth of the image at `image`:
+    /// where both record them (stream files and references do, reconstructions do not), the
+    /// scene, camera, size and path length must agree. Seed, counts and traversal may differ:
+    /// they change no expectation.
+    pub fn check_reference_of(reference: &Path, image: &Path) -> Result<(), StreamError> {
+        let (r, i) = (Provenance::read_header(reference)?, Provenance::read_header(image)?);
+        let mismatch: Vec<String> = i
+            .differences(&r)
+            .into_iter()
+            .filter(|d| d.field.changes_the_image())
+            .map(|d| format!("{} {} in the reference, {} in {}", d.field.name(), d.recorded, d.now, image.display()))
+            .collect();
+        if mismatch.is_empty() {
+            return Ok(());
+        }
+        Err(StreamError::invalid(reference, format!("not a reference of {} (another image: {})", image.display(), mismatch.join(", "))))
+    }
+
     /// Fails, naming `path` and the attribute, unless every field in `fields` is recorded;
     /// `what` names the file kind ("checkpoint", "reference").
     pub fn require(&self, fields: &[Field], path: &Path, what: &str) -> Result<(), StreamError> {
