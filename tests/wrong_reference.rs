@@ -1,5 +1,5 @@
-//! A reference is the ground truth of one image: `reconstruct --reference` and `compare
-//! --reference` refuse one whose recorded scene, camera, size or path length differs from what
+//! A reference is the ground truth of one image: `reconstruct --reference` (and `--pt2n`) and
+//! `compare --reference` refuse one whose recorded scene, camera, size or path length differs from what
 //! it scores (as `study` does), and warn, naming it, when it holds negative pixels.
 mod common;
 
@@ -29,6 +29,11 @@ fn a_reference_of_another_scene_is_refused_and_negative_pixels_are_named() {
     let e = stderr(&out);
     assert!(!out.status.success() && e.contains("other.exr") && e.contains("scene hash"), "{e}");
     assert!(!d.join("pt.exr").exists());
+    // A PT(2n) render of another scene is refused the same way.
+    let out = cvtrace(d, &["reconstruct", "s.streams.exr", "--method", "pt2n-oidn", "--pt2n", "other.exr", "-o", "pt2n.exr"]);
+    let e = stderr(&out);
+    assert!(!out.status.success() && e.contains("other.exr") && e.contains("PT(2n) render") && e.contains("scene hash"), "{e}");
+    assert!(!d.join("pt2n.exr").exists());
     let out = cvtrace(d, &["compare", "--reference", "other.exr", "ref.exr"]);
     let e = stderr(&out);
     assert!(!out.status.success() && e.contains("other.exr") && e.contains("ref.exr") && e.contains("scene hash"), "{e}");

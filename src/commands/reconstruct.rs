@@ -144,9 +144,13 @@ fn reconstruct(args: &ReconstructArgs, input_path: PathBuf, output: PathBuf) -> 
     for p in &inputs {
         crate::cli::files::check_input_file(p)?;
     }
-    // A reference of another scene, camera or path length is the ground truth of another image.
-    if let (Some(r), None) = (&args.reference, parse_iduw_name(&input_path)) {
-        cvtrace_streams::Provenance::check_reference_of(r, &input_path)?;
+    // A reference or PT(2n) render of another scene, camera or path length is of another image.
+    if parse_iduw_name(&input_path).is_none() {
+        for (other, what) in [(&args.reference, "reference"), (&args.pt2n, "PT(2n) render")] {
+            if let Some(other) = other {
+                cvtrace_streams::Provenance::check_same_image(other, what, &input_path)?;
+            }
+        }
     }
     for (t, _) in &estimators {
         for out in std::iter::once(&t.exr).chain(&t.png) {

@@ -22,7 +22,7 @@ pub fn compare_files(reference: &Path, images: &[PathBuf]) -> Result<SceneResult
     }
     // An image of another scene, camera or path length is no estimate of this reference.
     for path in images {
-        cvtrace_streams::Provenance::check_reference_of(reference, path)?;
+        cvtrace_streams::Provenance::check_same_image(reference, "reference", path)?;
     }
     let reference_img = Reference::read_exr(reference)?;
     let flip_reference = FlipReference::new(&reference_img.image, reference_img.label.clone())?;
