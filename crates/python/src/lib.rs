@@ -21,6 +21,11 @@ use pyo3::prelude::*;
 
 #[pymodule]
 fn _cvtrace(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // The library's warnings (samples replaced for being NaN, a scene without lights, ...) on
+    // stderr, as the command line prints them; RUST_LOG asks for more. A subscriber the host
+    // process set up first stays.
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
+    let _ = tracing_subscriber::fmt().with_env_filter(filter).with_writer(std::io::stderr).with_target(false).try_init();
     let py = m.py();
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("Error", py.get_type::<errors::Error>())?;
