@@ -152,24 +152,18 @@ fn run_study(args: StudyArgs, cancel: &Arc<Cancel>) -> anyhow::Result<String> {
         args.seed,
         Box::new(move || Box::new(CancellingProgress(progress_cancel.clone())) as Box<dyn Progress>),
     );
+    // Declared before the claim, so that it runs after the claim's lock file is gone.
+    let mut cleanup = RemoveEmptyOnFailure { dirs: made, armed: true };
     // One study per folder at a time, as the CLI's claim.
     let result = match OutputLock::acquire(&args.output.join(".cvtrace-study.lock"), &args.output) {
         Ok(_claim) => {
-            // A cancelled render unwinds through here: the empty folders go as after a failure.
-            let guard = RemoveEmptyOnFailure { dirs: made.clone(), armed: true };
             let r = in_folder(&args, &name, &planned, &study, &mut source, cancel, existing, reference_spp);
-            let mut guard = guard;
-            guard.dirs.extend(source.made_folders().iter().cloned());
-            guard.armed = r.is_err();
+            cleanup.dirs.extend(source.made_folders().iter().cloned());
             r
         }
-        Err(e) => {
-            for dir in &made {
-                let _ = std::fs::remove_dir(dir);
-            }
-            Err(e.into())
-        }
+        Err(e) => Err(e.into()),
     };
+    cleanup.armed = result.is_err();
     result
 }
 
@@ -183,7 +177,9 @@ struct RemoveEmptyOnFailure {
 impl Drop for RemoveEmptyOnFailure {
     fn drop(&mut self) {
         if self.armed || std::thread::panicking() {
-            for dir in self.dirs.iter().rev() {
+            // The deepest first, so that a folder emptied of its sub-folders goes too.
+            self.dirs.sort_by_key(|d| std::cmp::Reverse(d.components().count()));
+            for dir in &self.dirs {
                 let _ = std::fs::remove_dir(dir);
             }
         }
