@@ -384,6 +384,7 @@ pub fn register(
         features: features.then_some("(declared by the Python estimator)"),
         reference: false,
         spp,
+        pt2n: false,
         bounded_values: false,
     };
     // The checks of a spec (name, parameter defaults), as for any estimator.
