@@ -118,6 +118,8 @@ pub fn diagnostics_dict<'py>(py: Python<'py>, d: &Diagnostics) -> PyResult<Bound
 ///         ``cv``, ``iduw``, ``pt``, ``crn``, ``average``, ``ivw``, ``oidn``..., or one
 ///         registered from Python.
 ///     reference: the ground truth, (H, W, 3), for analysis options (``errors="oracle"``).
+///     pt2n: a path-traced image of the same scene with twice the streams' samples per pixel,
+///         (H, W, 3), for the estimators that post-process it (``pt2n-oidn``), as ``--pt2n``.
 ///     details: return a ``Reconstruction`` (image, ``variance`` of ``ours``, diagnostics,
 ///         settings, seconds) instead of the image alone.
 ///     threads: worker threads (default: all cores); the image is the same for any count.
@@ -131,18 +133,20 @@ pub fn diagnostics_dict<'py>(py: Python<'py>, d: &Diagnostics) -> PyResult<Bound
 ///     cvtrace.Error: an unknown method or parameter, a value out of range, streams the method
 ///     cannot take, with the message of ``cvtrace reconstruct``.
 #[pyfunction]
-#[pyo3(signature = (streams, method = "ours", *, reference = None, details = false, threads = None, **params))]
+#[pyo3(signature = (streams, method = "ours", *, reference = None, pt2n = None, details = false, threads = None, **params))]
 pub fn reconstruct(
     py: Python<'_>,
     streams: &Bound<'_, PyAny>,
     method: &str,
     reference: Option<&Bound<'_, PyAny>>,
+    pt2n: Option<&Bound<'_, PyAny>>,
     details: bool,
     threads: Option<usize>,
     params: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<Py<PyAny>> {
     let input = streams_arg(py, streams)?;
     let reference: Option<Image> = reference.map(|r| arrays::image(py, r, "reference")).transpose()?;
+    let pt2n: Option<Image> = pt2n.map(|r| arrays::image(py, r, "pt2n")).transpose()?;
     let mut overrides = Overrides::default();
     if let Some(p) = params {
         for (k, v) in p.iter() {
@@ -165,6 +169,9 @@ pub fn reconstruct(
                 bail!("reference is {}x{} but {} is {}x{}", r.width, r.height, origin, set.width, set.height);
             }
             input = input.with_reference(r);
+        }
+        if let Some(image) = &pt2n {
+            input = input.with_pt2n(image, "pt2n");
         }
         let out = estimator.run(&input)?;
         if let Some((x, y, c)) = out.image.find_non_finite() {

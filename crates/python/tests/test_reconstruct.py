@@ -10,16 +10,22 @@ import numpy as np
 import pytest
 
 import cvtrace
-from conftest import cli_error, run_cli, same_bits
+from conftest import CORNELL, SMALL, cli_error, run_cli, same_bits
 
 BUILT_IN = ["pt", "crn", "average", "iduw", "cv", "ours", "ivw"]
 
 
-def test_every_estimator_runs(small):
+@pytest.fixture(scope="module")
+def pt2n() -> np.ndarray:
+    """The PT(2n) image of `small`'s scene: twice its samples per pixel, another seed."""
+    return cvtrace.render_reference(CORNELL, spp=2 * SMALL["spp"], seed=11, width=SMALL["width"], height=SMALL["height"])
+
+
+def test_every_estimator_runs(small, pt2n):
     names = [e["name"] for e in cvtrace.estimators()]
-    assert names[: len(BUILT_IN)] == BUILT_IN and "oidn" in names
+    assert names[: len(BUILT_IN)] == BUILT_IN and {"oidn", "pt2n-oidn", "blend"} <= set(names)
     for name in names:
-        img = cvtrace.reconstruct(small, name)
+        img = cvtrace.reconstruct(small, name, pt2n=pt2n)
         assert img.shape == (32, 32, 3) and img.dtype == np.float32 and img.flags.c_contiguous, name
         assert np.isfinite(img).all(), name
     assert same_bits(cvtrace.reconstruct(small, "pt"), small.pt)
@@ -69,6 +75,27 @@ def test_bit_identical_to_the_cli(small, cli, tmp_path, method):
     assert same_bits(cvtrace.reconstruct(cvtrace.Streams.read(streams), method), from_cli)
     assert same_bits(cvtrace.reconstruct(str(streams), method), from_cli)
     assert same_bits(cvtrace.reconstruct(small, method), from_cli)
+
+
+@pytest.mark.parametrize("method", ["oidn", "pt2n-oidn", "blend"])
+def test_the_denoisers_are_bit_identical_to_the_cli(small, pt2n, cli, tmp_path, method):
+    streams, pt2n_file = tmp_path / "s.streams.exr", tmp_path / "pt2n.exr"
+    small.write(streams)
+    cvtrace.write_image(pt2n_file, pt2n)
+    out = tmp_path / f"{method}.exr"
+    done = run_cli(cli, "reconstruct", streams, "--method", method, "--pt2n", pt2n_file, "-o", out)
+    assert done.returncode == 0, done.stderr
+    assert same_bits(cvtrace.reconstruct(small, method, pt2n=pt2n), cvtrace.read_image(out))
+
+
+def test_a_missing_pt2n_image_raises_the_cli_message(small, cli, tmp_path):
+    streams = tmp_path / "s.streams.exr"
+    small.write(streams)
+    with pytest.raises(cvtrace.Error) as e:
+        cvtrace.reconstruct(small, "pt2n-oidn")
+    assert str(e.value) == cli_error(cli, "reconstruct", streams, "--method", "pt2n-oidn", "-o", tmp_path / "o.exr")
+    with pytest.raises(cvtrace.Error, match="2x2"):
+        cvtrace.reconstruct(small, "pt2n-oidn", pt2n=np.ones((2, 2, 3)))
 
 
 def test_bad_options_raise_the_cli_messages(small, cli, tmp_path):
