@@ -61,3 +61,16 @@ def test_images_round_trip_and_bad_input_is_named(tmp_path):
         cvtrace.read_image(tmp_path / "none.exr")
     with pytest.raises(cvtrace.Error, match=r"\.exr"):
         cvtrace.write_image(tmp_path / "a.tif", img)
+
+
+def test_the_readme_five_lines(capsys, monkeypatch):
+    """The README's first Python example, as written, from the repository root."""
+    from conftest import ROOT
+
+    text = (ROOT / "README.md").read_text()
+    code = text.split("```python\n", 1)[1].split("```", 1)[0]
+    assert len(code.strip().splitlines()) == 5
+    monkeypatch.chdir(ROOT)
+    exec(compile(code, "README.md", "exec"), {})
+    relmse = float(capsys.readouterr().out.strip())
+    assert 0 < relmse < 0.05
