@@ -27,8 +27,9 @@ install: setup
 # The Python package `cvtrace` (crates/python) as a wheel in target/wheels: maturin builds the
 # extension module, and its repair step copies the libraries it links (Embree, TBB, Open Image
 # Denoise, found through the module's rpath and OIDN's folder) into the wheel; finish_wheel.py
-# adds OIDN's CPU device, which OIDN loads at run time, and drops the build's rpath. Release by
-# default; `make test` builds it with the test profile, reusing what `cargo test` compiled.
+# adds OIDN's CPU device, which OIDN loads at run time, and drops the build's rpath. Release,
+# for `make test` too: maturin builds the library with `cargo rustc --profile P`, and with the
+# test profile that makes a test harness instead of the extension module.
 PYTHON_PROFILE ?= release
 WHEELS  ?= target/wheels
 OIDN_LIB = $(or $(OIDN_DIR),$(CURDIR)/.deps/oidn)/lib
@@ -65,7 +66,7 @@ test: setup
 	$(CARGO) clippy --workspace --all-targets --locked -- -D warnings
 	CVTRACE_REQUIRE_TOOLS=1 $(CARGO) test --workspace --locked
 	EMBREE_DIR=$(CURDIR)/.deps/embree4 $(CARGO) test -p cvtrace-embree --locked --target-dir target/embree4
-	$(MAKE) --no-print-directory python PYTHON_PROFILE=test
+	$(MAKE) --no-print-directory python
 	.venv/bin/python -m pip install --quiet --force-reinstall --no-deps $(WHEELS)/cvtrace-*.whl
 	CVTRACE_REQUIRE_TOOLS=1 CVTRACE_BIN=$(CURDIR)/target/debug/cvtrace .venv/bin/python -m pytest -q crates/python/tests
 
