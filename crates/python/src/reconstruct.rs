@@ -132,6 +132,8 @@ pub fn diagnostics_dict<'py>(py: Python<'py>, d: &Diagnostics) -> PyResult<Bound
 /// Raises:
 ///     cvtrace.Error: an unknown method or parameter, a value out of range, streams the method
 ///     cannot take, with the message of ``cvtrace reconstruct``.
+// The keyword arguments of the Python function, one parameter each.
+#[allow(clippy::too_many_arguments)]
 #[pyfunction]
 #[pyo3(signature = (streams, method = "ours", *, reference = None, pt2n = None, details = false, threads = None, **params))]
 pub fn reconstruct(
