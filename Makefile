@@ -12,7 +12,7 @@ REF_SPP ?= 4096
 # is a reference of the same image), else one rendered once into $(OUT).
 REF    ?= $(or $(wildcard $(dir $(SCENE))scene.ref.exr),$(OUT)/reference.exr)
 
-.PHONY: setup build install python demo study test fuzz-smoke test-debian13 bench compare-mitsuba clean-demo
+.PHONY: setup build install python test-python demo study test fuzz-smoke test-debian13 bench compare-mitsuba clean-demo
 
 setup:
 	@bash scripts/setup.sh
@@ -66,9 +66,14 @@ test: setup
 	$(CARGO) clippy --workspace --all-targets --locked -- -D warnings
 	CVTRACE_REQUIRE_TOOLS=1 $(CARGO) test --workspace --locked
 	EMBREE_DIR=$(CURDIR)/.deps/embree4 $(CARGO) test -p cvtrace-embree --locked --target-dir target/embree4
-	$(MAKE) --no-print-directory python
+	$(MAKE) --no-print-directory test-python
+
+# The Python part of `make test` alone: the wheel, installed into .venv, and its pytest suite,
+# which compares with the `cvtrace` binary CVTRACE_BIN (by default the one `cargo test` built).
+CVTRACE_BIN ?= $(CURDIR)/target/debug/cvtrace
+test-python: python
 	.venv/bin/python -m pip install --quiet --force-reinstall --no-deps $(WHEELS)/cvtrace-*.whl
-	CVTRACE_REQUIRE_TOOLS=1 CVTRACE_BIN=$(CURDIR)/target/debug/cvtrace .venv/bin/python -m pytest -q crates/python/tests
+	CVTRACE_REQUIRE_TOOLS=1 CVTRACE_BIN=$(CVTRACE_BIN) .venv/bin/python -m pytest -q crates/python/tests
 
 # Every committed fuzz corpus file and crash regression through every fuzz target (docs/fuzzing.md),
 # as a normal stable test: no nightly, no cargo-fuzz. `make test` runs it too, with the workspace.
