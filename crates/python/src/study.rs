@@ -14,18 +14,11 @@ use cvtrace_streams::exr_io::{take_rgb, AttrValue, ExrChannels};
 use cvtrace_streams::output_lock::OutputLock;
 use cvtrace_streams::provenance::describe_all;
 use cvtrace_streams::Provenance;
-use cvtrace_study::{SceneInfo, Study, PT2N_SEED_OFFSET};
+use cvtrace_study::{SceneInfo, Study, DEFAULT_REFERENCE_SPP, DEFAULT_SPP, MAX_SEEDS, PT2N_SEED_OFFSET, REFERENCE_SEED};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-
-/// More seeds than this is a typo, not a study: each seed writes two renders.
-const MAX_SEEDS: u32 = 10_000;
-/// Seed of a reference the study renders itself (distinct from every stream seed), as the CLI's.
-const REFERENCE_SEED: u64 = 0x7265_6665_7265_6e63;
-/// Reference spp when neither `reference_spp` nor the scene's sidecar gives one.
-const DEFAULT_REFERENCE_SPP: u32 = 4096;
 
 struct StudyArgs {
     setup: Setup,
@@ -307,7 +300,7 @@ pub fn study_json(
 ) -> PyResult<String> {
     let setup = Setup::new(scene, width, height, camera, traversal, defines)?;
     let spps: Vec<u32> = match spp {
-        None => vec![setup.defined::<u32>("spp").unwrap_or(96)],
+        None => vec![setup.defined::<u32>("spp").unwrap_or(DEFAULT_SPP)],
         Some(v) => match v.extract::<u32>() {
             Ok(n) => vec![n],
             Err(_) => v
