@@ -176,15 +176,7 @@ pub fn reconstruct(
             input = input.with_pt2n(image, "pt2n");
         }
         let out = estimator.run(&input)?;
-        if let Some((x, y, c)) = out.image.find_non_finite() {
-            bail!(
-                "{origin}: `{}` produced a non-finite value at pixel ({x}, {y}), channel {}; the input holds values \
-                 too large for f32 arithmetic (largest {:e})",
-                estimator.name(),
-                ["R", "G", "B"][c],
-                set.pt.mean.pixels.iter().chain(&set.crn.mean.pixels).flatten().fold(0.0f32, |m, v| m.max(v.abs()))
-            );
-        }
+        input.check_output(estimator.name(), &out.image)?;
         Ok((out, (estimator.name(), estimator.settings())))
     })?;
     let image = arrays::to_numpy(py, out.image)?;
