@@ -13,17 +13,8 @@ use cvtrace_streams::exr_io::{take_rgb, AttrValue, ExrChannels};
 use cvtrace_streams::provenance::describe_all;
 use cvtrace_streams::Provenance;
 use cvtrace_study::files::Cell;
-use cvtrace_study::{Column, Study, PT2N_SEED_OFFSET};
+use cvtrace_study::{Column, Study, DEFAULT_REFERENCE_SPP, DEFAULT_SPP, MAX_SEEDS, PT2N_SEED_OFFSET};
 use std::path::{Path, PathBuf};
-
-/// More seeds than this is a typo, not a study: each seed writes two renders.
-const MAX_SEEDS: u32 = 10_000;
-/// Seed of a reference rendered by the study (distinct from every stream seed).
-pub const REFERENCE_SEED: u64 = 0x7265_6665_7265_6e63;
-/// Samples per pixel of each stream when neither --spp nor -D spp gives them.
-const DEFAULT_SPP: u32 = 96;
-/// Reference spp when neither --reference-spp nor the scene's sidecar gives one.
-const DEFAULT_REFERENCE_SPP: u32 = 4096;
 
 #[derive(clap::Args, Debug)]
 pub struct StudyArgs {

@@ -215,15 +215,7 @@ fn reconstruct(args: &ReconstructArgs, input_path: PathBuf, output: PathBuf) -> 
     for (_, estimator) in &estimators {
         let out = estimator.run(&input)?;
         tracing::info!("{}: {:.3} s", estimator.name(), out.diagnostics.seconds);
-        if let Some((x, y, c)) = out.image.find_non_finite() {
-            bail!(
-                "{streams_name}: `{}` produced a non-finite value at pixel ({x}, {y}), channel {}; the input holds values \
-                 too large for f32 arithmetic (largest {:e})",
-                estimator.name(),
-                ["R", "G", "B"][c],
-                set.pt.mean.pixels.iter().chain(&set.crn.mean.pixels).flatten().fold(0.0f32, |m, v| m.max(v.abs()))
-            );
-        }
+        input.check_output(estimator.name(), &out.image)?;
         outputs.push(out);
     }
     // The images are one set: a run that fails or is interrupted half-way takes back what it

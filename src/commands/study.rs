@@ -10,13 +10,13 @@
 //! and prints.
 use crate::cli::progress::{progress_style_of, TerminalProgress};
 use crate::cli::say;
-use crate::cli::study_setup::{prepare, read_reference, study_name, Prepared, StudyArgs, REFERENCE_SEED};
+use crate::cli::study_setup::{prepare, read_reference, study_name, Prepared, StudyArgs};
 use anyhow::{Context, Result};
 use cvtrace_eval::results::ReferenceInfo;
 use cvtrace_eval::{table, Reference};
 use cvtrace_session::{Job, Progress, ReferenceJob, RenderSource};
 use cvtrace_streams::Provenance;
-use cvtrace_study::{SceneInfo, Study};
+use cvtrace_study::{SceneInfo, Study, REFERENCE_SEED};
 use indicatif::{ProgressBar, ProgressDrawTarget};
 use std::path::{Path, PathBuf};
 use std::time::Instant;

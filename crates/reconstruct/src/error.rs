@@ -30,6 +30,9 @@ pub enum ReconError {
     #[error("{origin}: channel `{channel}` holds {value:e} at pixel ({x}, {y}); `{method}` squares differences of values in f32, which overflows beyond ±{limit:e}, so its image would be wrong: scale the image down (relative errors do not change)")]
     TooLarge { origin: String, method: &'static str, channel: String, value: f32, x: usize, y: usize, limit: f32 },
 
+    #[error("{origin}: `{method}` produced a non-finite value at pixel ({x}, {y}), channel {channel}; the input holds values too large for f32 arithmetic (largest {largest:e})")]
+    NonFiniteOutput { origin: String, method: String, x: usize, y: usize, channel: &'static str, largest: f32 },
+
     #[error("{origin}: `{method}` {why} needs first-hit features (channels `albedo.R/G/B`, `normal.X/Y/Z`, `depth.Z`), which are missing; re-render with features or choose another option")]
     MissingFeatures { origin: String, method: &'static str, why: &'static str },
 
