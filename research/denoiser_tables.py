@@ -147,15 +147,18 @@ def reaches_floor(relmse, floor):
 
 def convergence(scenes):
     print("\n### Convergence: relMSE and bias² against total spp\n")
+    print("The last two columns with the reference's noise N taken out of every relMSE and bias².\n")
     print("| scene | method | relMSE at n = " + ", ".join(map(str, spps(scenes)))
-          + " spp per stream | bias² ×10⁴ | ours below PT(2n)+OIDN from n = | ours' relMSE (as c/n) at PT(2n)+OIDN's last bias² from n = |")
+          + " spp per stream | bias² ×10⁴ | ours below PT(2n)+OIDN from n = | ours' error (as c/n) at PT(2n)+OIDN's last bias² from n = |")
     print("|---|---|---|---|---|---|")
     for s, sc in scenes.items():
         pts = points(sc)
-        rel = {m: {n: p["relmse"] for n, p in pts.get(m, {}).items()} for m in METHODS}
+        # Against the truth: the reference's noise taken out of every relMSE and bias².
+        noise = (sc["reference"].get("noise") or {}).get("relmse", 0.0)
+        rel = {m: {n: p["relmse"] - noise for n, p in pts.get(m, {}).items()} for m in METHODS}
         cross = crossing(rel["ours"], rel["pt2n-oidn"])
         oidn = pts.get("pt2n-oidn", {})
-        floor_at = reaches_floor(rel["ours"], oidn[max(oidn)].get("bias2") if oidn else None)
+        floor_at = reaches_floor(rel["ours"], oidn[max(oidn)].get("bias2", 0.0) - noise if oidn else None)
         floor = "–" if floor_at is None else f"≈ {floor_at:.0f}"
         for m in ["ours", "pt2n-oidn", "blend"]:
             ns = sorted(pts.get(m, {}))
