@@ -9,7 +9,6 @@ use anyhow::{bail, Context, Result};
 use cvtrace_eval::Reference;
 use cvtrace_render::settings::MAX_SPP;
 use cvtrace_session::{NoProgress, RenderSession, RenderSource};
-use cvtrace_streams::exr_io::{take_rgb, AttrValue, ExrChannels};
 use cvtrace_streams::provenance::describe_all;
 use cvtrace_streams::Provenance;
 use cvtrace_study::files::Cell;
@@ -197,22 +196,7 @@ pub fn prepare(args: &StudyArgs) -> Result<Prepared> {
 /// The reference at `--reference`: its image, its sample count, and a check that its seed is
 /// none of the study's.
 pub fn read_reference(args: &StudyArgs) -> Result<(Reference, Option<u32>)> {
-    let mut ref_file = ExrChannels::read(&args.reference)?;
-    let reference = Reference::new(take_rgb(&mut ref_file, &args.reference, "")?, args.reference.display().to_string())?;
-    let reference_spp = match ref_file.attr("cvtrace.spp") {
-        Some(AttrValue::Int(v)) if *v > 0 => Some(*v as u32),
-        _ => None,
-    };
-    if let Some(seed) = ref_file.attr("cvtrace.seed").and_then(|v| v.as_text().parse::<u64>().ok()) {
-        let uses = |s: u64| (args.seed..args.seed + args.seeds as u64).any(|x| x == s || x + PT2N_SEED_OFFSET == s);
-        if uses(seed) {
-            bail!(
-                "{}: rendered with seed {seed}, which this study also uses: its noise would correlate with the PT renders; pick another --seed",
-                args.reference.display()
-            );
-        }
-    }
-    Ok((reference, reference_spp))
+    Ok(cvtrace_study::read_reference(&args.reference, args.seed, args.seeds)?)
 }
 
 /// The scene's name in the results: `--name`, else from the scene's file.

@@ -12,7 +12,6 @@ use crate::cli::progress::{progress_style_of, TerminalProgress};
 use crate::cli::say;
 use crate::cli::study_setup::{prepare, read_reference, study_name, Prepared, StudyArgs};
 use anyhow::{Context, Result};
-use cvtrace_eval::results::ReferenceInfo;
 use cvtrace_eval::{table, Reference};
 use cvtrace_session::{Job, Progress, ReferenceJob, RenderSource};
 use cvtrace_streams::Provenance;
@@ -143,18 +142,7 @@ fn study_in_folder(
             read_reference(args)?
         }
     };
-    let scene = SceneInfo {
-        name: study_name(args),
-        reference: ReferenceInfo {
-            path: ReferenceInfo::path_of(&args.reference),
-            spp: reference_spp,
-            image: None,
-            noise: None,
-            values: None,
-        },
-        // The seed differs between the renders; it is in each file.
-        render: planned.fields().into_iter().filter(|(k, _)| *k != "seed").map(|(k, v)| (k.to_string(), v)).collect(),
-    };
+    let scene = SceneInfo::new(study_name(args), &args.reference, reference_spp, planned);
     overall.show();
     let start = Instant::now();
     let results = study.run(source, &reference, scene, &args.output);

@@ -5,12 +5,10 @@ use crate::estimators::registry;
 use crate::render::{scene_name, Setup};
 use crate::run::{run, Cancel, CancellingProgress};
 use anyhow::{bail, Context};
-use cvtrace_eval::results::ReferenceInfo;
 use cvtrace_eval::Reference;
 use cvtrace_reconstruct::{Overrides, Registry};
 use cvtrace_render::settings::MAX_SPP;
 use cvtrace_session::{Job, NoProgress, Progress, ReferenceJob, RenderSource};
-use cvtrace_streams::exr_io::{take_rgb, AttrValue, ExrChannels};
 use cvtrace_streams::output_lock::OutputLock;
 use cvtrace_streams::provenance::describe_all;
 use cvtrace_streams::Provenance;
@@ -198,39 +196,14 @@ fn in_folder(
             read_reference(args)?
         }
     };
-    let scene = SceneInfo {
-        name: name.to_string(),
-        reference: ReferenceInfo {
-            path: ReferenceInfo::path_of(&args.reference),
-            spp: reference_spp,
-            image: None,
-            noise: None,
-            values: None,
-        },
-        render: planned.fields().into_iter().filter(|(k, _)| *k != "seed").map(|(k, v)| (k.to_string(), v)).collect(),
-    };
+    let scene = SceneInfo::new(name.to_string(), &args.reference, reference_spp, planned);
     let results = study.run(source, &reference, scene, &args.output)?;
     Ok(results.to_json())
 }
 
 /// The reference's image and sample count, and a check that its seed is none of the study's.
 fn read_reference(args: &StudyArgs) -> anyhow::Result<(Reference, Option<u32>)> {
-    let mut file = ExrChannels::read(&args.reference)?;
-    let reference = Reference::new(take_rgb(&mut file, &args.reference, "")?, args.reference.display().to_string())?;
-    let spp = match file.attr("cvtrace.spp") {
-        Some(AttrValue::Int(v)) if *v > 0 => Some(*v as u32),
-        _ => None,
-    };
-    if let Some(seed) = file.attr("cvtrace.seed").and_then(|v| v.as_text().parse::<u64>().ok()) {
-        let uses = |s: u64| (args.seed..args.seed + args.seeds as u64).any(|x| x == s || x + PT2N_SEED_OFFSET == s);
-        if uses(seed) {
-            bail!(
-                "{}: rendered with seed {seed}, which this study also uses: its noise would correlate with the PT renders; pick another seed",
-                args.reference.display()
-            );
-        }
-    }
-    Ok((reference, spp))
+    Ok(cvtrace_study::read_reference(&args.reference, args.seed, args.seeds)?)
 }
 
 /// The study's parameters: ``{"ours.k": 16}`` or ``{"ours": {"k": 16}}``.

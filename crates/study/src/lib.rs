@@ -29,8 +29,9 @@ use cvtrace_eval::reference_noise::{from_variance_image, too_noisy_warning};
 use cvtrace_eval::results::{ConvergencePoint, ReferenceInfo, SceneResult, StageTimes, StudyResults};
 use cvtrace_eval::{table, EvalError, Reference, SeedAccumulator};
 use cvtrace_reconstruct::{Input, ReconError, Samples};
+use cvtrace_streams::exr_io::{take_rgb, AttrValue, ExrChannels};
 use cvtrace_streams::preview::write_png;
-use cvtrace_streams::{Features, Image, Stream, StreamError, StreamMeta, StreamSet};
+use cvtrace_streams::{Features, Image, Provenance, Stream, StreamError, StreamMeta, StreamSet};
 use diagnostics::DiagnosticsMean;
 use std::path::Path;
 
@@ -100,6 +101,47 @@ pub struct SceneInfo {
     pub reference: ReferenceInfo,
     /// The renders' provenance, as (field, value).
     pub render: Vec<(String, String)>,
+}
+
+impl SceneInfo {
+    /// The record of a study of the scene `name` scored against the reference at `reference`
+    /// (rendered with `reference_spp`), whose renders are `planned` but for their seed, which
+    /// each file holds.
+    pub fn new(name: String, reference: &Path, reference_spp: Option<u32>, planned: &Provenance) -> SceneInfo {
+        SceneInfo {
+            name,
+            reference: ReferenceInfo {
+                path: ReferenceInfo::path_of(reference),
+                spp: reference_spp,
+                image: None,
+                noise: None,
+                values: None,
+            },
+            render: planned.fields().into_iter().filter(|(k, _)| *k != "seed").map(|(k, v)| (k.to_string(), v)).collect(),
+        }
+    }
+}
+
+/// The reference at `path`: its image and sample count, refused when it was rendered with one
+/// of the seeds of a study of `seeds` seeds from `first_seed` (its noise would correlate with
+/// the study's renders).
+pub fn read_reference(path: &Path, first_seed: u64, seeds: u32) -> Result<(Reference, Option<u32>), StudyError> {
+    let mut file = ExrChannels::read(path)?;
+    let reference = Reference::new(take_rgb(&mut file, path, "")?, path.display().to_string())?;
+    let spp = match file.attr("cvtrace.spp") {
+        Some(AttrValue::Int(v)) if *v > 0 => Some(*v as u32),
+        _ => None,
+    };
+    if let Some(seed) = file.attr("cvtrace.seed").and_then(|v| v.as_text().parse::<u64>().ok()) {
+        let uses = |s: u64| (first_seed..first_seed + seeds as u64).any(|x| x == s || x + PT2N_SEED_OFFSET == s);
+        if uses(seed) {
+            return Err(StudyError::Invalid(format!(
+                "{}: rendered with seed {seed}, which this study also uses: its noise would correlate with the PT renders; pick another seed",
+                path.display()
+            )));
+        }
+    }
+    Ok((reference, spp))
 }
 
 impl Study<'_> {
