@@ -1,5 +1,6 @@
 //! The `cvtrace` command line: render, merge, reconstruct, study, compare, report (and farm),
 //! one file each in `commands/`, over the library crates; `cli/` holds what they share.
+#![forbid(unsafe_code)]
 mod cli;
 mod commands;
 

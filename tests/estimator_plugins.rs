@@ -35,7 +35,13 @@ fn every_parameter_of_every_estimator_is_recorded_in_its_output() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     render_streams(d);
-    let mut args = vec!["--log", "warn", "reconstruct", "s.streams.exr", "--method", "all", "-o", "out"];
+    // A plain PT render of twice the streams' samples, for the estimators that post-process one.
+    let s = scene();
+    ok(&cvtrace(
+        d,
+        &[&["--log", "warn", "render", s.to_str().unwrap(), "--reference", "--spp", "32", "-o", "pt2n.exr"][..], SMALL].concat(),
+    ));
+    let mut args = vec!["--log", "warn", "reconstruct", "s.streams.exr", "--method", "all", "--pt2n", "pt2n.exr", "-o", "out"];
     for a in CHANGED {
         args.extend(["--param", a]);
     }

@@ -43,7 +43,7 @@ fn script() -> PathBuf {
 }
 
 fn available() -> bool {
-    let root = unsafe { libc::geteuid() } == 0;
+    let root = rustix::process::geteuid().is_root();
     let tools = ["munged", "slurmctld", "slurmd", "sbatch", "squeue"]
         .iter()
         .all(|t| Command::new("which").arg(t).output().is_ok_and(|o| o.status.success()));

@@ -2,7 +2,7 @@
 //! never half of one that the next `report` refuses as "not empty".
 mod common;
 
-use common::{cvtrace, ok, scene, SMALL};
+use common::{cvtrace, interrupt, ok, scene, SMALL};
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
@@ -33,7 +33,7 @@ fn an_interrupted_report_leaves_nothing_or_everything() {
             .unwrap();
         std::thread::sleep(took * i / 20);
         // SAFETY: kill(2) on the child's own PID, which has not been waited for yet.
-        unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
+        interrupt(&child, rustix::process::Signal::INT);
         let status = child.wait().unwrap();
         interrupted += usize::from(status.code() == Some(130));
         let rep = d.join("rep");

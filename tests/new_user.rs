@@ -2,7 +2,7 @@
 //! of batches, and outputs into folders that do not exist yet.
 mod common;
 
-use common::{cvtrace, ok, scene, stderr, SMALL};
+use common::{cvtrace, interrupt, ok, scene, stderr, SMALL};
 use cvtrace_streams::exr_io::{AttrValue, ExrChannels};
 
 #[test]
@@ -79,7 +79,7 @@ fn ctrl_c_on_a_reference_render_says_how_to_resume() {
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
     // SAFETY: kill(2) on our own child's pid, not yet waited for.
-    unsafe { libc::kill(child.id() as i32, libc::SIGINT) };
+    interrupt(&child, rustix::process::Signal::INT);
     let out = child.wait_with_output().unwrap();
     assert_eq!(out.status.code(), Some(130));
     let e = stderr(&out);

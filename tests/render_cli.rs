@@ -4,7 +4,7 @@ use cvtrace_streams::exr_io::{AttrValue, ExrChannels};
 use cvtrace_streams::StreamSet;
 mod common;
 
-use common::{cvtrace, files_in, ok, scene, stderr, SMALL};
+use common::{cvtrace, files_in, interrupt, ok, scene, stderr, SMALL};
 use std::path::Path;
 use std::process::Command;
 
@@ -128,7 +128,7 @@ fn a_terminated_render_leaves_no_temporary_files() {
     assert!(!second.status.success() && e.contains("t.ref.exr") && e.contains("another cvtrace process"), "{e}");
     std::thread::sleep(std::time::Duration::from_millis(300));
     // SAFETY: kill(2) on our own child's pid.
-    assert_eq!(unsafe { libc::kill(child.id() as i32, libc::SIGTERM) }, 0);
+    interrupt(&child, rustix::process::Signal::TERM);
     let status = child.wait().unwrap();
     assert_eq!(status.code(), Some(130), "{status}");
     let names: Vec<String> =

@@ -26,6 +26,11 @@ pub struct ReconstructArgs {
     /// Ground truth: needed by `--errors oracle`; when given, relMSE of each output is printed.
     #[arg(long)]
     pub reference: Option<PathBuf>,
+    /// A plain PT render of the same view with the samples of both streams (2n spp, e.g.
+    /// `cvtrace render --reference --spp 2n`), for the estimators that post-process one
+    /// (`pt2n-oidn`); `--method all` leaves them out without it.
+    #[arg(long, value_name = "EXR")]
+    pub pt2n: Option<PathBuf>,
     /// Also write an sRGB PNG preview next to a single-method output (always on for several).
     #[arg(long)]
     pub png: bool,
@@ -120,15 +125,23 @@ fn reconstruct(args: &ReconstructArgs, input_path: PathBuf, output: PathBuf) -> 
     // much a mistake as `--method ours --k 0`.
     registry().check(&overrides)?;
     // Build every estimator first: absurd options fail before any file is read.
-    let estimators: Vec<(Target, Instance)> =
+    let mut estimators: Vec<(Target, Instance)> =
         targets(args, &output)?.into_iter().map(|t| registry().build(t.spec.name, &overrides).map(|e| (t, e))).collect::<Result<_, _>>()?;
+    if args.pt2n.is_none() && args.method.eq_ignore_ascii_case("all") {
+        estimators.retain(|(_, e)| {
+            if e.needs().pt2n {
+                tracing::info!("{}: left out, it needs a PT(2n) render (--pt2n)", e.name());
+            }
+            !e.needs().pt2n
+        });
+    }
     // Several methods create their directory, but only once the inputs have been read: a
     // failed command leaves nothing behind.
     let new_directory = (estimators.len() > 1 || args.method.eq_ignore_ascii_case("all")) && !output.is_dir();
     if new_directory {
         atomic::check_writable(&output, false)?;
     }
-    let inputs: Vec<&Path> = std::iter::once(input_path.as_path()).chain(args.reference.as_deref()).collect();
+    let inputs: Vec<&Path> = std::iter::once(input_path.as_path()).chain(args.reference.as_deref()).chain(args.pt2n.as_deref()).collect();
     for p in &inputs {
         crate::cli::files::check_input_file(p)?;
     }
@@ -157,6 +170,7 @@ fn reconstruct(args: &ReconstructArgs, input_path: PathBuf, output: PathBuf) -> 
         );
     }
     let reference = args.reference.as_deref().map(read_rgb).transpose()?;
+    let pt2n = args.pt2n.as_deref().map(read_rgb).transpose()?;
     tracing::info!(
         "read {} ({}x{}, {} spp per stream, {} batches) in {:.2} s",
         input_path.display(),
@@ -174,6 +188,10 @@ fn reconstruct(args: &ReconstructArgs, input_path: PathBuf, output: PathBuf) -> 
             bail!("{}: reference is {}x{} but {} is {}x{}", reference_name, r.width, r.height, streams_name, set.width, set.height);
         }
         input = input.with_reference(r);
+    }
+    let pt2n_name = args.pt2n.as_ref().map(|p| p.display().to_string()).unwrap_or_default();
+    if let Some(image) = &pt2n {
+        input = input.with_pt2n(image, &pt2n_name);
     }
     // Every method's requirements first, then every image, then the files: a method that
     // cannot run, or an image that is not finite, leaves no outputs of the others behind.

@@ -34,3 +34,9 @@ pub fn files_in(dir: &Path) -> Vec<String> {
 
 /// Small, quick render settings for tests.
 pub const SMALL: &[&str] = &["--width", "32", "--height", "32", "--max-depth", "6"];
+
+/// Sends `signal` to the child process, as a user's Ctrl-C or a scheduler's kill would.
+pub fn interrupt(child: &std::process::Child, signal: rustix::process::Signal) {
+    let pid = rustix::process::Pid::from_child(child);
+    rustix::process::kill_process(pid, signal).expect("the child is alive to be signalled");
+}

@@ -45,6 +45,7 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
         features: (p.choice::<String>("aux") != "none").then_some("with guides (aux other than none)"),
         reference: false,
         spp: false,
+        pt2n: false,
         bounded_values: false,
     },
     build: |p| Ok(Box::new(Oidn::from_params(p))),

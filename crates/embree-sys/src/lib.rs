@@ -13,10 +13,15 @@
 //! the library at run time.
 #![allow(non_upper_case_globals, non_camel_case_types, non_snake_case, dead_code, clippy::all)]
 
-#[cfg(not(embree_pregenerated))]
-include!(concat!(env!("OUT_DIR"), "/embree_bindings.rs"));
-#[cfg(embree_pregenerated)]
-include!("bindings/embree4.rs");
+/// bindgen's output (its bitfield accessors have unsafe blocks of its own making).
+#[allow(clippy::undocumented_unsafe_blocks)]
+mod raw {
+    #[cfg(not(embree_pregenerated))]
+    include!(concat!(env!("OUT_DIR"), "/embree_bindings.rs"));
+    #[cfg(embree_pregenerated)]
+    include!("bindings/embree4.rs");
+}
+pub use raw::*;
 
 mod shim;
 pub use shim::{intersect1, intersect16, intersect8, intersect_coherent, occluded1, occluded16, occluded8, Valid16, Valid8};

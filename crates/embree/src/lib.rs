@@ -6,7 +6,6 @@
 //! [`EmbreeScene`] is immutable, `Send + Sync`, and implements
 //! [`cvtrace_render::Intersector`] through the sys crate's calls that hide the Embree 3 /
 //! Embree 4 differences. [`traversal_check`] compares fast and robust traversal ray by ray.
-#![warn(clippy::undocumented_unsafe_blocks)]
 mod denormals;
 mod quads;
 pub mod traversal_check;

@@ -434,6 +434,7 @@
       const plots = el("div", { class: "plots" }, el("img", { src: view.plot, alt: "relMSE against spp, log-log", "data-plot": "spp" }));
       if (view.time_plot) plots.appendChild(el("img", { src: view.time_plot, alt: "relMSE against seconds per image, log-log", "data-plot": "time" }));
       else plots.appendChild(el("div", { class: "none", text: "No times per point in these results (a study by an older cvtrace): rerun the study to plot relMSE against time." }));
+      if (view.bias_plot) plots.appendChild(el("img", { src: view.bias_plot, alt: "squared bias against spp, log-log", "data-plot": "bias" }));
       right.appendChild(plots);
     } else right.appendChild(el("div", { class: "none", text: "No convergence data: run the study with an --spp list to plot relMSE against spp and against time." }));
     section.appendChild(el("div", { class: "columns" }, left, right));

@@ -16,6 +16,7 @@
 //! - [`synthetic`]: a renderer-free synthetic study for tests, docs and trying the viewer.
 //!
 //! Nothing here renders or reconstructs; it depends only on `cvtrace-streams`.
+#![forbid(unsafe_code)]
 
 pub mod compare;
 pub mod difference;

@@ -1,5 +1,5 @@
-//! Convergence plots: relMSE against total spp and against seconds per image, log-log, one
-//! line per estimator, as SVG.
+//! Convergence plots: relMSE against total spp and against seconds per image, and squared
+//! bias against total spp, log-log, one line per estimator, as SVG.
 //!
 //! Drawn with `plotters`' SVG backend, which writes `<text>` elements and only estimates
 //! text extents, so no system fonts are needed. Colours match the viewer (dark theme).
@@ -37,6 +37,33 @@ pub enum XAxis {
     Seconds,
 }
 
+/// What a convergence plot puts on its y axis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum YAxis {
+    /// relMSE, ± its standard error over seeds.
+    RelMse,
+    /// Relative squared bias over the seeds: where a biased method's error stops falling with
+    /// the samples. Points with no estimate or one at or below 0 (an unbiased method's, noise
+    /// about zero) are left out of the log axis.
+    Bias2,
+}
+
+impl YAxis {
+    fn of(self, p: &ConvergencePoint) -> Option<(f64, Option<f64>)> {
+        let (v, se) = match self {
+            YAxis::RelMse => (p.relmse, p.relmse_se),
+            YAxis::Bias2 => (p.bias2?, None),
+        };
+        (v > 0.0 && v.is_finite()).then_some((v, se))
+    }
+    fn description(self) -> &'static str {
+        match self {
+            YAxis::RelMse => "relMSE",
+            YAxis::Bias2 => "bias² (relative)",
+        }
+    }
+}
+
 impl XAxis {
     fn of(self, p: &ConvergencePoint) -> Option<f64> {
         match self {
@@ -58,15 +85,15 @@ impl XAxis {
     }
 }
 
-fn lines(points: &[(f64, &ConvergencePoint)], style_of: StyleOf) -> Vec<Line> {
+fn lines(points: &[(f64, f64, Option<f64>, &ConvergencePoint)], style_of: StyleOf) -> Vec<Line> {
     // First-appearance order of methods, so the legend follows the results file.
     let mut order: Vec<String> = Vec::new();
     let mut by_method: BTreeMap<String, Vec<(f64, f64, Option<f64>)>> = BTreeMap::new();
-    for (x, p) in points {
+    for (x, y, se, p) in points {
         if !by_method.contains_key(&p.method) {
             order.push(p.method.clone());
         }
-        by_method.entry(p.method.clone()).or_default().push((*x, p.relmse, p.relmse_se));
+        by_method.entry(p.method.clone()).or_default().push((*x, *y, *se));
     }
     order
         .into_iter()
@@ -100,24 +127,29 @@ pub fn convergence_svg(points: &[ConvergencePoint], title: &str, style_of: Style
     convergence_svg_against(points, XAxis::Spp, title, style_of)
 }
 
-/// The SVG text of a convergence plot with `axis` along x. `style_of` maps a method key and its
-/// position in the legend to its legend label and colour. A dashed grey guide shows the
-/// `1/spp` (or `1/time`) slope of an unbiased Monte Carlo estimator.
+/// The SVG text of a relMSE convergence plot with `axis` along x; see [`convergence_svg_of`].
 pub fn convergence_svg_against(points: &[ConvergencePoint], axis: XAxis, title: &str, style_of: StyleOf) -> Result<String, EvalError> {
-    let valid: Vec<(f64, &ConvergencePoint)> =
-        points.iter().filter(|p| p.relmse > 0.0 && p.relmse.is_finite()).filter_map(|p| axis.of(p).map(|x| (x, p))).collect();
+    convergence_svg_of(points, axis, YAxis::RelMse, title, style_of)
+}
+
+/// The SVG text of a convergence plot of `y` against `x`. `style_of` maps a method key and its
+/// position in the legend to its legend label and colour. For relMSE a dashed grey guide shows
+/// the `1/spp` (or `1/time`) slope of an unbiased Monte Carlo estimator.
+pub fn convergence_svg_of(points: &[ConvergencePoint], axis: XAxis, y: YAxis, title: &str, style_of: StyleOf) -> Result<String, EvalError> {
+    let valid: Vec<(f64, f64, Option<f64>, &ConvergencePoint)> =
+        points.iter().filter_map(|p| Some((axis.of(p)?, y.of(p)?, p))).map(|(x, (v, se), p)| (x, v, se, p)).collect();
     if valid.is_empty() {
         let need = match axis {
             XAxis::Spp => "spp > 0",
             XAxis::Seconds => "seconds > 0",
         };
-        return Err(EvalError::invalid("convergence plot", format!("no point with {need} and a finite relMSE > 0")));
+        return Err(EvalError::invalid("convergence plot", format!("no point with {need} and a finite {} > 0", y.description())));
     }
     let lines = lines(&valid, style_of);
-    let xs = valid.iter().map(|(x, _)| *x);
+    let xs = valid.iter().map(|(x, ..)| *x);
     let (xmin, xmax) = xs.fold((f64::MAX, f64::MIN), |(a, b), x| (a.min(x), b.max(x)));
-    let lows = valid.iter().map(|(_, p)| (p.relmse - p.relmse_se.unwrap_or(0.0)).max(p.relmse * 0.5));
-    let highs = valid.iter().map(|(_, p)| p.relmse + p.relmse_se.unwrap_or(0.0));
+    let lows = valid.iter().map(|(_, v, se, _)| (v - se.unwrap_or(0.0)).max(v * 0.5));
+    let highs = valid.iter().map(|(_, v, se, _)| v + se.unwrap_or(0.0));
     let ymin = lows.fold(f64::MAX, f64::min);
     let ymax = highs.fold(f64::MIN, f64::max);
     let (x0, x1) = (xmin / 1.3, xmax * 1.3);
@@ -137,7 +169,7 @@ pub fn convergence_svg_against(points: &[ConvergencePoint], axis: XAxis, title: 
         chart
             .configure_mesh()
             .x_desc(axis.description())
-            .y_desc("relMSE")
+            .y_desc(y.description())
             .x_label_formatter(&|v| tick(*v))
             .y_label_formatter(&|v| tick(*v))
             .axis_style(FOREGROUND.mix(0.8))
@@ -149,7 +181,7 @@ pub fn convergence_svg_against(points: &[ConvergencePoint], axis: XAxis, title: 
             .map_err(plot_err)?;
 
         // 1/spp (1/time) guide through the first point of the first line (PT when present).
-        if let Some(&(sx, sy, _)) = lines.first().and_then(|l| l.points.first()) {
+        if let Some(&(sx, sy, _)) = lines.first().and_then(|l| l.points.first()).filter(|_| y == YAxis::RelMse) {
             let guide = [(x0, sy * sx / x0), (x1, sy * sx / x1)];
             chart
                 .draw_series(DashedLineSeries::new(guide, 6, 6, RGBColor(0x70, 0x74, 0x7c).stroke_width(1)))
@@ -195,20 +227,34 @@ pub fn write_convergence_svg(scene: &SceneResult, path: &Path, overwrite: bool) 
     write_convergence_svg_against(scene, XAxis::Spp, path, overwrite)
 }
 
-/// Writes the convergence plot of `scene` with `axis` along x atomically; `Ok(false)` when it
-/// has no points (against time: none with a recorded time, as in results of older studies).
+/// Writes the relMSE convergence plot of `scene` with `axis` along x atomically; see
+/// [`write_convergence_svg_of`].
 pub fn write_convergence_svg_against(scene: &SceneResult, axis: XAxis, path: &Path, overwrite: bool) -> Result<bool, EvalError> {
-    if scene.convergence.is_empty() || (axis == XAxis::Seconds && scene.convergence.iter().all(|p| axis.of(p).is_none())) {
+    write_convergence_svg_of(scene, axis, YAxis::RelMse, path, overwrite)
+}
+
+/// Writes the convergence plot of `y` against `axis` of `scene` atomically; `Ok(false)` when it
+/// has no points (against time: none with a recorded time, as in results of older studies; of
+/// bias²: none with a positive estimate).
+pub fn write_convergence_svg_of(scene: &SceneResult, axis: XAxis, y: YAxis, path: &Path, overwrite: bool) -> Result<bool, EvalError> {
+    if scene.convergence.is_empty()
+        || (axis == XAxis::Seconds && scene.convergence.iter().all(|p| axis.of(p).is_none()))
+        || (y == YAxis::Bias2 && scene.convergence.iter().all(|p| y.of(p).is_none()))
+    {
         return Ok(false);
     }
     let style_of = |k: &str, i: usize| {
         (scene.method(k).map(|m| m.label.clone()).unwrap_or_else(|| k.to_string()), crate::palette::method_colour(scene, k, i))
     };
-    let title = match axis {
-        XAxis::Spp => format!("{}: relMSE vs spp", scene.name),
-        XAxis::Seconds => format!("{}: relMSE vs time", scene.name),
+    let quantity = match y {
+        YAxis::RelMse => "relMSE",
+        YAxis::Bias2 => "bias²",
     };
-    let svg = convergence_svg_against(&scene.convergence, axis, &title, &style_of)
+    let title = match axis {
+        XAxis::Spp => format!("{}: {quantity} vs spp", scene.name),
+        XAxis::Seconds => format!("{}: {quantity} vs time", scene.name),
+    };
+    let svg = convergence_svg_of(&scene.convergence, axis, y, &title, &style_of)
         .map_err(|e| EvalError::invalid(format!("scene `{}`", scene.name), e.to_string()))?;
     cvtrace_streams::atomic::write_atomically(path, overwrite, |tmp| std::fs::write(tmp, svg.as_bytes()))?;
     Ok(true)
@@ -228,6 +274,8 @@ mod tests {
                     relmse: c / spp as f64,
                     relmse_se: Some(0.1 * c / spp as f64),
                     seconds: Some(0.01 * spp as f64),
+                    // ours with a bias floor, pt unbiased (its estimate about zero).
+                    bias2: Some(if m == "pt" { -1e-6 } else { 1e-4 }),
                 });
             }
         }
@@ -267,6 +315,16 @@ mod tests {
     }
 
     #[test]
+    fn the_bias_plot_shows_the_methods_with_a_positive_estimate_and_no_slope_guide() {
+        let style = |k: &str, _i: usize| (k.to_uppercase(), [200, 100, 50]);
+        let svg = convergence_svg_of(&pts(), XAxis::Spp, YAxis::Bias2, "cbox: bias² vs spp", &style).unwrap();
+        assert!(svg.contains("data-methods=\"ours\""), "pt's negative estimates are left out");
+        assert!(svg.contains("bias² (relative)") && !svg.contains("∝ 1/spp"), "{svg}");
+        let unbiased: Vec<ConvergencePoint> = pts().into_iter().filter(|p| p.method == "pt").collect();
+        assert!(convergence_svg_of(&unbiased, XAxis::Spp, YAxis::Bias2, "t", &style).is_err());
+    }
+
+    #[test]
     fn ticks_are_short() {
         assert_eq!(tick(0.01), "0.01");
         assert_eq!(tick(0.010000000002), "0.01");
@@ -281,7 +339,14 @@ mod tests {
         // and each of them must carry a label, as must the x axis' 100 and 1000.
         let points: Vec<ConvergencePoint> = [(16u32, 0.3), (64, 0.05), (256, 0.01), (1024, 0.002), (4096, 2e-4)]
             .iter()
-            .map(|&(spp, r)| ConvergencePoint { method: "pt".into(), spp_total: spp, relmse: r, relmse_se: None, seconds: None })
+            .map(|&(spp, r)| ConvergencePoint {
+                method: "pt".into(),
+                spp_total: spp,
+                relmse: r,
+                relmse_se: None,
+                seconds: None,
+                bias2: None,
+            })
             .collect();
         let svg = convergence_svg(&points, "t", &|k, _| (k.to_string(), [0; 3])).unwrap();
         let labels: Vec<&str> =
@@ -293,7 +358,7 @@ mod tests {
 
     #[test]
     fn invalid_points_are_rejected_not_drawn() {
-        let bad = vec![ConvergencePoint { method: "pt".into(), spp_total: 0, relmse: 1.0, relmse_se: None, seconds: None }];
+        let bad = vec![ConvergencePoint { method: "pt".into(), spp_total: 0, relmse: 1.0, relmse_se: None, seconds: None, bias2: None }];
         assert!(convergence_svg(&bad, "t", &|k, _| (k.to_string(), [0; 3])).is_err());
     }
 }

@@ -6,6 +6,7 @@
 //! out/images/<scene>/*.png                  copies of the study's previews, relMSE, difference and FLIP maps
 //! out/images/<scene>/pixels.js               linear values for the pixel readout (see `pixels`)
 //! out/plots/<scene>.svg  <scene>.time.svg    convergence plots against spp and against time
+//! out/plots/<scene>.bias.svg                squared bias against spp
 //! out/colorbar.png  colorbar-diff.png  colorbar-flip.png  results.json  results.csv
 //! out/.cvtrace-report                        the images and plots this report wrote (one per line)
 //! ```
@@ -16,7 +17,7 @@ use crate::falsecolor::write_colorbar_png;
 use crate::flip::write_flip_colorbar_png;
 use crate::palette::{hex, method_colour};
 use crate::pixels::read_values_exr;
-use crate::plots::{write_convergence_svg_against, XAxis};
+use crate::plots::{write_convergence_svg_of, XAxis, YAxis};
 use crate::results::{Ratio, SceneResult, StudyResults};
 use crate::table::write_csv;
 use crate::EvalError;
@@ -64,6 +65,8 @@ struct ViewerScene {
     plot: Option<String>,
     /// relMSE against seconds per image, beside `plot`.
     time_plot: Option<String>,
+    /// Squared bias against spp: where the biased methods' error stops falling.
+    bias_plot: Option<String>,
     /// The script with the linear values of the scene's images, loaded on first use.
     pixels: Option<String>,
     ratios: Vec<Ratio>,
@@ -248,9 +251,11 @@ fn write_viewer(
         files.extend(pixels.iter().map(|(rel, _)| rel.clone()));
         let plot_rel = format!("plots/{slug}.svg");
         let time_rel = format!("plots/{slug}.time.svg");
+        let bias_rel = format!("plots/{slug}.bias.svg");
         files.insert(plot_rel.clone());
         files.insert(time_rel.clone());
-        plots.push((slug, plot_rel, time_rel, pixels));
+        files.insert(bias_rel.clone());
+        plots.push((slug, plot_rel, time_rel, bias_rel, pixels));
     }
     write_text(&out_dir.join(MANIFEST), &manifest_text(earlier.union(&files)))?;
 
@@ -262,17 +267,18 @@ fn write_viewer(
         write_atomically(&dst, true, |tmp| std::fs::copy(src, tmp).map(|_| ()))?;
     }
     let mut scenes = Vec::new();
-    for (scene, (slug, plot_rel, time_rel, pixels)) in out.scenes.iter_mut().zip(plots) {
+    for (scene, (slug, plot_rel, time_rel, bias_rel, pixels)) in out.scenes.iter_mut().zip(plots) {
         cvtrace_streams::atomic::create_dir_all(&out_dir.join("plots"))?;
-        let mut plot_of = |axis, rel: String| -> Result<Option<String>, EvalError> {
-            let written = write_convergence_svg_against(scene, axis, &out_dir.join(&rel), true)?;
+        let mut plot_of = |axis, y, rel: String| -> Result<Option<String>, EvalError> {
+            let written = write_convergence_svg_of(scene, axis, y, &out_dir.join(&rel), true)?;
             if !written {
                 files.remove(&rel);
             }
             Ok(written.then_some(rel))
         };
-        let plot = plot_of(XAxis::Spp, plot_rel)?;
-        let time_plot = plot_of(XAxis::Seconds, time_rel)?;
+        let plot = plot_of(XAxis::Spp, YAxis::RelMse, plot_rel)?;
+        let time_plot = plot_of(XAxis::Seconds, YAxis::RelMse, time_rel)?;
+        let bias_plot = plot_of(XAxis::Spp, YAxis::Bias2, bias_rel)?;
         let pixels = match pixels {
             Some((rel, text)) => {
                 cvtrace_streams::atomic::create_dir_all(&out_dir.join("images").join(&slug))?;
@@ -286,7 +292,7 @@ fn write_viewer(
         scene.methods.iter_mut().for_each(|m| m.values = None);
         let colors =
             scene.ordered_methods().iter().enumerate().map(|(i, m)| (m.name.clone(), hex(method_colour(scene, &m.name, i)))).collect();
-        scenes.push(ViewerScene { slug, plot, time_plot, pixels, ratios: scene.ratios(), colors });
+        scenes.push(ViewerScene { slug, plot, time_plot, bias_plot, pixels, ratios: scene.ratios(), colors });
     }
 
     write_colorbar_png(&out_dir.join("colorbar.png"), 256, 12, true)?;

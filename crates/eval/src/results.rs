@@ -215,6 +215,10 @@ pub struct ConvergencePoint {
     /// its reconstruction (absent in results of studies that did not record it).
     #[serde(default)]
     pub seconds: Option<f64>,
+    /// Relative squared bias over the seeds at this point (as [`MethodResult::bias2`]; absent
+    /// for one seed and in results of studies that did not record it).
+    #[serde(default)]
+    pub bias2: Option<f64>,
 }
 
 /// The colour scale of false-colour maps: log10 relMSE from `log10_min` (darkest) to

@@ -327,6 +327,7 @@ pub fn write_synthetic_study(dir: &Path, opts: &SyntheticOptions) -> Result<Stud
                 relmse_se: s.relmse_se,
                 // A time of 0 (a clock too coarse for a tiny image) has no place on a log axis.
                 seconds: (*t > 0.0).then_some(*t),
+                bias2: s.bias2,
             });
         }
     }

@@ -223,7 +223,8 @@ fn viewer_loads_every_image_and_shows_the_json_numbers() {
     assert_eq!(ok, total, "only {ok} of {total} images loaded; failed: {failed_src}");
     assert_eq!(attr(&dom, "<body", "data-ready").as_deref(), Some("1"));
     // Expected images: per scene the previews, the reference, the relMSE, FLIP and difference
-    // maps, the ablation previews and the two plots; plus a colour bar per legend.
+    // maps, the ablation previews and the plots (relMSE against spp and time, and bias² against
+    // spp where some estimate is positive); plus a colour bar per legend.
     let expected: usize = results
         .scenes
         .iter()
@@ -233,7 +234,8 @@ fn viewer_loads_every_image_and_shows_the_json_numbers() {
             let diffs = s.methods.iter().filter(|m| !m.ablation && m.difference_map.is_some()).count();
             let flips = s.methods.iter().filter(|m| !m.ablation && m.flip_map.is_some()).count();
             assert!(flips > 0, "the synthetic study makes FLIP maps");
-            photos + maps + diffs + flips + usize::from(s.reference.image.is_some()) + 2 * usize::from(!s.convergence.is_empty()) + 3
+            let bias = usize::from(s.convergence.iter().any(|p| p.bias2.is_some_and(|b| b > 0.0)));
+            photos + maps + diffs + flips + usize::from(s.reference.image.is_some()) + 2 * usize::from(!s.convergence.is_empty()) + bias + 3
         })
         .sum();
     assert_eq!(total, expected, "number of <img> elements");
@@ -344,6 +346,7 @@ fn viewer_copes_with_minimal_results() {
             relmse: 1.0 / k as f64,
             relmse_se: None,
             seconds: None,
+            bias2: None,
         })
         .collect();
     let index = write_report(&old, &study, &dir.path().join("old"), &ReportOptions::default()).unwrap();
@@ -463,6 +466,13 @@ fn viewer_pixel_readout_shows_the_exr_values_and_the_table_sorts() {
         assert!(dom.contains(&format!("src=\"{plot}\"")) && dom.contains("data-plot=\"time\""), "no time plot for {sl}");
         let svg = std::fs::read_to_string(out.join(&plot)).unwrap();
         assert!(svg.contains("relMSE vs time") && svg.contains("seconds per image"), "{plot}");
+        // Squared bias against spp wherever some method's estimate is positive.
+        let bias = format!("plots/{sl}.bias.svg");
+        let positive = s.convergence.iter().any(|p| p.bias2.is_some_and(|b| b > 0.0));
+        assert_eq!(dom.contains(&format!("src=\"{bias}\"")), positive, "bias plot of {sl}");
+        if positive {
+            assert!(std::fs::read_to_string(out.join(&bias)).unwrap().contains("bias² vs spp"), "{bias}");
+        }
     }
 
     // 4. The signed difference view: one map per main method, and its legend's symmetric scale.

@@ -57,6 +57,7 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
         features: None,
         reference: false,
         spp: false,
+        pt2n: false,
         bounded_values: true,
     },
     build: |p| Ok(Box::new(Ivw::from_params(p))),

@@ -11,7 +11,9 @@ pub fn registry() -> &'static Registry {
     REGISTRY.get_or_init(|| {
         let mut r = Registry::builtin();
         r.register(&cvtrace_ivw::SPEC).expect("cvtrace-ivw's name is free");
-        r.register(&cvtrace_denoise::oidn::SPEC).expect("cvtrace-denoise's names are free");
+        for spec in cvtrace_denoise::SPECS {
+            r.register(spec).expect("cvtrace-denoise's names are free");
+        }
         r
     })
 }

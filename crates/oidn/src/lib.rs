@@ -9,7 +9,6 @@
 //! its threads itself). The output depends only on the input and the options: not on the
 //! number of threads (a test checks it), but OIDN's kernels for different instruction sets
 //! (AVX2, AVX-512) may round differently, so two CPUs can differ in the last bits.
-#![warn(clippy::undocumented_unsafe_blocks)]
 use cvtrace_oidn_sys::oidn::{self, sys};
 use cvtrace_streams::Image;
 use std::ffi::{c_char, c_void, CStr};

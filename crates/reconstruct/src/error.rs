@@ -36,6 +36,9 @@ pub enum ReconError {
     #[error("`{method}` with --errors oracle needs a reference image; pass one (--reference) or use --errors cbf or variance")]
     MissingReference { method: &'static str },
 
+    #[error("`{method}` post-processes a plain PT render with the samples of both streams (2n spp), which was not given; pass one (reconstruct --pt2n FILE, rendered with `cvtrace render --reference --spp 2n`) or run it in a study, which renders it")]
+    MissingPt2n { method: &'static str },
+
     #[error("reference {reference} is {width}x{height}, but the streams in {origin} are {expected_width}x{expected_height}; pass the reference of the same scene and resolution")]
     ReferenceSize { reference: String, origin: String, width: usize, height: usize, expected_width: usize, expected_height: usize },
 

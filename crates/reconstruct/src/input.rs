@@ -1,5 +1,6 @@
-//! What an estimator reads: a borrowed stream set, an optional reference image and the
-//! names to use for both in error messages (file paths for the CLI, anything for a library
+//! What an estimator reads: a borrowed stream set, an optional reference image, an optional
+//! real PT render with the samples of both streams (the study's PT(2n) image), and the names to
+//! use for them in error messages (file paths for the CLI, anything for a library
 //! caller holding buffers from another renderer).
 use crate::ReconError;
 use cvtrace_streams::stream_set::batch_prefix;
@@ -12,15 +13,35 @@ pub struct Input<'a> {
     pub streams: &'a StreamSet,
     /// Ground truth, used only by analysis options (`--errors oracle`).
     pub reference: Option<&'a Image>,
+    /// A plain PT image of the same view with `2n` samples per pixel, independent of the
+    /// streams: what estimators that post-process a PT render (a denoiser) take instead of a
+    /// stream, so that they are compared at the streams' sample budget.
+    pub pt2n: Option<&'a Image>,
     /// Names the stream set in errors (typically its file path).
     pub streams_name: &'a str,
     /// Names the reference in errors (typically its file path).
     pub reference_name: &'a str,
+    /// Names the PT(2n) image in errors (typically its file path).
+    pub pt2n_name: &'a str,
 }
 
 impl<'a> Input<'a> {
     pub fn new(streams: &'a StreamSet) -> Self {
-        Input { streams, reference: None, streams_name: "<stream set>", reference_name: "<reference>" }
+        Input {
+            streams,
+            reference: None,
+            pt2n: None,
+            streams_name: "<stream set>",
+            reference_name: "<reference>",
+            pt2n_name: "<PT(2n) image>",
+        }
+    }
+
+    /// The PT(2n) image, named `name` in errors.
+    pub fn with_pt2n(mut self, image: &'a Image, name: &'a str) -> Self {
+        self.pt2n = Some(image);
+        self.pt2n_name = name;
+        self
     }
 
     pub fn with_reference(mut self, reference: &'a Image) -> Self {
@@ -118,6 +139,22 @@ impl<'a> Input<'a> {
                 }
             }
         }
+        if needs.pt2n {
+            let image = self.pt2n.ok_or(ReconError::MissingPt2n { method })?;
+            if !image.same_size(&s.pt.mean) || image.pixels.len() != w * h {
+                return Err(ReconError::SizeMismatch {
+                    origin: self.pt2n_name.to_string(),
+                    layer: "R,G,B".into(),
+                    width: image.width,
+                    height: image.height,
+                    expected_width: w,
+                    expected_height: h,
+                });
+            }
+            if let Some((x, y, c, v)) = first_beyond(image, limit) {
+                return Err(too_large(self.pt2n_name.to_string(), RGB[c].to_string(), v, x, y));
+            }
+        }
         if needs.reference {
             let r = self.reference.ok_or(ReconError::MissingReference { method })?;
             if r.width != w || r.height != h || r.pixels.len() != w * h {
@@ -208,6 +245,8 @@ pub struct Needs {
     pub reference: bool,
     /// The samples per pixel of each stream (`StreamMeta::spp`).
     pub spp: bool,
+    /// A PT(2n) image ([`Input::pt2n`]).
+    pub pt2n: bool,
     /// Values (and the reference, if needed) at most [`MAX_VALUE`] in magnitude: the method
     /// forms squared differences of them in f32, which overflow beyond.
     pub bounded_values: bool,
@@ -215,7 +254,8 @@ pub struct Needs {
 
 impl Needs {
     /// Only the stream means.
-    pub const MEANS: Needs = Needs { batches: BatchNeed::None, features: None, reference: false, spp: false, bounded_values: false };
+    pub const MEANS: Needs =
+        Needs { batches: BatchNeed::None, features: None, reference: false, spp: false, pt2n: false, bounded_values: false };
 }
 
 /// Largest magnitude of a value that `cv` and `ours` take. They square and sum differences of

@@ -49,7 +49,6 @@
 // The vector kernels (`simd`) are the only code that needs `unsafe`: intrinsics that require
 // their CPU features, and raw-pointer loads and stores.
 #![deny(unsafe_code)]
-#![warn(clippy::undocumented_unsafe_blocks)]
 
 mod batch_stats;
 pub mod control_variate;

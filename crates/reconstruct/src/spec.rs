@@ -100,6 +100,9 @@ pub enum Samples {
     OneStream,
     /// Both streams (`2n` spp).
     BothStreams,
+    /// The PT(2n) image ([`crate::Input::pt2n`]): `2n` spp of another render, none of the
+    /// streams' (their features aside).
+    Pt2n,
 }
 
 impl Samples {
@@ -107,15 +110,17 @@ impl Samples {
     pub fn total(self, n: u32) -> u32 {
         match self {
             Samples::OneStream => n,
-            Samples::BothStreams => 2 * n,
+            Samples::BothStreams | Samples::Pt2n => 2 * n,
         }
     }
 
-    /// The share of a stream-pair render an output's samples cost.
+    /// The share of a stream-pair render an output's samples cost (none for the PT(2n) image,
+    /// a render of its own).
     pub fn render_share(self) -> f64 {
         match self {
             Samples::OneStream => 0.5,
             Samples::BothStreams => 1.0,
+            Samples::Pt2n => 0.0,
         }
     }
 
@@ -124,6 +129,7 @@ impl Samples {
         match self {
             Samples::OneStream => "n spp (one stream)",
             Samples::BothStreams => "2n spp (both streams)",
+            Samples::Pt2n => "2n spp (a PT(2n) render)",
         }
     }
 }
@@ -429,6 +435,9 @@ impl Needs {
         }
         if self.spp {
             parts.push("spp".into());
+        }
+        if self.pt2n {
+            parts.push("a PT(2n) image".into());
         }
         parts.join(", ")
     }

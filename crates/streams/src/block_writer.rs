@@ -11,7 +11,7 @@
 //! about 3.3× faster for files about 3% larger, and compressing is the one part of a stream
 //! render a PT render does not have (docs/performance.md). Every ZIP reader decodes either.
 use crate::atomic::write_atomically;
-use crate::exr_io::AttrValue;
+use crate::attr::AttrValue;
 use crate::StreamError;
 use exr::block::chunk::{Chunk, CompressedBlock, CompressedScanLineBlock};
 use exr::block::writer::{ChunkWriter, ChunksWriter};

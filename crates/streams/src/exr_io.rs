@@ -6,23 +6,7 @@ use exr::prelude::{read, AttributeValue, FlatSamples, ReadChannels, ReadLayers, 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
-/// A header attribute value. Integers that fit are stored as EXR `int`, the rest as `string`.
-#[derive(Clone, Debug, PartialEq)]
-pub enum AttrValue {
-    Int(i32),
-    Float(f32),
-    Text(String),
-}
-
-impl AttrValue {
-    pub fn as_text(&self) -> String {
-        match self {
-            AttrValue::Int(v) => v.to_string(),
-            AttrValue::Float(v) => v.to_string(),
-            AttrValue::Text(s) => s.clone(),
-        }
-    }
-}
+pub use crate::attr::AttrValue;
 
 /// All channels of a single-part scanline EXR as f32 planes, plus its custom attributes.
 #[derive(Clone, Debug, Default)]

@@ -15,6 +15,7 @@
 #![forbid(unsafe_code)]
 
 pub mod atomic;
+mod attr;
 pub mod block_writer;
 pub mod checkpoint;
 pub mod error;

@@ -12,6 +12,7 @@
 //! analytic soft-shadow scene of `cvtrace_reconstruct::synthetic`, which needs no renderer.
 //! What a study asks of its source is planned from what its estimators declare they need
 //! ([`Study::check_needs`] runs before the first image is made).
+#![forbid(unsafe_code)]
 mod columns;
 mod diagnostics;
 pub mod files;
@@ -27,7 +28,7 @@ use cvtrace_eval::pixels::write_values_exr;
 use cvtrace_eval::reference_noise::{from_variance_image, too_noisy_warning};
 use cvtrace_eval::results::{ConvergencePoint, ReferenceInfo, SceneResult, StageTimes, StudyResults};
 use cvtrace_eval::{table, EvalError, Reference, SeedAccumulator};
-use cvtrace_reconstruct::{Input, ReconError};
+use cvtrace_reconstruct::{Input, ReconError, Samples};
 use cvtrace_streams::preview::write_png;
 use cvtrace_streams::{Features, Image, Stream, StreamError, StreamMeta, StreamSet};
 use diagnostics::DiagnosticsMean;
@@ -103,7 +104,10 @@ impl Study<'_> {
             let features = Features { albedo: pixel.clone(), normal: pixel.clone(), depth: vec![0.0] };
             let meta = StreamMeta { spp, ..Default::default() };
             let set = StreamSet { width: 1, height: 1, pt: stream(), crn: stream(), features: Some(features), meta };
-            let input = Input::new(&set).named("the streams this study renders", "the reference").with_reference(&pixel);
+            let input = Input::new(&set)
+                .named("the streams this study renders", "the reference")
+                .with_reference(&pixel)
+                .with_pt2n(&pixel, "the study's PT(2n) image");
             for c in self.columns {
                 if let ColumnKind::Estimator(est) = &c.kind {
                     input.check(est.name(), &est.needs()).map_err(|source| StudyError::Needs { spp, batches: self.batches, source })?;
@@ -133,6 +137,7 @@ impl Study<'_> {
                     relmse: s.relmse_mean,
                     relmse_se: s.relmse_se,
                     seconds: Some(t.total()),
+                    bias2: s.bias2,
                 });
             }
             if last {
@@ -256,7 +261,8 @@ impl Study<'_> {
                 )));
             }
             accumulate_variance(&mut pt_variance, set, self.seeds);
-            let input = Input::new(set).named(&streams.name, &reference.label).with_reference(&reference.image);
+            let input =
+                Input::new(set).named(&streams.name, &reference.label).with_reference(&reference.image).with_pt2n(&pt2n.value, &pt2n.name);
             for (k, c) in cols.iter().enumerate() {
                 let mut predicted = None;
                 let (img, t) = match &c.kind {
@@ -264,8 +270,12 @@ impl Study<'_> {
                         let mut out = est.run(&input)?;
                         diagnostics[k].add(&out.diagnostics);
                         predicted = out.aovs.iter().position(|(n, _)| n == "variance").map(|i| out.aovs.swap_remove(i).1);
-                        // An estimator of one stream needs only that stream: half the pair's render time.
-                        let render = c.samples.render_share() * streams.seconds;
+                        // An estimator of one stream needs only that stream: half the pair's render
+                        // time; one of the PT(2n) image, that render's.
+                        let render = match c.samples {
+                            Samples::Pt2n => pt2n.seconds,
+                            s => s.render_share() * streams.seconds,
+                        };
                         (out.image, StageTimes { render, reconstruct: out.diagnostics.seconds })
                     }
                     ColumnKind::Pt2n => (pt2n.value.clone(), StageTimes { render: pt2n.seconds, reconstruct: 0.0 }),

@@ -143,6 +143,7 @@ fn needs(o: &ClassicCvOptions) -> Needs {
         features: (o.select == Selection::Gbuffer).then_some("with --select gbuffer"),
         reference: false,
         spp: false,
+        pt2n: false,
         bounded_values: true,
     }
 }

@@ -71,7 +71,8 @@ pub static SPEC: EstimatorSpec = EstimatorSpec {
 };
 
 /// IDUW forms four sub-buffers of consecutive batches and weights by the spp of a half.
-const NEEDS: Needs = Needs { batches: BatchNeed::MultipleOf(4), features: None, reference: false, spp: true, bounded_values: false };
+const NEEDS: Needs =
+    Needs { batches: BatchNeed::MultipleOf(4), features: None, reference: false, spp: true, pt2n: false, bounded_values: false };
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct IduwOptions {

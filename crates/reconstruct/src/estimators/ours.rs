@@ -190,6 +190,7 @@ fn needs(o: &ImperfectCvOptions) -> Needs {
         features: o.demodulate.needs_features().or((o.select == Selection::Gbuffer).then_some("with --select gbuffer")),
         reference: o.errors == ErrorEstimate::Oracle,
         spp: false,
+        pt2n: false,
         bounded_values: true,
     }
 }
