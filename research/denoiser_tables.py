@@ -72,6 +72,23 @@ def spp_table(scenes, n):
     print(f"\nblend better than both on {sum(1 for v in best if v < 1)} of {len(rows)} scenes; "
           f"geometric mean of blend ÷ PT(2n)+OIDN: {fmt(geomean([a / b for a, b in zip(ratios['blend'], ratios['pt2n-oidn'])]))}, "
           f"of ours ÷ PT(2n)+OIDN: {fmt(geomean([a / b for a, b in zip(ratios['ours'], ratios['pt2n-oidn'])]))}")
+    # Every relMSE above holds the reference's own noise N (the study's estimate, the same for
+    # every method); taking it out ranks the methods against the truth.
+    print("\nThe same with the reference's noise N taken out, (relMSE − N) ÷ (relMSE of PT(2n) − N):\n")
+    print("| scene | N ÷ PT(2n) | ours | oidn (PT, n) | PT(2n) + OIDN | blend | blend ÷ min(ours, PT(2n)+OIDN) |")
+    print("|---|---|---|---|---|---|---|")
+    clean, clean_best = {m: [] for m in METHODS}, []
+    for s in rows:
+        pts = points(scenes[s])
+        noise = (scenes[s]["reference"].get("noise") or {}).get("relmse", 0.0)
+        rel = {m: pts[m][n]["relmse"] - noise for m in METHODS + ["pt2n"]}
+        for m in METHODS:
+            clean[m].append(rel[m] / rel["pt2n"])
+        clean_best.append(rel["blend"] / min(rel["ours"], rel["pt2n-oidn"]))
+        print(f"| {s} | {fmt(noise / pts['pt2n'][n]['relmse'])} | " + " | ".join(fmt(clean[m][-1]) for m in METHODS)
+              + f" | {fmt(clean_best[-1])} |")
+    print("| **geometric mean** | | " + " | ".join(f"**{fmt(geomean(clean[m]))}**" for m in METHODS)
+          + f" | **{fmt(geomean(clean_best))}** (max {fmt(max(clean_best))}) |")
     print("\nSquared bias (relative, ×10⁴; the study's estimate, which holds the reference's noise):\n")
     print("| scene | " + " | ".join(METHODS) + " |")
     print("|---|" + "---|" * len(METHODS))
@@ -130,15 +147,18 @@ def reaches_floor(relmse, floor):
 
 def convergence(scenes):
     print("\n### Convergence: relMSE and bias² against total spp\n")
+    print("The last two columns with the reference's noise N taken out of every relMSE and bias².\n")
     print("| scene | method | relMSE at n = " + ", ".join(map(str, spps(scenes)))
-          + " spp per stream | bias² ×10⁴ | ours below PT(2n)+OIDN from n = | ours' relMSE (as c/n) at PT(2n)+OIDN's last bias² from n = |")
+          + " spp per stream | bias² ×10⁴ | ours below PT(2n)+OIDN from n = | ours' error (as c/n) at PT(2n)+OIDN's last bias² from n = |")
     print("|---|---|---|---|---|---|")
     for s, sc in scenes.items():
         pts = points(sc)
-        rel = {m: {n: p["relmse"] for n, p in pts.get(m, {}).items()} for m in METHODS}
+        # Against the truth: the reference's noise taken out of every relMSE and bias².
+        noise = (sc["reference"].get("noise") or {}).get("relmse", 0.0)
+        rel = {m: {n: p["relmse"] - noise for n, p in pts.get(m, {}).items()} for m in METHODS}
         cross = crossing(rel["ours"], rel["pt2n-oidn"])
         oidn = pts.get("pt2n-oidn", {})
-        floor_at = reaches_floor(rel["ours"], oidn[max(oidn)].get("bias2") if oidn else None)
+        floor_at = reaches_floor(rel["ours"], oidn[max(oidn)].get("bias2", 0.0) - noise if oidn else None)
         floor = "–" if floor_at is None else f"≈ {floor_at:.0f}"
         for m in ["ours", "pt2n-oidn", "blend"]:
             ns = sorted(pts.get(m, {}))

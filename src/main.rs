@@ -15,7 +15,8 @@ use std::io::{IsTerminal, Write};
 )]
 struct Cli {
     /// Worker threads (default: all cores). Results are bit-identical for any count.
-    #[arg(short = 't', long, global = true)]
+    #[arg(short = 't', long, global = true, allow_hyphen_values = true,
+          value_parser = clap::builder::RangedI64ValueParser::<usize>::new().range(1..=MAX_THREADS as i64))]
     threads: Option<usize>,
     /// Log level filter (error, warn, info, debug, trace); RUST_LOG overrides it.
     #[arg(long, global = true, default_value = "info")]
@@ -71,8 +72,24 @@ fn threads_bytes(threads: u64) -> u64 {
     threads * (stack + (64 << 10)) + threads.min(8 * cores) * (64 << 20) + (128 << 20)
 }
 
+/// Prints clap's help, version or error, and the exit code: 0 after help, 2 after an error, 1
+/// when the help cannot be written (a full disk; a closed pipe is no error).
+fn clap_exit(e: clap::Error) -> std::process::ExitCode {
+    let printed = e.print().and_then(|()| std::io::stdout().flush());
+    match printed {
+        Err(io) if !e.use_stderr() && io.kind() != std::io::ErrorKind::BrokenPipe => {
+            say_error(&format!("standard output: cannot write what the command prints: {io}"));
+            std::process::ExitCode::FAILURE
+        }
+        _ => std::process::ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2)),
+    }
+}
+
 fn main() -> std::process::ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return clap_exit(e),
+    };
     let filter = match tracing_subscriber::EnvFilter::try_from_default_env() {
         Ok(f) => f,
         // A directive that does not parse would be dropped with a note, and the run go on silent.
@@ -87,21 +104,18 @@ fn main() -> std::process::ExitCode {
             }
         },
     };
-    // Colour codes only for a terminal; a log line that cannot be written (a closed pipe) is
-    // dropped without a word, so that logging never ends the work.
+    // Colour codes only for a terminal, where lines wrap at 100 columns; a log line that cannot
+    // be written (a closed pipe) is dropped without a word, so that logging never ends the work.
     tracing_subscriber::fmt()
         .with_env_filter(filter)
-        .with_writer(std::io::stderr)
+        .with_writer(cli::log::Stderr::default())
         .with_target(false)
         .with_ansi(std::io::stderr().is_terminal() && std::env::var_os("NO_COLOR").is_none())
         .log_internal_errors(false)
         .init();
+    // Far more threads than cores only costs memory (and at 10⁵ the pool never starts): clap
+    // takes 1 to MAX_THREADS.
     if let Some(n) = cli.threads {
-        // Far more threads than cores only costs memory (and at 10⁵ the pool never starts).
-        if n == 0 || n > MAX_THREADS {
-            say_error(&format!("--threads {n}: must be between 1 and {MAX_THREADS}"));
-            return std::process::ExitCode::from(2);
-        }
         // `render` and `study` start as many render threads again (the render session's pool). A thread that
         // gets its stack but not its signal stack aborts the process: so all the stacks must
         // fit in the address space (`ulimit -v`) before any thread starts.
@@ -124,12 +138,15 @@ fn main() -> std::process::ExitCode {
     // interrupted run leaves no half files (finished outputs and checkpoints stay).
     if let Err(e) = ctrlc::set_handler(|| {
         cvtrace_streams::atomic::remove_pending_temporaries();
+        // On a terminal the progress bar holds the current line (and stops drawing now that
+        // the run is interrupted): the note replaces it instead of following it.
+        let line = if std::io::stderr().is_terminal() { "\r\x1b[2K" } else { "" };
         match cli::files::interrupt_note() {
             Some(note) => {
-                let _ = writeln!(std::io::stderr(), "interrupted: {note}");
+                let _ = writeln!(std::io::stderr(), "{line}interrupted: {note}");
             }
             None => {
-                let _ = writeln!(std::io::stderr(), "interrupted");
+                let _ = writeln!(std::io::stderr(), "{line}interrupted");
             }
         }
         std::process::exit(130);
@@ -150,6 +167,8 @@ fn main() -> std::process::ExitCode {
     while cvtrace_streams::atomic::interrupted() {
         std::thread::park();
     }
+    // What the command printed is part of its result.
+    let result = result.and_then(|()| cli::stdout_result());
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {

@@ -83,7 +83,7 @@ fn render_refuses_counts_its_files_cannot_record() {
     let sp = s.to_str().unwrap();
     // 65 536 batches used to allocate them all (and 2^32 − 1 to abort); the stream file numbers
     // batches with two digits.
-    refused(d, &render_args(sp, &["--spp", "101", "--batches", "101", "-o", "x.streams.exr"]), &["batches 101", "100"]);
+    refused(d, &render_args(sp, &["--spp", "101", "--batches", "101", "-o", "x.streams.exr"]), &["--batches", "101", "1..=100"]);
     refused(
         d,
         &render_args(sp, &["--spp", "4294967295", "--batches", "4294967295", "-o", "x.streams.exr"]),
@@ -269,13 +269,12 @@ fn study_arguments_that_would_wrap_or_fail_late_are_refused_first() {
     // 2n of 2^31 wrapped to 0 spp, after the streams' render.
     check(&["--spp", "2147483648", "--batches", "4"], &["--spp", "2147483648", "1..=2147483647"]);
     // These failed after the study folder was made (and --name after every render).
-    check(&["--reference", "new.exr", "--reference-spp", "0"], &["--reference-spp 0"]);
+    check(&["--reference", "new.exr", "--reference-spp", "0"], &["--reference-spp", "'0'", "1..=2147483647"]);
     check(&["--name", ""], &["--name"]);
     check(&["--name", " \t"], &["--name"]);
     check(&["--reference", "bad.exr"], &["bad.exr"]);
     check(&["--reference", "st"], &["st", "--reference and -o"]);
     check(&["--seed", "99"], &["seed 99"]);
-    check(&["--reference", "no-dir/new.exr", "-o", "a/b/st"], &["no-dir"]);
     // A first render that fails left the study and spp folders (here the study folder's path
     // is 4070 bytes long: its lock fits in PATH_MAX, the first render's temporary does not).
     let mut deep = vec!["p".repeat(250); 16].join("/");
@@ -345,4 +344,69 @@ fn threads_that_cannot_start_and_unparsable_log_filters_are_errors() {
     );
     // An unparsable filter was dropped with a note, and the run went on without any log.
     refused(d, &["--log", "[", "reconstruct", "s.streams.exr", "-o", "x.exr"], &["--log \"[\""]);
+}
+
+#[test]
+fn negative_numbers_are_values_out_of_range_not_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    let streams = |flag: &'static str, value: &'static str| render_args(sp, &["--spp", "8", flag, value, "-o", "x.streams.exr"]);
+    let study = |flag: &'static str, value: &'static str| -> Vec<&str> {
+        [&["study", sp, "--reference", "r.exr", "--spp", "8", "-o", "st", flag, value][..], SMALL].concat()
+    };
+    let farm = |flag: &'static str, value: &'static str| -> Vec<&str> {
+        [&["farm", "render", sp, "--spp", "8", "-o", "f.streams.exr", flag, value][..], SMALL].concat()
+    };
+    let cases: Vec<(Vec<&str>, &[&str])> = vec![
+        // A value with a leading hyphen is the flag's value, out of range, and no flag of its own.
+        (["render", sp, "--width", "-16", "-o", "x.exr"].to_vec(), &["--width", "-16", "1..=16384"]),
+        (["render", sp, "--height", "-16", "-o", "x.exr"].to_vec(), &["--height", "-16", "1..=16384"]),
+        (streams("--seed", "-1"), &["--seed", "-1", "0..=18446744073709551615"]),
+        (streams("--batches", "-4"), &["--batches", "-4", "1..=100"]),
+        (render_args(sp, &["--reference", "--pass-spp", "-2", "-o", "x.exr"]), &["--pass-spp", "-2", "1..=2147483647"]),
+        (["-t", "-1", "reconstruct", "--list"].to_vec(), &["--threads", "-1", "1..=1024"]),
+        (study("--seeds", "-1"), &["--seeds", "-1", "1..=10000"]),
+        (study("--seed", "-3"), &["--seed", "-3", "0..=18446744073709551615"]),
+        (study("--reference-spp", "-5"), &["--reference-spp", "-5", "1..=2147483647"]),
+        (farm("--parts", "-2"), &["--parts", "-2", "1..="]),
+        (farm("--batches", "-8"), &["--batches", "-8", "1..=100"]),
+    ];
+    for (args, needles) in cases {
+        refused(d, &args, needles);
+        let e = stderr(&cvtrace(d, &args));
+        assert!(!e.contains("'-- -") && !e.contains("unexpected argument"), "{args:?}: read as a flag:\n{e}");
+    }
+}
+
+#[test]
+fn errors_say_what_is_wrong_not_something_near_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    inputs(d);
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    let not = |args: &[&str], wrong: &str| {
+        let e = stderr(&cvtrace(d, args));
+        assert!(!e.contains(wrong), "{args:?}: the error is about {wrong:?}:\n{e}");
+    };
+    // A whole number too large for the setting is out of range, not "not a whole number".
+    let big = render_args(sp, &["-D", "spp=99999999999", "-o", "x.streams.exr"]);
+    refused(d, &big, &["-D spp=99999999999", "out of range", "2147483647"]);
+    not(&big, "not a whole number");
+    // The format is right; a coordinate is not a number to render with.
+    let nan = render_args(sp, &["--spp", "8", "--camera", "nan,0,0:0,0,1:40", "-o", "x.streams.exr"]);
+    refused(d, &nan, &["--camera", "nan", "not a finite number"]);
+    not(&nan, "expected --camera");
+    // A file where the output's folder should be.
+    std::fs::write(d.join("file.exr"), b"a file").unwrap();
+    let under_a_file = render_args(sp, &["--spp", "8", "-o", "file.exr/sub.exr"]);
+    refused(d, &under_a_file, &["file.exr", "is a file, not a folder"]);
+    not(&under_a_file, "does not exist");
+    refused(d, &["reconstruct", "s.streams.exr", "--method", "pt", "-o", "file.exr/a/pt.exr"], &["file.exr", "is a file, not a folder"]);
+    // Extending a stream file (another seed, too): that it is no reference is what matters.
+    let extend = render_args(sp, &["--reference", "--extend", "--spp", "32", "--seed", "5", "-o", "s.streams.exr"]);
+    refused(d, &extend, &["s.streams.exr", "stream file", "--extend"]);
+    not(&extend, "seed");
 }

@@ -74,3 +74,14 @@ fn log_lines_to_a_file_carry_no_colour_codes_and_unknown_levels_are_refused() {
         assert!(out.status.success(), "--log {good:?}: {}", String::from_utf8_lossy(&out.stderr));
     }
 }
+
+#[test]
+fn help_and_listings_into_a_closed_pipe_end_well() {
+    let dir = tempfile::tempdir().unwrap();
+    for args in
+        [&["--help"][..], &["--version"], &["render", "--help"], &["reconstruct", "--list"], &["reconstruct", "--help-method", "ours"]]
+    {
+        let status = with_closed_pipes(dir.path(), args);
+        assert!(status.success(), "{args:?}: {status}");
+    }
+}

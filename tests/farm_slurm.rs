@@ -158,6 +158,7 @@ fn farm_renders_on_a_real_slurm_cluster_merge_exactly_and_rerun_only_failed_part
     assert!(stdout(&out).contains("nothing to submit"), "{}", stdout(&out));
 
     farm_study_matches_the_study(d, &conf);
+    an_output_with_a_space_and_sbatch_arguments(d, &conf, &streams);
 
     // `down` ends what `up` started, and again is harmless.
     let slurm_dir = cluster.dir.clone();
@@ -165,6 +166,29 @@ fn farm_renders_on_a_real_slurm_cluster_merge_exactly_and_rerun_only_failed_part
     let out = Command::new("bash").arg(script()).args(["down", slurm_dir.to_str().unwrap()]).output().unwrap();
     assert!(out.status.success(), "{out:?}");
     assert_eq!(processes_using(&slurm_dir), Vec::<String>::new(), "processes of the cluster are left");
+}
+
+/// The stream file of `streams` again, into a folder whose name has a space and a `#` (which
+/// sbatch reads as a comment outside quotes), with an argument for sbatch: the logs land in the
+/// job folder, and the merge is the one-shot file.
+fn an_output_with_a_space_and_sbatch_arguments(d: &Path, conf: &str, streams: &[&str]) {
+    let folder = "spaced out #1";
+    std::fs::create_dir(d.join(folder)).unwrap();
+    let sp = scene();
+    let args = [
+        &["--log", "warn", "farm", "render", sp.to_str().unwrap(), "--parts", "2", "-o", "spaced out #1/s.streams.exr"][..],
+        &["--sbatch-arg=--partition=local", "--submit"],
+        streams,
+    ]
+    .concat();
+    ok(&farm(d, conf, &args));
+    let job = "spaced out #1/s.streams.farm";
+    let report = wait_for(d, conf, job, &["done", "failed", "cancelled"]);
+    assert!(report.contains("merge: done") && report.contains("2 of 2 parts done"), "{report}");
+    same_bytes(&d.join("one.streams.exr"), &d.join(folder).join("s.streams.exr"));
+    let logs = common::files_in(&d.join(job).join("logs"));
+    assert!(logs.contains(&"part-0.out".to_string()) && logs.iter().any(|l| l.starts_with("merge-")), "{logs:?}");
+    assert!(!d.join("spaced").exists(), "sbatch cut the log path at the space");
 }
 
 /// The command lines of running processes that name `dir`.

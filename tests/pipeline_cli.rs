@@ -101,7 +101,10 @@ fn reconstruct_rejects_bad_inputs_with_the_file_named() {
         (&["reconstruct", "s.streams.exr", "--method", "ours", "-o", "x.png"], "x.png: this output is written as OpenEXR"),
         (&["reconstruct", "s.streams.exr", "--method", "pt", "--force", "-o", "s.streams.exr"], "s.streams.exr: is also an input"),
         (&["reconstruct", "s.streams.exr", "--method", "pt", "--exposure=nan", "-o", "x.exr"], "--exposure NaN"),
-        (&["reconstruct", "s.streams.exr", "--method", "cv", "--k", "1", "-o", "x.exr"], "--k 1 (cv.k): must be between 2"),
+        (
+            &["reconstruct", "s.streams.exr", "--method", "cv", "--k", "1", "-o", "x.exr"],
+            "--k 1 (sets cv.k and ours.k): cv.k must be between 2",
+        ),
         // A failed `--method all` does not leave its new directory behind.
         (&["reconstruct", "missing.streams.exr", "--method", "all", "-o", "new-dir"], "missing.streams.exr"),
     ];
@@ -129,8 +132,8 @@ fn absurd_arguments_fail_before_any_work() {
         a
     };
     let cases: Vec<(Vec<String>, &str)> = vec![
-        (study(&["--batches", "0", "--seeds", "1"]), "--batches must be at least 1"),
-        (study(&["--seeds", "4000000000"]), "--seeds 4000000000"),
+        (study(&["--batches", "0", "--seeds", "1"]), "'0' for '--batches <BATCHES>': 0 is not in 1..=100"),
+        (study(&["--seeds", "4000000000"]), "'4000000000' for '--seeds <SEEDS>': 4000000000 is not in 1..=10000"),
         // iduw needs a multiple of 4 batches: known before the first render.
         (study(&["--batches", "2", "--seeds", "1"]), "`iduw` needs a positive multiple of 4 batches"),
         (
@@ -139,7 +142,10 @@ fn absurd_arguments_fail_before_any_work() {
                 .to_vec(),
             "ref.exr: not a valid glTF",
         ),
-        (["--threads", "100000", "reconstruct", "s.streams.exr", "-o", "x.exr"].map(String::from).to_vec(), "--threads 100000"),
+        (
+            ["--threads", "100000", "reconstruct", "s.streams.exr", "-o", "x.exr"].map(String::from).to_vec(),
+            "'100000' for '--threads <THREADS>': 100000 is not in 1..=1024",
+        ),
         (["compare", "--reference", "ref.exr", "s.streams.exr"].map(String::from).to_vec(), "s.streams.exr: is a PT/CRN stream file"),
         (
             ["compare", "--reference", "ref.exr", "ref.exr", "--csv", "ref.exr", "--force"].map(String::from).to_vec(),

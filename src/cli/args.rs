@@ -30,10 +30,10 @@ impl From<TraversalArg> for Traversal {
 pub struct ViewArgs {
     /// Image width [default: the scene's (sidecar, else the glTF's defaultResolution), else 256;
     /// with only --height given, from the camera's aspect ratio].
-    #[arg(long)]
+    #[arg(long, value_parser = side_parser(), allow_hyphen_values = true)]
     pub width: Option<u32>,
     /// Image height [default: the scene's, else from the width and the camera's aspect ratio].
-    #[arg(long)]
+    #[arg(long, value_parser = side_parser(), allow_hyphen_values = true)]
     pub height: Option<u32>,
     /// Longest path in segments from the camera (Mitsuba convention), -1 for unlimited
     /// [default: the sidecar's max_depth, else -1].
@@ -111,29 +111,66 @@ pub fn parse_part(s: &str) -> Result<PartSpec, String> {
     s.parse()
 }
 
-/// Eye, target and vertical field of view from `--camera`.
+/// Eye, target and vertical field of view from `--camera`. A value in the right format that
+/// is no finite number is named as such.
 fn parse_camera(s: &str) -> Result<CameraView> {
     let usage = "expected --camera \"ex,ey,ez:tx,ty,tz:vfov\", e.g. \"278,273,-800:278,273,0:37\"";
     let parts: Vec<&str> = s.split(':').collect();
     if parts.len() != 3 {
         bail!("--camera {s:?}: {usage}");
     }
-    let vec3 = |p: &str| -> Result<Vec3A> {
-        let v: Vec<f32> =
-            p.split(',').map(|x| x.trim().parse::<f32>()).collect::<Result<_, _>>().with_context(|| format!("--camera {s:?}: {usage}"))?;
-        match v[..] {
-            [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Vec3A::new(x, y, z)),
-            _ => bail!("--camera {s:?}: {usage}"),
+    let number = |text: &str, what: &str| -> Result<f32> {
+        let v: f32 = text.trim().parse().with_context(|| format!("--camera {s:?}: {usage}"))?;
+        if !v.is_finite() {
+            bail!("--camera {s:?}: the {what} {:?} is not a finite number", text.trim());
         }
+        Ok(v)
     };
-    let vfov_deg: f32 = parts[2].trim().parse().with_context(|| format!("--camera {s:?}: {usage}"))?;
-    Ok(CameraView { eye: vec3(parts[0])?, target: vec3(parts[1])?, vfov_deg })
+    let vec3 = |p: &str, what: &str| -> Result<Vec3A> {
+        let texts: Vec<&str> = p.split(',').collect();
+        if texts.len() != 3 {
+            bail!("--camera {s:?}: {usage}");
+        }
+        let mut v = [0.0f32; 3];
+        for ((c, text), axis) in v.iter_mut().zip(&texts).zip(["x", "y", "z"]) {
+            *c = number(text, &format!("{what}'s {axis}"))?;
+        }
+        Ok(Vec3A::from_array(v))
+    };
+    let (eye, target) = (vec3(parts[0], "eye")?, vec3(parts[1], "target")?);
+    Ok(CameraView { eye, target, vfov_deg: number(parts[2], "field of view")? })
 }
 
 /// Sample counts on the command line: 1 up to what a file records (an EXR `int`), with the
-/// range in clap's own error, and `-8` taken as the (refused) value it is rather than a flag.
+/// range in clap's own error, and `-8` taken as the (refused) value it is rather than a flag
+/// (each such flag also allows hyphen values).
 pub fn spp_parser() -> clap::builder::RangedI64ValueParser<u32> {
     clap::value_parser!(u32).range(1..=cvtrace_render::settings::MAX_SPP as i64)
+}
+
+/// An image side: 1 to the largest the renderer takes.
+pub fn side_parser() -> clap::builder::RangedI64ValueParser<u32> {
+    clap::value_parser!(u32).range(1..=cvtrace_render::settings::MAX_IMAGE_SIDE as i64)
+}
+
+/// A batch count: 1 to what the stream file numbers.
+pub fn batches_parser() -> clap::builder::RangedI64ValueParser<u32> {
+    clap::value_parser!(u32).range(1..=cvtrace_render::settings::MAX_BATCHES as i64)
+}
+
+/// A count with no limit of its own but 1 (parts; the passes to stop after).
+pub fn count_parser() -> clap::builder::RangedI64ValueParser<u32> {
+    clap::value_parser!(u32).range(1..=u32::MAX as i64)
+}
+
+/// A seed: any 64-bit unsigned number; a negative one is out of range in the words clap uses
+/// for the other counts.
+pub fn parse_seed(s: &str) -> Result<u64, String> {
+    match (s.trim().parse::<u64>(), s.trim().parse::<i128>()) {
+        (Ok(v), _) => Ok(v),
+        (Err(_), Ok(_)) => Err(format!("{} is not in 0..={}", s.trim(), u64::MAX)),
+        (Err(e), Err(_)) => Err(e.to_string()),
+    }
 }
 
 #[cfg(test)]
@@ -147,6 +184,18 @@ mod tests {
         for bad in ["1,2:3,4,5:6", "1,2,3:4,5,6", "a,b,c:1,2,3:4", "1,2,3:4,5,6:x", "1,2,3,4:5,6,7:8", "nan,0,0:1,1,1:30"] {
             assert!(parse_camera(bad).is_err(), "{bad}");
         }
+        // The format is right: the value at fault is named, not the format repeated.
+        let e = parse_camera("0,inf,0:1,1,1:30").unwrap_err().to_string();
+        assert!(e.contains("eye's y \"inf\" is not a finite number") && !e.contains("expected"), "{e}");
+        let e = parse_camera("0,0,0:1,1,1:NaN").unwrap_err().to_string();
+        assert!(e.contains("field of view \"NaN\""), "{e}");
+    }
+
+    #[test]
+    fn seeds_take_every_u64_and_name_the_range_of_negative_ones() {
+        assert_eq!(parse_seed("18446744073709551615"), Ok(u64::MAX));
+        assert_eq!(parse_seed("-1"), Err("-1 is not in 0..=18446744073709551615".into()));
+        assert!(parse_seed("x").is_err() && parse_seed("18446744073709551616").is_err());
     }
 
     #[test]

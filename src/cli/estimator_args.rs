@@ -10,12 +10,46 @@ use cvtrace_reconstruct::{Overrides, ParamKind};
 #[derive(Clone, Debug, Default)]
 pub struct EstimatorArgs {
     pub assignments: Vec<String>,
+    /// The alias flags given with a value: (flag, value).
+    pub aliases: Vec<(&'static str, String)>,
 }
 
 impl EstimatorArgs {
-    /// The assignments as overrides; each is checked against the registry by its caller.
+    /// The assignments as overrides, unchecked.
     pub fn overrides(&self) -> anyhow::Result<Overrides> {
         Ok(Overrides::parse(&self.assignments)?)
+    }
+
+    /// The assignments as overrides, each checked against the registry. A flag that sets the
+    /// parameter of several estimators (`--k`: `cv.k` and `ours.k`) is checked against each of
+    /// them first, and its error names the flag and every parameter it sets.
+    pub fn checked(&self) -> anyhow::Result<Overrides> {
+        let all = aliases();
+        for (flag, value) in &self.aliases {
+            let Some(alias) = all.iter().find(|a| a.flag == *flag) else { continue };
+            let mut problems: Vec<(String, String)> = Vec::new();
+            for (method, param, _) in &alias.targets {
+                let spec = registry().get(method)?;
+                if let Some(p) = spec.params.iter().find(|p| p.name == *param) {
+                    if let Err(why) = p.kind.parse(value) {
+                        problems.push((format!("{method}.{param}"), why));
+                    }
+                }
+            }
+            if problems.is_empty() {
+                continue;
+            }
+            let sets = alias.targets.iter().map(|(m, p, _)| format!("{m}.{p}")).collect::<Vec<_>>().join(" and ");
+            let why = if problems.len() == alias.targets.len() && problems.iter().all(|(_, w)| *w == problems[0].1) {
+                problems[0].1.clone()
+            } else {
+                problems.iter().map(|(name, why)| format!("{name} {why}")).collect::<Vec<_>>().join("; ")
+            };
+            anyhow::bail!("invalid option --{flag} {value} (sets {sets}): {why}");
+        }
+        let overrides = self.overrides()?;
+        registry().check(&overrides)?;
+        Ok(overrides)
     }
 }
 
@@ -43,17 +77,20 @@ fn aliases() -> Vec<Alias> {
 
 impl clap::FromArgMatches for EstimatorArgs {
     fn from_arg_matches(m: &ArgMatches) -> Result<Self, clap::Error> {
-        let mut assignments = Vec::new();
+        let (mut assignments, mut given) = (Vec::new(), Vec::new());
         for a in aliases() {
             let value = if a.switch { m.get_flag(a.flag).then(|| "true".to_string()) } else { m.get_one::<String>(a.flag).cloned() };
             if let Some(v) = value {
                 assignments.extend(a.targets.iter().map(|(method, param, _)| format!("{method}.{param}={v}")));
+                if !a.switch {
+                    given.push((a.flag, v));
+                }
             }
         }
         if let Some(params) = m.get_many::<String>("param") {
             assignments.extend(params.cloned());
         }
-        Ok(EstimatorArgs { assignments })
+        Ok(EstimatorArgs { assignments, aliases: given })
     }
 
     fn update_from_arg_matches(&mut self, m: &ArgMatches) -> Result<(), clap::Error> {
@@ -74,8 +111,10 @@ impl clap::Args for EstimatorArgs {
         );
         for a in aliases() {
             let methods: Vec<&str> = a.targets.iter().map(|(m, _, _)| *m).collect();
-            let (method, param, doc) = a.targets[0];
-            let help = format!("{}: {doc} (= --param {method}.{param}=…)", methods.join("/"));
+            let doc = a.targets[0].2;
+            // Every parameter the flag sets, not only the first estimator's.
+            let params = a.targets.iter().map(|(m, p, _)| format!("--param {m}.{p}=…")).collect::<Vec<_>>().join(" ");
+            let help = format!("{}: {doc} (= {params})", methods.join("/"));
             let arg = Arg::new(a.flag).long(a.flag).help(help);
             cmd = cmd.arg(if a.switch {
                 arg.action(ArgAction::SetTrue)

@@ -23,6 +23,10 @@ pub fn make_parent_folders(output: &Path) -> Result<Vec<PathBuf>> {
     let Some(parent) = output.parent().filter(|p| !p.as_os_str().is_empty()) else { return Ok(Vec::new()) };
     let missing: Vec<PathBuf> =
         parent.ancestors().take_while(|p| !p.as_os_str().is_empty() && !p.exists()).map(Path::to_path_buf).collect();
+    // `-o file.exr/sub.exr`: the folder to write in is a file.
+    if let Some(file) = parent.ancestors().find(|p| !p.as_os_str().is_empty() && p.exists()).filter(|p| !p.is_dir()) {
+        bail!("{}: {} is a file, not a folder", output.display(), file.display());
+    }
     if !missing.is_empty() {
         cvtrace_streams::atomic::create_dir_all(parent)?;
     }

@@ -20,6 +20,10 @@ impl Progress for TerminalProgress {
     }
 
     fn advance(&self, samples: u64) {
+        // Interrupted, the process is ending: a bar drawn now would land after the note.
+        if cvtrace_streams::atomic::interrupted() {
+            return;
+        }
         if let Some(bar) = self.bar.get() {
             bar.inc(samples);
         }

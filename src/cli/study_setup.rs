@@ -1,7 +1,7 @@
 //! `cvtrace study`'s flags and every check it makes before it writes anything: the scene loads,
 //! the estimators' needs, a given reference matches. `study` then runs what was prepared;
 //! `farm study` prepares only, so that its tasks fail only for reasons of their node.
-use crate::cli::args::{default_batches, spp_parser, ViewArgs};
+use crate::cli::args::{batches_parser, default_batches, parse_seed, spp_parser, ViewArgs};
 use crate::cli::estimator_args::EstimatorArgs;
 use crate::cli::files::{check_input_file, same_output};
 use crate::cli::registry;
@@ -13,17 +13,8 @@ use cvtrace_streams::exr_io::{take_rgb, AttrValue, ExrChannels};
 use cvtrace_streams::provenance::describe_all;
 use cvtrace_streams::Provenance;
 use cvtrace_study::files::Cell;
-use cvtrace_study::{Column, Study, PT2N_SEED_OFFSET};
+use cvtrace_study::{Column, Study, DEFAULT_REFERENCE_SPP, DEFAULT_SPP, MAX_SEEDS, PT2N_SEED_OFFSET};
 use std::path::{Path, PathBuf};
-
-/// More seeds than this is a typo, not a study: each seed writes two renders.
-const MAX_SEEDS: u32 = 10_000;
-/// Seed of a reference rendered by the study (distinct from every stream seed).
-pub const REFERENCE_SEED: u64 = 0x7265_6665_7265_6e63;
-/// Samples per pixel of each stream when neither --spp nor -D spp gives them.
-const DEFAULT_SPP: u32 = 96;
-/// Reference spp when neither --reference-spp nor the scene's sidecar gives one.
-const DEFAULT_REFERENCE_SPP: u32 = 4096;
 
 #[derive(clap::Args, Debug)]
 pub struct StudyArgs {
@@ -34,21 +25,21 @@ pub struct StudyArgs {
     #[arg(long, value_delimiter = ',', value_parser = spp_parser(), allow_hyphen_values = true)]
     pub spp: Vec<u32>,
     /// Independent seeds per spp value.
-    #[arg(long, default_value_t = 8)]
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=MAX_SEEDS as i64), allow_hyphen_values = true)]
     pub seeds: u32,
     /// First seed; seed i uses `seed + i` for its streams.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = parse_seed, allow_hyphen_values = true)]
     pub seed: u64,
     /// Batches per stream (must divide every spp value) [default: the most of 16, 8, 4, 2, 1
     /// that divides every spp value; iduw needs a multiple of 4].
-    #[arg(long)]
+    #[arg(long, value_parser = batches_parser(), allow_hyphen_values = true)]
     pub batches: Option<u32>,
     /// Reference EXR; rendered (PT, --reference-spp) when the file does not exist.
     #[arg(long)]
     pub reference: PathBuf,
     /// Samples per pixel of a reference the study renders itself [default: -D reference_spp,
     /// else the scene sidecar's reference_spp, else 4096].
-    #[arg(long)]
+    #[arg(long, value_parser = spp_parser(), allow_hyphen_values = true)]
     pub reference_spp: Option<u32>,
     /// Study folder (created; reused to resume).
     #[arg(short, long)]
@@ -112,18 +103,12 @@ pub fn prepare(args: &StudyArgs) -> Result<Prepared> {
     if spps.is_empty() || spps[0] == 0 {
         bail!("--spp needs positive values");
     }
-    if args.seeds == 0 || args.seeds > MAX_SEEDS {
-        bail!("--seeds {}: must be between 1 and {MAX_SEEDS}", args.seeds);
-    }
     if let Some(cell) = args.cell {
         if !spps.contains(&cell.spp) || cell.index >= args.seeds {
             bail!("--cell {cell}: not a cell of this study (--spp {:?}, seed indices 0..{})", spps, args.seeds);
         }
     }
     if let Some(b) = args.batches {
-        if b == 0 {
-            bail!("--batches must be at least 1");
-        }
         if let Some(bad) = spps.iter().find(|&&n| n % b != 0) {
             bail!("--batches {b} does not divide --spp {bad}; every spp value must be a multiple of the batch count");
         }
@@ -164,8 +149,7 @@ pub fn prepare(args: &StudyArgs) -> Result<Prepared> {
     let pixels = plan.settings.width as u64 * plan.settings.height as u64;
     // Counts aside: they differ between the study's renders.
     let planned = plan.provenance.without_counts();
-    let overrides = args.options.overrides()?;
-    registry().check(&overrides)?;
+    let overrides = args.options.checked()?;
     let columns = cvtrace_study::columns(registry(), &overrides, args.ablations)?;
     let batches = args.batches.unwrap_or_else(|| default_batches(&spps));
     let headline = cvtrace_study::headline(&args.headline, &columns)?;
@@ -198,12 +182,7 @@ pub fn prepare(args: &StudyArgs) -> Result<Prepared> {
     };
     let reference_spp = match (&existing, args.reference_spp) {
         (Some(_), _) => 0,
-        (None, Some(n)) => {
-            if n == 0 || n > MAX_SPP {
-                bail!("--reference-spp {n}: must be between 1 and {MAX_SPP}");
-            }
-            n
-        }
+        (None, Some(n)) => n,
         (None, None) => session.scene().render_defaults().reference_spp.unwrap_or(DEFAULT_REFERENCE_SPP),
     };
     if existing.is_none() {

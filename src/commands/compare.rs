@@ -1,7 +1,7 @@
 //! `cvtrace compare`: error of finished images against one reference, as a table
 //! (terminal, and optionally CSV/JSON).
 use anyhow::{bail, Result};
-use cvtrace_eval::compare::compare_files;
+use cvtrace_eval::compare::{compare_files, compare_table};
 use cvtrace_eval::{table, StudyResults};
 use std::path::PathBuf;
 
@@ -34,8 +34,24 @@ pub fn run(args: CompareArgs) -> Result<()> {
     let inputs: Vec<&std::path::Path> = std::iter::once(args.reference.as_path()).chain(args.images.iter().map(PathBuf::as_path)).collect();
     for p in args.csv.iter().chain(args.json.iter()) {
         crate::cli::files::refuse_overwriting_inputs(p, &inputs)?;
-        cvtrace_streams::atomic::check_writable(p, args.force)?;
     }
+    // Missing folders of the outputs are made, and taken back if the command fails.
+    let mut made = Vec::new();
+    let result = (|| {
+        for p in args.csv.iter().chain(args.json.iter()) {
+            made.extend(crate::cli::files::make_parent_folders(p)?);
+            cvtrace_streams::atomic::check_writable(p, args.force)?;
+        }
+        compare(&args)
+    })();
+    if result.is_err() {
+        made.sort_by_key(|d| std::cmp::Reverse(d.components().count()));
+        crate::cli::files::remove_empty(&made);
+    }
+    result
+}
+
+fn compare(args: &CompareArgs) -> Result<()> {
     // A PNG preview next to an EXR is an easy slip with `out/*`: skip it with a note.
     let (images, skipped): (Vec<PathBuf>, Vec<PathBuf>) =
         args.images.iter().cloned().partition(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")));
@@ -58,8 +74,11 @@ pub fn run(args: CompareArgs) -> Result<()> {
         bail!("no images to compare: every EXR given is the reference {}", args.reference.display());
     }
     let scene = compare_files(&args.reference, &images)?;
+    for w in &scene.warnings {
+        tracing::warn!("{w}");
+    }
+    crate::cli::say!("{}", compare_table(&scene).trim_end_matches('\n'));
     let results = StudyResults::new(vec![scene]);
-    crate::cli::say!("{}", table::terminal_report(&results).trim_end_matches('\n'));
     // The CSV and the JSON are one set: if the second cannot be written, the first is taken back.
     let mut written = cvtrace_streams::atomic::OutputSet::new();
     if let Some(p) = &args.csv {

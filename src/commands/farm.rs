@@ -1,7 +1,7 @@
 //! `cvtrace farm`: a render as parts, or a study as cells, on a Slurm cluster (a job folder, its
 //! submission, its status). The bookkeeping is `cvtrace-farm`'s; this file maps flags to a plan
 //! and prints.
-use crate::cli::args::{default_batches, spp_parser, ViewArgs};
+use crate::cli::args::{batches_parser, count_parser, default_batches, parse_seed, spp_parser, ViewArgs};
 use crate::cli::say;
 use crate::cli::study_setup::{prepare, StudyArgs};
 use anyhow::{bail, Context, Result};
@@ -37,19 +37,19 @@ pub struct FarmRenderArgs {
     #[arg(long, value_parser = spp_parser(), allow_hyphen_values = true)]
     pub spp: u32,
     /// Batches per stream [default: the most of 16, 8, 4, 2, 1 that divide --spp].
-    #[arg(long)]
+    #[arg(long, value_parser = batches_parser(), allow_hyphen_values = true)]
     pub batches: Option<u32>,
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = parse_seed, allow_hyphen_values = true)]
     pub seed: u64,
     #[command(flatten)]
     pub view: ViewArgs,
     /// A reference: the parts are ranges of passes of --pass-spp samples.
     #[arg(long)]
     pub reference: bool,
-    #[arg(long, default_value_t = 64, requires = "reference")]
+    #[arg(long, default_value_t = 64, requires = "reference", value_parser = spp_parser(), allow_hyphen_values = true)]
     pub pass_spp: u32,
     /// Number of parts (array tasks): at most the number of batches (or passes).
-    #[arg(long)]
+    #[arg(long, value_parser = count_parser(), allow_hyphen_values = true)]
     pub parts: u32,
     #[command(flatten)]
     pub job: JobArgs,
@@ -77,7 +77,9 @@ pub struct JobArgs {
     /// job that then merges or summarises them.
     #[arg(long)]
     pub submit: bool,
-    /// An argument for sbatch (repeatable), e.g. --sbatch-arg=--partition=gpu.
+    /// An argument for sbatch (repeatable), e.g. --sbatch-arg=--partition=gpu: kept in the job
+    /// folder's scripts (`#SBATCH`) and given to every submission; a later run without any
+    /// keeps them, one with others replaces them.
     #[arg(long = "sbatch-arg", value_name = "ARG", allow_hyphen_values = true)]
     pub sbatch_args: Vec<String>,
 }
@@ -104,16 +106,10 @@ fn default_dir(output: &Path) -> PathBuf {
 fn render(a: FarmRenderArgs) -> Result<()> {
     crate::cli::files::check_input_file(&a.scene)?;
     cvtrace_streams::atomic::check_extension(&a.output, "exr")?;
-    if a.parts == 0 {
-        bail!("--parts 0: there must be at least one part");
-    }
     let mut render_args = vec!["--spp".to_string(), a.spp.to_string()];
     let (units, what, pass_spp) = if a.reference {
         if a.batches.is_some() {
             bail!("--batches does not apply to --reference renders (they have a single PT stream)");
-        }
-        if a.pass_spp == 0 {
-            bail!("--pass-spp must be at least 1");
         }
         render_args.extend(["--reference".into(), "--pass-spp".into(), a.pass_spp.to_string()]);
         (a.spp.div_ceil(a.pass_spp), "passes", Some(a.pass_spp))
@@ -169,7 +165,7 @@ fn render(a: FarmRenderArgs) -> Result<()> {
             return Err(e.into());
         }
     }
-    let folder = JobFolder::create(&dir, plan)?;
+    let folder = JobFolder::create(&dir, plan, &a.job.sbatch_args)?;
     if new {
         tracing::info!("wrote the job folder {} ({} parts of {units} {what})", folder.dir.display(), a.parts);
     }
@@ -177,12 +173,12 @@ fn render(a: FarmRenderArgs) -> Result<()> {
         say!("job folder {}: submit it with\n{}or run this command again with --submit", folder.dir.display(), folder.how_to_submit());
         return Ok(());
     }
-    submit(&folder, &a.job.sbatch_args)
+    submit(&folder)
 }
 
-/// Submits what `folder` still needs and says what was submitted.
-fn submit(folder: &JobFolder, sbatch_args: &[String]) -> Result<()> {
-    let s = folder.submit(&Slurm, sbatch_args)?;
+/// Submits what `folder` still needs (with its sbatch arguments) and says what was submitted.
+fn submit(folder: &JobFolder) -> Result<()> {
+    let s = folder.submit(&Slurm, &folder.manifest.sbatch_args)?;
     let names = folder.manifest.scripts();
     let (task, last) = (names.task, names.last_name);
     let output = folder.manifest.final_output();
@@ -284,7 +280,7 @@ fn study(a: FarmStudyArgs) -> Result<()> {
         study: Some(StudyCells { spps, seeds: s.seeds }),
     };
     let new = !dir.join("manifest.json").exists();
-    let folder = JobFolder::create(&dir, plan)?;
+    let folder = JobFolder::create(&dir, plan, &a.job.sbatch_args)?;
     if new {
         tracing::info!("wrote the job folder {} ({cells} cells)", folder.dir.display());
     }
@@ -292,7 +288,7 @@ fn study(a: FarmStudyArgs) -> Result<()> {
         say!("job folder {}: submit it with\n{}or run this command again with --submit", folder.dir.display(), folder.how_to_submit());
         return Ok(());
     }
-    submit(&folder, &a.job.sbatch_args)
+    submit(&folder)
 }
 
 fn status(dir: &Path) -> Result<()> {

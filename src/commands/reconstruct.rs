@@ -120,10 +120,9 @@ pub fn run(args: ReconstructArgs) -> Result<()> {
 
 fn reconstruct(args: &ReconstructArgs, input_path: PathBuf, output: PathBuf) -> Result<()> {
     check_exposure(args.exposure)?;
-    let overrides = args.options.overrides()?;
     // Every option given is checked, also those of methods not run: `--method pt --k 0` is as
     // much a mistake as `--method ours --k 0`.
-    registry().check(&overrides)?;
+    let overrides = args.options.checked()?;
     // Build every estimator first: absurd options fail before any file is read.
     let mut estimators: Vec<(Target, Instance)> =
         targets(args, &output)?.into_iter().map(|t| registry().build(t.spec.name, &overrides).map(|e| (t, e))).collect::<Result<_, _>>()?;
@@ -144,6 +143,14 @@ fn reconstruct(args: &ReconstructArgs, input_path: PathBuf, output: PathBuf) -> 
     let inputs: Vec<&Path> = std::iter::once(input_path.as_path()).chain(args.reference.as_deref()).chain(args.pt2n.as_deref()).collect();
     for p in &inputs {
         crate::cli::files::check_input_file(p)?;
+    }
+    // A reference or PT(2n) render of another scene, camera or path length is of another image.
+    if parse_iduw_name(&input_path).is_none() {
+        for (other, what) in [(&args.reference, "reference"), (&args.pt2n, "PT(2n) render")] {
+            if let Some(other) = other {
+                cvtrace_streams::Provenance::check_same_image(other, what, &input_path)?;
+            }
+        }
     }
     for (t, _) in &estimators {
         for out in std::iter::once(&t.exr).chain(&t.png) {
@@ -170,6 +177,12 @@ fn reconstruct(args: &ReconstructArgs, input_path: PathBuf, output: PathBuf) -> 
         );
     }
     let reference = args.reference.as_deref().map(read_rgb).transpose()?;
+    if let (Some(path), Some(image)) = (&args.reference, &reference) {
+        // Black, or negative pixels: relMSE is no measure against it.
+        if let Some(w) = cvtrace_eval::Reference::new(image.clone(), path.display().to_string())?.unusable_warning() {
+            tracing::warn!("{w}");
+        }
+    }
     let pt2n = args.pt2n.as_deref().map(read_rgb).transpose()?;
     tracing::info!(
         "read {} ({}x{}, {} spp per stream, {} batches) in {:.2} s",
@@ -202,15 +215,7 @@ fn reconstruct(args: &ReconstructArgs, input_path: PathBuf, output: PathBuf) -> 
     for (_, estimator) in &estimators {
         let out = estimator.run(&input)?;
         tracing::info!("{}: {:.3} s", estimator.name(), out.diagnostics.seconds);
-        if let Some((x, y, c)) = out.image.find_non_finite() {
-            bail!(
-                "{streams_name}: `{}` produced a non-finite value at pixel ({x}, {y}), channel {}; the input holds values \
-                 too large for f32 arithmetic (largest {:e})",
-                estimator.name(),
-                ["R", "G", "B"][c],
-                set.pt.mean.pixels.iter().chain(&set.crn.mean.pixels).flatten().fold(0.0f32, |m, v| m.max(v.abs()))
-            );
-        }
+        input.check_output(estimator.name(), &out.image)?;
         outputs.push(out);
     }
     // The images are one set: a run that fails or is interrupted half-way takes back what it

@@ -10,7 +10,7 @@
 //! (`[render]`, docs/scene-format.md), then the glTF's `asset.extras.defaultResolution` (size
 //! only), then the built-in defaults.
 //! Outputs are written atomically: an error or interruption never leaves a partial file.
-use crate::cli::args::{default_batches, parse_part, spp_parser, ViewArgs};
+use crate::cli::args::{batches_parser, default_batches, parse_part, parse_seed, spp_parser, ViewArgs};
 use crate::cli::files::{make_parent_folders, refuse_overwriting_inputs, remove_empty, set_interrupt_note};
 use crate::cli::progress::TerminalProgress;
 use anyhow::{bail, Result};
@@ -32,10 +32,10 @@ pub struct RenderArgs {
     pub spp: Option<u32>,
     /// Batches per stream (must divide --spp) [default: the most of 16, 8, 4, 2, 1 that divides
     /// --spp; 16 is the estimators' measured default, docs/estimators.md]. Not used with --reference.
-    #[arg(long)]
+    #[arg(long, value_parser = batches_parser(), allow_hyphen_values = true)]
     pub batches: Option<u32>,
     /// Random seed: the same seed and settings give bit-identical output.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = parse_seed, allow_hyphen_values = true)]
     pub seed: u64,
     #[command(flatten)]
     pub view: ViewArgs,
@@ -43,7 +43,7 @@ pub struct RenderArgs {
     #[arg(long)]
     pub reference: bool,
     /// With --reference: samples per pixel per pass; a checkpoint is saved after every pass.
-    #[arg(long, default_value_t = 64, requires = "reference")]
+    #[arg(long, default_value_t = 64, requires = "reference", value_parser = spp_parser(), allow_hyphen_values = true)]
     pub pass_spp: u32,
     /// Replace an existing output file.
     #[arg(long)]
@@ -62,7 +62,7 @@ pub struct RenderArgs {
     #[arg(long, value_name = "I/N", value_parser = parse_part)]
     pub part: Option<PartSpec>,
     /// Testing aid: with --reference, stop (keeping the checkpoint) after this many passes.
-    #[arg(long, hide = true, requires = "reference")]
+    #[arg(long, hide = true, requires = "reference", value_parser = clap::value_parser!(u32).range(0..=u32::MAX as i64), allow_hyphen_values = true)]
     pub stop_after_passes: Option<u32>,
 }
 
@@ -74,9 +74,6 @@ pub fn run(args: RenderArgs) -> Result<()> {
         (false, Some(b)) => b,
         (false, None) => default_batches(&args.spp.or(args.view.defined("spp")).into_iter().collect::<Vec<_>>()),
     };
-    if args.reference && args.pass_spp == 0 {
-        bail!("--pass-spp must be at least 1");
-    }
     if args.part.is_some() && args.preview.is_some() {
         bail!("--preview: a part has no finished image; preview the merged file");
     }

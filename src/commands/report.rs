@@ -133,8 +133,15 @@ pub fn run(args: ReportArgs) -> Result<()> {
         check_markdown_path(md, &args.output, &dirs)?;
         cvtrace_streams::atomic::check_writable(md, args.force)?;
     }
-    let index = write_report(&results, &root, &args.output, &ReportOptions { title: args.title.clone(), overwrite: args.force })?;
-    crate::cli::say!("report: {}", index.display());
+    // The report claims its folder itself; its missing parents are made here, and taken back
+    // if it fails.
+    let made = crate::cli::files::make_parent_folders(&args.output)?;
+    let written = write_report(&results, &root, &args.output, &ReportOptions { title: args.title.clone(), overwrite: args.force })
+        .map(|index| crate::cli::say!("report: {}", index.display()));
+    if let Err(e) = written {
+        crate::cli::files::remove_empty(&made);
+        return Err(e.into());
+    }
     if let Some(md) = &args.markdown {
         let text = cvtrace_eval::table::markdown_summary(&results);
         cvtrace_streams::atomic::write_atomically(md, args.force, |tmp| std::fs::write(tmp, &text))?;

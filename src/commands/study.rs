@@ -10,13 +10,13 @@
 //! and prints.
 use crate::cli::progress::{progress_style_of, TerminalProgress};
 use crate::cli::say;
-use crate::cli::study_setup::{prepare, read_reference, study_name, Prepared, StudyArgs, REFERENCE_SEED};
+use crate::cli::study_setup::{prepare, read_reference, study_name, Prepared, StudyArgs};
 use anyhow::{Context, Result};
 use cvtrace_eval::results::ReferenceInfo;
 use cvtrace_eval::{table, Reference};
 use cvtrace_session::{Job, Progress, ReferenceJob, RenderSource};
 use cvtrace_streams::Provenance;
-use cvtrace_study::{SceneInfo, Study};
+use cvtrace_study::{SceneInfo, Study, REFERENCE_SEED};
 use indicatif::{ProgressBar, ProgressDrawTarget};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -105,7 +105,10 @@ impl Progress for StudyProgress {
     }
 
     fn advance(&self, samples: u64) {
-        self.bar.inc(samples);
+        // Interrupted, the process is ending: a bar drawn now would land after the note.
+        if !cvtrace_streams::atomic::interrupted() {
+            self.bar.inc(samples);
+        }
     }
 
     fn suspend(&self, f: &mut dyn FnMut()) {
@@ -131,7 +134,12 @@ fn study_in_folder(
         None => {
             tracing::info!("{} does not exist: rendering a {reference_spp} spp reference first", args.reference.display());
             let job = ReferenceJob::replacing(args.reference.clone(), args.view.view(), reference_spp, REFERENCE_SEED);
-            session.render(&Job::Reference(job), &TerminalProgress::default())?;
+            // Its missing folders are made, as `render` makes them, and taken back if it fails.
+            let made = crate::cli::files::make_parent_folders(&args.reference)?;
+            if let Err(e) = session.render(&Job::Reference(job), &TerminalProgress::default()) {
+                crate::cli::files::remove_empty(&made);
+                return Err(e.into());
+            }
             read_reference(args)?
         }
     };

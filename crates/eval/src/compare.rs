@@ -14,15 +14,22 @@ use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
 /// Reads the reference and every image; errors name the file at fault (unreadable EXR,
-/// missing R/G/B, non-finite values, size different from the reference).
+/// missing R/G/B, non-finite values, size different from the reference, a reference of another
+/// scene, camera or path length than an image records).
 pub fn compare_files(reference: &Path, images: &[PathBuf]) -> Result<SceneResult, EvalError> {
     if images.is_empty() {
         return Err(EvalError::invalid("compare", "no images to compare"));
+    }
+    // An image of another scene, camera or path length is no estimate of this reference.
+    for path in images {
+        cvtrace_streams::Provenance::check_same_image(reference, "reference", path)?;
     }
     let reference_img = Reference::read_exr(reference)?;
     let flip_reference = FlipReference::new(&reference_img.image, reference_img.label.clone())?;
     let mut names = BTreeSet::new();
     let mut methods = Vec::new();
+    // The samples per stream of the stream files the images were made from, as recorded.
+    let mut stream_spps = BTreeSet::new();
     for path in images {
         let label = path.display().to_string();
         let mut ch = ExrChannels::read(path)?;
@@ -47,6 +54,10 @@ pub fn compare_files(reference: &Path, images: &[PathBuf]) -> Result<SceneResult
             Some(AttrValue::Int(v)) if *v > 0 => *v as u32,
             _ => 0,
         };
+        stream_spps.insert(match ch.attr("cvtrace.streamSpp") {
+            Some(AttrValue::Int(v)) if *v > 0 => *v as u32,
+            _ => 0,
+        });
         // Show the method when the header named one the file name does not.
         let shown = if base == stem { label.clone() } else { format!("{base} ({label})") };
         let mut m = MethodResult::from_stats(&name, &shown, spp, &stats);
@@ -65,7 +76,11 @@ pub fn compare_files(reference: &Path, images: &[PathBuf]) -> Result<SceneResult
         name: name.trim_end_matches(".ref").to_string(),
         width: reference_img.width(),
         height: reference_img.height(),
-        spp_per_stream: 0,
+        // One value when every image records the same; 0 (unknown) otherwise.
+        spp_per_stream: match stream_spps.iter().collect::<Vec<_>>()[..] {
+            [&n] => n,
+            _ => 0,
+        },
         seeds: 1,
         reference: ReferenceInfo { path: ReferenceInfo::path_of(reference), spp: None, image: None, noise: None, values: None },
         methods,
@@ -77,6 +92,35 @@ pub fn compare_files(reference: &Path, images: &[PathBuf]) -> Result<SceneResult
         headline: crate::results::paper_headline(),
         render: Vec::new(),
     })
+}
+
+/// The terminal table of `compare`: one image per row, each scored once, so only what a single
+/// image has (samples, relMSE, MSE, HDR-FLIP, the reconstruction's seconds where its file
+/// records them); the study's columns over seeds would be empty. Warnings are the caller's to
+/// show.
+pub fn compare_table(scene: &SceneResult) -> String {
+    use crate::table::{aligned, fmt_num, fmt_seconds, scene_title};
+    let flip = scene.methods.iter().any(|m| m.flip_mean.is_some());
+    let seconds = scene.methods.iter().any(|m| m.time_seconds.reconstruct > 0.0);
+    let mut header = vec!["method", "spp", "relMSE", "MSE"];
+    header.extend(flip.then_some("FLIP"));
+    header.extend(seconds.then_some("recon s"));
+    let rows: Vec<Vec<String>> = scene
+        .methods
+        .iter()
+        .map(|m| {
+            let mut row = vec![
+                m.label.clone(),
+                if m.spp_total > 0 { m.spp_total.to_string() } else { "?".into() },
+                fmt_num(m.relmse_mean),
+                fmt_num(m.mse_mean),
+            ];
+            row.extend(flip.then(|| m.flip_mean.map(fmt_num).unwrap_or_else(|| "–".into())));
+            row.extend(seconds.then(|| fmt_seconds(m.time_seconds.reconstruct)));
+            row
+        })
+        .collect();
+    format!("{}\n\n{}", scene_title(scene), aligned(&header, &rows))
 }
 
 #[cfg(test)]
@@ -114,6 +158,13 @@ mod tests {
         assert!(ours.relmse_se.is_none() && ours.bias2.is_none());
         crate::results::StudyResults::new(vec![scene.clone()]).validate().unwrap();
         assert!(crate::table::terminal_table(&scene).contains("ours"));
+        // Only the columns a single image has: no standard errors, bias, variance or render time.
+        let table = compare_table(&scene);
+        let header = table.lines().find(|l| l.starts_with("method")).unwrap();
+        assert!(header.contains("relMSE") && header.contains("FLIP") && header.contains("recon s"), "{table}");
+        assert!(!header.contains("± se") && !header.contains("bias²") && !header.contains("render s"), "{table}");
+        // Neither file records the samples per stream.
+        assert_eq!(scene.spp_per_stream, 0);
         assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
 
         // A black reference cannot rank anything, and one with negative pixels is not radiance.

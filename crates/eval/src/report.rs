@@ -22,6 +22,7 @@ use crate::results::{Ratio, SceneResult, StudyResults};
 use crate::table::write_csv;
 use crate::EvalError;
 use cvtrace_streams::atomic::write_atomically;
+use cvtrace_streams::output_lock::{lock_path_for, OutputLock};
 use serde::Serialize;
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
@@ -84,6 +85,20 @@ pub fn write_report(results: &StudyResults, source_dir: &Path, out_dir: &Path, o
     if out_dir.exists() && !out_dir.is_dir() {
         return Err(EvalError::invalid(out_dir.display().to_string(), "is a file; the report needs a folder"));
     }
+    // Two reports into one folder would mix their files, and the roll-back of one that fails
+    // would take the other's: the folder is claimed (`.NAME.lock` beside it, in the folder's
+    // parent with its links resolved, so that every spelling of it meets the same lock) before
+    // it is looked at or made.
+    let io = |path: &Path, error| cvtrace_streams::StreamError::Io { path: path.to_path_buf(), error };
+    let claimed = match (out_dir.exists(), out_dir.file_name()) {
+        (false, Some(name)) => {
+            let parent = out_dir.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+            cvtrace_streams::atomic::create_dir_all(parent)?;
+            std::fs::canonicalize(parent).map_err(|e| io(parent, e))?.join(name)
+        }
+        _ => std::fs::canonicalize(out_dir).map_err(|e| io(out_dir, e))?,
+    };
+    let _claim = OutputLock::acquire(&lock_path_for(&claimed), out_dir)?;
     let index = out_dir.join("index.html");
     if !options.overwrite {
         if index.exists() {
@@ -108,11 +123,13 @@ pub fn write_report(results: &StudyResults, source_dir: &Path, out_dir: &Path, o
     cvtrace_streams::atomic::create_dir_all(out_dir)?;
     // Interrupted while filling a folder it made, the report takes the folder away again.
     let _partial = created.then(|| cvtrace_streams::atomic::remove_folder_on_interrupt(out_dir));
+    pause_for_tests();
     let written = write_viewer(results, source_dir, out_dir, options, &index, &earlier);
     match written {
-        // A folder this call made is removed again: a failed report leaves nothing behind.
+        // In a folder this call made, a failed report takes back what it wrote, and the folder
+        // if nothing else is in it: never a file it did not write.
         Err(e) if created => {
-            let _ = std::fs::remove_dir_all(out_dir);
+            remove_own_files(out_dir);
             Err(e)
         }
         Err(e) => Err(e),
@@ -120,6 +137,45 @@ pub fn write_report(results: &StudyResults, source_dir: &Path, out_dir: &Path, o
             remove_stale_images(out_dir, &earlier, &files);
             write_text(&out_dir.join(MANIFEST), &manifest_text(&files))?;
             Ok(index)
+        }
+    }
+}
+
+/// Testing aid, not for users: with `CVTRACE_TEST_PAUSE_REPORT=FILE` in the environment, a
+/// report that has made (or found) its folder creates FILE and waits, at most a minute, until
+/// FILE is removed, so that a test can act at this known point (start a second report, put a
+/// file into the folder).
+fn pause_for_tests() {
+    let Some(signal) = std::env::var_os("CVTRACE_TEST_PAUSE_REPORT") else { return };
+    if std::fs::write(&signal, b"paused\n").is_err() {
+        return;
+    }
+    let start = std::time::Instant::now();
+    while Path::new(&signal).exists() && start.elapsed() < std::time::Duration::from_secs(60) {
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
+}
+
+/// Removes what a report wrote into `out_dir` (a folder it made): its top-level files, the
+/// images and plots its [`MANIFEST`] lists (written before them), then the folders that are
+/// left empty, `out_dir` last. Anything else stays.
+fn remove_own_files(out_dir: &Path) {
+    let listed = earlier_report_files(out_dir);
+    for f in REPORT_FILES.iter().copied().filter(|f| *f != MANIFEST).map(String::from).chain(listed.iter().cloned()) {
+        let path = out_dir.join(&f);
+        if std::fs::symlink_metadata(&path).is_ok_and(|m| m.is_file()) {
+            let _ = std::fs::remove_file(&path);
+        }
+    }
+    let _ = std::fs::remove_file(out_dir.join(MANIFEST));
+    // The images' folders (`images/<scene>`), then `images` and `plots`, then the report's.
+    let mut folders: BTreeSet<PathBuf> = listed.iter().filter_map(|f| Path::new(f).parent().map(|p| out_dir.join(p))).collect();
+    folders.extend(REPORT_FOLDERS.iter().map(|f| out_dir.join(f)));
+    let mut folders: Vec<PathBuf> = folders.into_iter().collect();
+    folders.sort_by_key(|d| std::cmp::Reverse(d.components().count()));
+    for d in folders.iter().map(PathBuf::as_path).chain([out_dir]) {
+        if std::fs::symlink_metadata(d).is_ok_and(|m| m.is_dir()) {
+            let _ = std::fs::remove_dir(d);
         }
     }
 }
@@ -540,6 +596,30 @@ mod tests {
         assert!(again.unwrap_err().to_string().contains("already exists"));
         let opts = ReportOptions { overwrite: true, ..Default::default() };
         write_report(&results, &dir.path().join("study"), &out, &opts).unwrap();
+    }
+
+    #[test]
+    fn a_folder_claimed_by_another_report_is_left_alone() {
+        let (dir, results) = study();
+        let out = dir.path().join("report");
+        // Another process's claim, with the folder spelt through a link to its parent.
+        std::os::unix::fs::symlink(dir.path(), dir.path().join("here")).unwrap();
+        let claim = OutputLock::acquire(&lock_path_for(&dir.path().canonicalize().unwrap().join("report")), &out).unwrap();
+        for overwrite in [false, true] {
+            let e = write_report(
+                &results,
+                &dir.path().join("study"),
+                &dir.path().join("here/report"),
+                &ReportOptions { overwrite, ..Default::default() },
+            )
+            .unwrap_err()
+            .to_string();
+            assert!(e.contains("another cvtrace process"), "{e}");
+            assert!(!out.exists(), "the folder was made while another report holds it");
+        }
+        drop(claim);
+        write_report(&results, &dir.path().join("study"), &out, &ReportOptions::default()).unwrap();
+        assert!(!dir.path().join(".report.lock").exists(), "the claim goes with the call");
     }
 
     fn unbase64(text: &str) -> Vec<u8> {

@@ -98,7 +98,7 @@ fn rows(scene: &SceneResult, ablation: bool) -> Vec<Vec<String>> {
         .collect()
 }
 
-fn scene_title(scene: &SceneResult) -> String {
+pub(crate) fn scene_title(scene: &SceneResult) -> String {
     let n = scene.spp_per_stream;
     let spp = if n > 0 { format!("{n}+{n} spp, ") } else { String::new() };
     let mut t = format!(
@@ -119,7 +119,7 @@ fn scene_title(scene: &SceneResult) -> String {
     t
 }
 
-fn aligned(header: &[&str], rows: &[Vec<String>]) -> String {
+pub(crate) fn aligned(header: &[&str], rows: &[Vec<String>]) -> String {
     let mut widths: Vec<usize> = header.iter().map(|h| h.chars().count()).collect();
     for r in rows {
         for (w, c) in widths.iter_mut().zip(r) {

@@ -96,6 +96,10 @@ pub struct Manifest {
     pub plan: Plan,
     pub parts: Vec<PartEntry>,
     pub merge: Vec<String>,
+    /// Arguments for sbatch (`--sbatch-arg`): in both scripts' `#SBATCH` lines, so that a
+    /// submission by hand gets them too, and on every submission's command line.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub sbatch_args: Vec<String>,
 }
 
 /// The job ids of the folder's submissions, oldest first.
@@ -143,7 +147,7 @@ impl Manifest {
         if plan.replace_output {
             merge.push("--force".into());
         }
-        Manifest { format: FORMAT.into(), plan, parts, merge }
+        Manifest { format: FORMAT.into(), plan, parts, merge, sbatch_args: Vec::new() }
     }
 
     /// The cells of a study, in the folder its commands write (`output` from `workdir`).
@@ -171,7 +175,7 @@ impl Manifest {
             })
             .collect();
         let merge = study_command(None);
-        Manifest { format: FORMAT.into(), plan, parts, merge }
+        Manifest { format: FORMAT.into(), plan, parts, merge, sbatch_args: Vec::new() }
     }
 
     fn is_study(&self) -> bool {
@@ -231,20 +235,54 @@ fn command_line(args: &[String]) -> String {
     args.iter().map(|a| quote(a)).collect::<Vec<_>>().join(" ")
 }
 
+/// Quotes `s` for an `#SBATCH` line, which sbatch splits itself: at whitespace outside quotes,
+/// with a backslash escaping the next character and an unquoted `#` ending the line. Double
+/// quotes with `\`, `"` and `#` escaped read back the same in every Slurm version (older ones
+/// know no single quotes and end the line at any `#`).
+pub fn quote_for_sbatch(s: &str) -> String {
+    if !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c)) {
+        return s.to_string();
+    }
+    let mut out = String::from("\"");
+    for c in s.chars() {
+        if matches!(c, '\\' | '"' | '#') {
+            out.push('\\');
+        }
+        out.push(c);
+    }
+    out.push('"');
+    out
+}
+
+/// A path in sbatch's `--output` pattern: `%` doubled, so that only the pattern's own `%a` and
+/// `%j` are replaced.
+fn output_pattern(dir: &str, file: &str) -> String {
+    format!("{}/{file}", dir.replace('%', "%%"))
+}
+
 fn write_text(path: &Path, text: &str) -> Result<(), FarmError> {
     write_atomically(path, true, |tmp| std::fs::write(tmp, text))?;
     Ok(())
 }
 
 impl JobFolder {
-    /// Writes the job folder of `plan` at `dir`, or opens the one there if it was written for
-    /// the same plan; a folder of another plan is an error (nothing is changed).
-    pub fn create(dir: &Path, plan: Plan) -> Result<JobFolder, FarmError> {
+    /// Writes the job folder of `plan` at `dir` with the arguments for sbatch, or opens the one
+    /// there if it was written for the same plan; a folder of another plan is an error
+    /// (nothing is changed). Arguments given replace the folder's (its scripts are written
+    /// again); none given keeps them.
+    pub fn create(dir: &Path, plan: Plan, sbatch_args: &[String]) -> Result<JobFolder, FarmError> {
         let dir = std::path::absolute(dir).map_err(|e| folder_error(dir, e.to_string()))?;
-        let manifest = Manifest::new(plan, &dir);
+        // sbatch reads its options line by line.
+        if dir.to_string_lossy().contains(['\n', '\r']) || sbatch_args.iter().any(|a| a.contains(['\n', '\r'])) {
+            return Err(folder_error(&dir, "a line break in the job folder's path or an --sbatch-arg cannot go into an sbatch script"));
+        }
+        let mut manifest = Manifest::new(plan, &dir);
+        manifest.sbatch_args = sbatch_args.to_vec();
         if dir.join("manifest.json").exists() {
-            let existing = JobFolder::open(&dir)?;
-            if existing.manifest != manifest {
+            let mut existing = JobFolder::open(&dir)?;
+            // The job is its plan and commands; the sbatch arguments are how it is submitted.
+            let recorded = std::mem::take(&mut existing.manifest.sbatch_args);
+            if existing.manifest != (Manifest { sbatch_args: Vec::new(), ..manifest.clone() }) {
                 let (a, b) = (&existing.manifest.plan, &manifest.plan);
                 let what = if a.scene != b.scene || a.kind != b.kind {
                     "another scene or kind of render"
@@ -263,6 +301,13 @@ impl JobFolder {
                     ),
                 ));
             }
+            if sbatch_args.is_empty() || sbatch_args == recorded {
+                existing.manifest.sbatch_args = recorded;
+            } else {
+                existing.manifest.sbatch_args = manifest.sbatch_args;
+                existing.write_scripts()?;
+                existing.write_manifest()?;
+            }
             return Ok(existing);
         }
         if dir.exists() && std::fs::read_dir(&dir).map(|mut d| d.next().is_some()).unwrap_or(true) {
@@ -273,9 +318,13 @@ impl JobFolder {
         }
         let folder = JobFolder { dir, manifest };
         folder.write_scripts()?;
-        let json = serde_json::to_string_pretty(&folder.manifest).expect("a manifest serialises");
-        write_text(&folder.dir.join("manifest.json"), &(json + "\n"))?;
+        folder.write_manifest()?;
         Ok(folder)
+    }
+
+    fn write_manifest(&self) -> Result<(), FarmError> {
+        let json = serde_json::to_string_pretty(&self.manifest).expect("a manifest serialises");
+        write_text(&self.dir.join("manifest.json"), &(json + "\n"))
     }
 
     /// Opens the job folder at `dir`.
@@ -303,11 +352,19 @@ impl JobFolder {
             cases += &format!("    {}) {} ;;\n", p.index, command_line(&p.command));
         }
         let names = m.scripts();
+        // sbatch reads these lines itself: paths and arguments quoted for it, not for bash.
+        let sbatch = |log: &str| {
+            let mut line = format!("#SBATCH {}\n", quote_for_sbatch(&format!("--output={}", output_pattern(&d, log))));
+            if !m.sbatch_args.is_empty() {
+                line += &format!("#SBATCH {}\n", m.sbatch_args.iter().map(|a| quote_for_sbatch(a)).collect::<Vec<_>>().join(" "));
+            }
+            line
+        };
         let what = if m.is_study() { "One cell of the study (a render)" } else { "One part of the render" };
         let parts = format!(
             "#!/bin/bash\n\
              #SBATCH --job-name=cvtrace-{task}\n\
-             #SBATCH --output={d}/logs/part-%a.out\n\
+             {options}\
              # {what} per array task: sbatch --array=0-{last} {d}/{array}\n\
              # (commands.txt lists the same commands). The task's exit code goes to status/, which\n\
              # `cvtrace farm status` reads: a cluster without accounting forgets finished jobs.\n\
@@ -324,6 +381,7 @@ impl JobFolder {
             dq = quote(&d),
             task = names.task,
             array = names.array,
+            options = sbatch("logs/part-%a.out"),
         );
         let what = if m.is_study() {
             "The study: reconstructions and statistics on the cells' renders"
@@ -333,7 +391,7 @@ impl JobFolder {
         let merge = format!(
             "#!/bin/bash\n\
              #SBATCH --job-name=cvtrace-{last_name}\n\
-             #SBATCH --output={d}/logs/{last_name}-%j.out\n\
+             {options}\
              # {what}; submitted with --dependency=afterok on the array.\n\
              set -euo pipefail\n\
              status={status}\n\
@@ -344,6 +402,7 @@ impl JobFolder {
             status = quote(&self.status_file("merge").to_string_lossy()),
             merge = command_line(&m.merge),
             last_name = names.last_name,
+            options = sbatch(&format!("logs/{}-%j.out", names.last_name)),
         );
         let mut commands = format!("# cd {workdir}\n");
         for p in &m.parts {
@@ -501,9 +560,11 @@ impl JobFolder {
     pub fn how_to_submit(&self) -> String {
         let d = quote(&self.dir.to_string_lossy());
         let names = self.manifest.scripts();
+        // The scripts carry the sbatch arguments too; given here, they show what is submitted.
+        let args: String = self.manifest.sbatch_args.iter().map(|a| format!("{} ", quote(a))).collect();
         format!(
-            "array=$(sbatch --parsable --array=0-{} {d}/{})\n\
-             sbatch --dependency=afterok:$array --kill-on-invalid-dep=yes {d}/{}\n",
+            "array=$(sbatch --parsable --array=0-{} {args}{d}/{})\n\
+             sbatch --dependency=afterok:$array --kill-on-invalid-dep=yes {args}{d}/{}\n",
             self.manifest.parts.len() - 1,
             names.array,
             names.last
@@ -672,7 +733,7 @@ mod tests {
     #[test]
     fn folder_holds_every_command_and_refuses_another_plan() {
         let tmp = tempfile::tempdir().unwrap();
-        let f = JobFolder::create(&tmp.path().join("job"), plan(tmp.path())).unwrap();
+        let f = JobFolder::create(&tmp.path().join("job"), plan(tmp.path()), &[]).unwrap();
         let ranges: Vec<_> = f.manifest.parts.iter().map(|p| (p.first, p.end)).collect();
         assert_eq!(ranges, [(0, 2), (2, 5), (5, 8)]);
         let script = std::fs::read_to_string(f.dir.join("parts.sbatch")).unwrap();
@@ -682,15 +743,15 @@ mod tests {
         assert_eq!(commands.lines().filter(|l| l.contains(" render ")).count(), 3);
         assert!(commands.lines().last().unwrap().contains(" merge ") && commands.contains("-o cbox.streams.exr"));
         // The same plan opens the folder; another is refused.
-        JobFolder::create(&f.dir, plan(tmp.path())).unwrap();
-        let e = JobFolder::create(&f.dir, Plan { parts: 4, ..plan(tmp.path()) }).unwrap_err().to_string();
+        JobFolder::create(&f.dir, plan(tmp.path()), &[]).unwrap();
+        let e = JobFolder::create(&f.dir, Plan { parts: 4, ..plan(tmp.path()) }, &[]).unwrap_err().to_string();
         assert!(e.contains("another number of parts"), "{e}");
     }
 
     #[test]
     fn only_missing_and_failed_parts_are_resubmitted() {
         let tmp = tempfile::tempdir().unwrap();
-        let f = JobFolder::create(&tmp.path().join("job"), plan(tmp.path())).unwrap();
+        let f = JobFolder::create(&tmp.path().join("job"), plan(tmp.path()), &[]).unwrap();
         let slurm = Fake::default();
         let s = f.submit(&slurm, &["--partition=x".into()]).unwrap();
         assert_eq!((s.array.as_deref(), s.tasks.as_slice(), s.merge.as_deref()), (Some("101"), &[0, 1, 2][..], Some("102")));
@@ -733,7 +794,7 @@ mod tests {
             study: Some(StudyCells { spps: vec![8, 16], seeds: 2 }),
             ..plan(tmp.path())
         };
-        let f = JobFolder::create(&tmp.path().join("job"), study).unwrap();
+        let f = JobFolder::create(&tmp.path().join("job"), study, &[]).unwrap();
         let m = &f.manifest;
         assert_eq!(m.parts.len(), 8);
         let p = &m.parts[3];
@@ -757,6 +818,26 @@ mod tests {
         assert_eq!(s.tasks, [0, 1, 2, 4, 5, 6, 7]);
         let sub = slurm.submitted.borrow().clone();
         assert!(sub[0].last().unwrap().ends_with("job/cells.sbatch") && sub[1].last().unwrap().ends_with("job/study.sbatch"), "{sub:?}");
+    }
+
+    #[test]
+    fn sbatch_arguments_and_odd_paths_reach_the_scripts() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("job dir #1 50%");
+        let args = vec!["--partition=gpu".to_string(), "--comment=a \"b\"".to_string()];
+        let f = JobFolder::create(&dir, plan(tmp.path()), &args).unwrap();
+        let script = std::fs::read_to_string(f.dir.join("parts.sbatch")).unwrap();
+        let d = f.dir.to_string_lossy().replace('#', "\\#").replace('%', "%%");
+        assert!(script.contains(&format!("\n#SBATCH \"--output={d}/logs/part-%a.out\"\n")), "{script}");
+        assert!(script.contains("\n#SBATCH --partition=gpu \"--comment=a \\\"b\\\"\"\n"), "{script}");
+        assert!(std::fs::read_to_string(f.dir.join("merge.sbatch")).unwrap().contains("\n#SBATCH --partition=gpu "));
+        assert!(f.how_to_submit().contains("--array=0-2 --partition=gpu '--comment=a \"b\"' "), "{}", f.how_to_submit());
+        // Opened again without arguments, the folder keeps its own; with others, they replace them.
+        assert_eq!(JobFolder::create(&dir, plan(tmp.path()), &[]).unwrap().manifest.sbatch_args, args);
+        let f = JobFolder::create(&dir, plan(tmp.path()), &["-N1".into()]).unwrap();
+        assert_eq!(JobFolder::open(&dir).unwrap().manifest.sbatch_args, ["-N1"]);
+        assert!(std::fs::read_to_string(f.dir.join("parts.sbatch")).unwrap().contains("\n#SBATCH -N1\n"));
+        assert_eq!(quote_for_sbatch("a b#c\\"), r#""a b\#c\\""#);
     }
 
     #[test]

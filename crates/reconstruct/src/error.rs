@@ -30,6 +30,9 @@ pub enum ReconError {
     #[error("{origin}: channel `{channel}` holds {value:e} at pixel ({x}, {y}); `{method}` squares differences of values in f32, which overflows beyond ±{limit:e}, so its image would be wrong: scale the image down (relative errors do not change)")]
     TooLarge { origin: String, method: &'static str, channel: String, value: f32, x: usize, y: usize, limit: f32 },
 
+    #[error("{origin}: `{method}` produced a non-finite value at pixel ({x}, {y}), channel {channel}; the input holds values too large for f32 arithmetic (largest {largest:e})")]
+    NonFiniteOutput { origin: String, method: String, x: usize, y: usize, channel: &'static str, largest: f32 },
+
     #[error("{origin}: `{method}` {why} needs first-hit features (channels `albedo.R/G/B`, `normal.X/Y/Z`, `depth.Z`), which are missing; re-render with features or choose another option")]
     MissingFeatures { origin: String, method: &'static str, why: &'static str },
 
@@ -47,6 +50,9 @@ pub enum ReconError {
 
     #[error("unknown estimator `{given}`; expected one of: {known}")]
     UnknownMethod { given: String, known: String },
+
+    #[error("`{given}` is a variant of `{method}` for ablations, not an estimator: `cvtrace study --ablations` runs it beside the others, and `--method {method} {params}` runs it alone")]
+    Variant { given: String, method: &'static str, params: String },
 
     #[error("`{method}` has no parameter `{param}`; its parameters: {known} (`cvtrace reconstruct --help-method {method}`)")]
     UnknownParam { method: String, param: String, known: String },

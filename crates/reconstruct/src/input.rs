@@ -64,6 +64,23 @@ impl<'a> Input<'a> {
         self.streams.height
     }
 
+    /// Checks that `image`, which `method` made from this input, is finite: finite inputs give
+    /// a non-finite image only when they are too large for f32 arithmetic, and the error says so
+    /// with the largest stream value. What `cvtrace reconstruct` checks before writing anything.
+    pub fn check_output(&self, method: &str, image: &Image) -> Result<(), ReconError> {
+        let Some((x, y, c)) = image.find_non_finite() else { return Ok(()) };
+        let s = self.streams;
+        let largest = s.pt.mean.pixels.iter().chain(&s.crn.mean.pixels).flatten().fold(0.0f32, |m, v| m.max(v.abs()));
+        Err(ReconError::NonFiniteOutput {
+            origin: self.streams_name.to_string(),
+            method: method.to_string(),
+            x,
+            y,
+            channel: RGB[c],
+            largest,
+        })
+    }
+
     /// Checks everything `needs` asks for and that every value the method reads is finite (and
     /// at most [`MAX_VALUE`] in magnitude where `needs.bounded_values`). Called by each
     /// estimator before any work, so that errors come early and clearly.

@@ -78,14 +78,20 @@ impl Registry {
         &self.specs
     }
 
-    /// The spec called `name` (case-insensitive).
+    /// The spec called `name` (case-insensitive). The key of a variant is no estimator: its
+    /// error says whose variant it is and how to run it.
     pub fn get(&self, name: &str) -> Result<&'static EstimatorSpec, ReconError> {
         let wanted = name.trim();
-        self.specs
-            .iter()
-            .copied()
-            .find(|s| s.name.eq_ignore_ascii_case(wanted))
-            .ok_or_else(|| ReconError::UnknownMethod { given: name.to_string(), known: self.names_and_all() })
+        if let Some(spec) = self.specs.iter().copied().find(|s| s.name.eq_ignore_ascii_case(wanted)) {
+            return Ok(spec);
+        }
+        for spec in &self.specs {
+            if let Some(v) = spec.variants.iter().find(|v| v.key.eq_ignore_ascii_case(wanted)) {
+                let params = v.params.iter().map(|(p, value)| format!("--param {}.{p}={value}", spec.name)).collect::<Vec<_>>().join(" ");
+                return Err(ReconError::Variant { given: v.key.to_string(), method: spec.name, params });
+            }
+        }
+        Err(ReconError::UnknownMethod { given: name.to_string(), known: self.names_and_all() })
     }
 
     fn names_and_all(&self) -> String {
@@ -230,6 +236,9 @@ mod tests {
         assert!(e.contains("ours.k") && e.contains("--k") && e.contains("between 1 and"), "{e}");
         let e = r.check(&Overrides::parse(["neural.k=3"]).unwrap()).unwrap_err().to_string();
         assert!(e.contains("neural"), "{e}");
+        // A variant's key says whose variant it is and how to run it.
+        let e = r.get("cv-classic").unwrap_err().to_string();
+        assert!(e.contains("variant of `cv`") && e.contains("study --ablations") && e.contains("--param cv.pt_noise=false"), "{e}");
         assert!(Overrides::parse(["ours.k"]).is_err() && Overrides::parse(["k=3"]).is_err());
         // Hyphens stand for underscores; a later assignment wins.
         let o = Overrides::parse(["ours.search-window=7", "ours.search_window=9"]).unwrap();

@@ -193,3 +193,15 @@ fn values_too_large_for_f32_squares_are_refused_by_the_methods_that_square_them(
     let e = err("ours", &["ours.errors=oracle"], &Input::new(&s).with_reference(&reference).named("s.exr", "ref.exr"));
     assert!(e.starts_with("ref.exr") && e.contains("pixel (1, 1)") && e.contains("-3e18"), "{e}");
 }
+
+#[test]
+fn a_non_finite_output_names_the_method_pixel_channel_and_largest_input() {
+    let im = |v: f32| Image::from_fn(4, 3, |_, _| [v; 3]);
+    let set = stream_set_from_batches(vec![im(1.0), im(-3.0)], vec![im(2.0), im(2.0)], 8, None).unwrap();
+    let input = Input::new(&set).named("other.exr", "-");
+    assert_eq!(input.check_output("pt", &im(1.0)), Ok(()));
+    let mut out = im(1.0);
+    out.pixels[4 + 2][1] = f32::NAN;
+    let e = input.check_output("pt", &out).unwrap_err().to_string();
+    assert!(e.starts_with("other.exr: `pt` produced a non-finite value at pixel (2, 1), channel G;") && e.contains("(largest 2e0)"), "{e}");
+}

@@ -344,6 +344,20 @@ impl<B: Backend> RenderSession<B> {
             camera.validate().map_err(SessionError::Camera)?;
             scene.set_camera(camera);
         }
+        // pbrt and Mitsuba users expect a view of the scene; this one may see a closed room
+        // from outside, which is black: say where it is and how to give another.
+        if scene.has_automatic_camera() {
+            let c = scene.camera();
+            tracing::warn!(
+                "{}: no camera in the scene; rendering from an automatic one that frames the scene's bounds from +Z \
+                 (eye {}, target {}, vertical field of view {}°; a closed room seen from outside is black); give another view \
+                 with --camera \"ex,ey,ez:tx,ty,tz:fov\"",
+                path.display(),
+                c.eye,
+                c.target,
+                c.vfov_deg
+            );
+        }
         let scene_hash = scene_hash(&scene);
         Ok(RenderSession {
             path: path.to_path_buf(),

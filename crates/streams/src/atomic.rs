@@ -31,7 +31,8 @@ pub fn check_writable(path: &Path, overwrite: bool) -> Result<(), StreamError> {
     }
     let parent = parent_dir(path);
     if !parent.is_dir() {
-        return Err(StreamError::invalid(path, format!("output directory {} does not exist", parent.display())));
+        let why = if parent.exists() { "is a file, not a folder" } else { "does not exist" };
+        return Err(StreamError::invalid(path, format!("output directory {} {why}", parent.display())));
     }
     if path.file_name().is_some_and(|n| n.len() > NAME_MAX) {
         return Err(StreamError::invalid(path, format!("the file name is longer than {NAME_MAX} bytes")));
@@ -332,8 +333,21 @@ fn create_temp(tmp: &Path) -> std::io::Result<std::fs::File> {
     Ok(file)
 }
 
+/// Removes a temporary whose write is unwinding: a panic, or a caller that stops the work by
+/// unwinding out of it (the Python package on Ctrl-C), must not leave half a file behind. A
+/// write that fails or finishes removes or publishes it itself.
+struct RemoveOnUnwind<'a>(&'a Path);
+
+impl Drop for RemoveOnUnwind<'_> {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            let _ = std::fs::remove_file(self.0);
+        }
+    }
+}
+
 /// Runs `write` on a temporary path, flushes it to disk and moves the result onto `path`.
-/// On any error the temporary file is removed and `path` is untouched.
+/// On any error, or when the write unwinds, the temporary file is removed and `path` is untouched.
 pub fn write_atomically<E>(path: &Path, overwrite: bool, write: impl FnOnce(&Path) -> Result<(), E>) -> Result<(), StreamError>
 where
     E: std::fmt::Display,
@@ -343,6 +357,7 @@ where
     let tmp = temp_path_for(path);
     let (_pending, _writing) =
         PendingTemp::create(tmp.clone()).map_err(|e| StreamError::invalid(path, format!("could not create {}: {e}", tmp.display())))?;
+    let _unwinding = RemoveOnUnwind(&tmp);
     let written = write(&tmp).map_err(|e| e.to_string()).and_then(|()| {
         // Durable before it is visible: a crash after the rename must not leave an empty file.
         std::fs::File::open(&tmp).and_then(|f| f.sync_all()).map_err(|e| e.to_string())
@@ -545,5 +560,11 @@ mod tests {
     fn missing_directory_is_reported() {
         let r = check_writable(Path::new("/nonexistent-dir-cvtrace/x.exr"), false);
         assert!(r.unwrap_err().to_string().contains("does not exist"));
+        // A file where the folder should be is named as a file.
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("file.exr");
+        std::fs::write(&file, b"x").unwrap();
+        let e = check_writable(&file.join("sub.exr"), false).unwrap_err().to_string();
+        assert!(e.contains("file.exr is a file, not a folder") && !e.contains("does not exist"), "{e}");
     }
 }

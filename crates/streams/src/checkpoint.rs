@@ -108,6 +108,18 @@ pub fn load_finished(path: &Path, planned: &Provenance, s: &ReferenceSettings) -
     if ch.attr(KIND_ATTR).is_some() {
         return Err(invalid("this is a checkpoint, not a finished reference".into()));
     }
+    // What the file is matters before how it was rendered: its seed or depth are beside the point.
+    if ch.attr(crate::parts::KIND_ATTR).is_some() {
+        return Err(invalid(
+            "--extend: this is a part of a render (`render --part`), not a finished reference; merge the parts first".into(),
+        ));
+    }
+    if ch.channels.contains_key("pt.R") || ch.channels.contains_key("crn.R") {
+        return Err(invalid(
+            "--extend: this is a PT/CRN stream file, not a reference; --extend continues a reference that `render --reference` wrote"
+                .into(),
+        ));
+    }
     let saved = Provenance::from_exr(&ch, path)?;
     check_version(&saved, path, "reference")?;
     saved.require(&[Field::Seed, Field::MaxDepth, Field::RrDepth], path, "reference")?;

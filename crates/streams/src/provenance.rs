@@ -274,6 +274,24 @@ impl Provenance {
         Provenance::from_attributes(width, height, &attrs, path)
     }
 
+    /// Fails unless the file at `other` (`what`: "reference", "PT(2n) render") estimates the
+    /// same image as the one at `image`: where both record them (stream files, references and
+    /// PT renders do, reconstructions do not), the scene, camera, size and path length must
+    /// agree. Seed, counts and traversal may differ: they change no expectation.
+    pub fn check_same_image(other: &Path, what: &str, image: &Path) -> Result<(), StreamError> {
+        let (o, i) = (Provenance::read_header(other)?, Provenance::read_header(image)?);
+        let mismatch: Vec<String> = i
+            .differences(&o)
+            .into_iter()
+            .filter(|d| d.field.changes_the_image())
+            .map(|d| format!("{} {} in the {what}, {} in {}", d.field.name(), d.recorded, d.now, image.display()))
+            .collect();
+        if mismatch.is_empty() {
+            return Ok(());
+        }
+        Err(StreamError::invalid(other, format!("not a {what} of {} (another image: {})", image.display(), mismatch.join(", "))))
+    }
+
     /// Fails, naming `path` and the attribute, unless every field in `fields` is recorded;
     /// `what` names the file kind ("checkpoint", "reference").
     pub fn require(&self, fields: &[Field], path: &Path, what: &str) -> Result<(), StreamError> {

@@ -37,6 +37,15 @@ use std::path::Path;
 /// Seed offset of the PT(2n) images, so that they never share random numbers with a stream.
 pub const PT2N_SEED_OFFSET: u64 = 1 << 32;
 
+/// More seeds than this is a typo, not a study: each seed writes two renders.
+pub const MAX_SEEDS: u32 = 10_000;
+/// Seed of a reference rendered by the study (distinct from every stream seed).
+pub const REFERENCE_SEED: u64 = 0x7265_6665_7265_6e63;
+/// Samples per pixel of each stream when the study is given none (nor the scene's `spp`).
+pub const DEFAULT_SPP: u32 = 96;
+/// Reference spp when the study is given none (nor the scene's `reference_spp`).
+pub const DEFAULT_REFERENCE_SPP: u32 = 4096;
+
 /// An error of a source, in its own words.
 pub type SourceError = Box<dyn std::error::Error + Send + Sync>;
 

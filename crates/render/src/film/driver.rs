@@ -225,7 +225,9 @@ impl<'a, T: Intersector> StreamRender<'a, T> {
 
     /// Renders rows `rows` (one of [`StreamRender::bands`], or several in a row) in parallel
     /// over their tiles: a part of the rows' height whose pixels are theirs, row-major.
-    /// `progress(k)`: `k` more pixel-samples done.
+    /// `progress(k)`: `k` more pixel-samples done; every tile also reports `progress(0)` as it
+    /// starts, so that a caller that stops the render from its progress (by unwinding: the
+    /// Python package on Ctrl-C) waits only for the tiles under way.
     pub fn render_band(&self, rows: Range<usize>, progress: &(dyn Fn(u64) + Sync)) -> StreamPart {
         let settings = &self.settings;
         assert!(rows.start.is_multiple_of(TILE_SIZE as usize), "rows {rows:?} do not start a row of tiles");
@@ -274,6 +276,7 @@ impl<'a, T: Intersector> StreamRender<'a, T> {
     }
 
     fn render_tile(&self, tile: &Tile, progress: &(dyn Fn(u64) + Sync)) -> TileResult {
+        progress(0);
         let (ctx, pt, crn) = (&self.ctx, &self.pt, &self.crn);
         let nb = self.batches.len();
         let per_batch = self.settings.spp / self.settings.batches;
@@ -312,6 +315,9 @@ impl<'a, T: Intersector> StreamRender<'a, T> {
                 r.pt.batches[batch_of(s)] = close_batch(&mut batch);
             }
         }
+        // Each stream's samples as they are done: the progress moves (and a caller may stop)
+        // halfway through a tile too.
+        progress(n as u64 * samples.len() as u64);
         // CRN.
         r.crn.sum = vec![[0; 3]; n];
         for s in samples.clone() {
@@ -324,14 +330,15 @@ impl<'a, T: Intersector> StreamRender<'a, T> {
                 r.crn.batches[batch_of(s)] = close_batch(&mut batch);
             }
         }
-        progress(n as u64 * samples.len() as u64 * 2);
+        progress(n as u64 * samples.len() as u64);
         r
     }
 }
 
 /// Adds PT samples `sample_range` of every pixel to `accum` (the range must start at
 /// `accum.first + accum.samples_done`). Sample `s` uses the same random numbers as sample `s` of the PT
-/// stream in [`render_streams`]. `progress(k)`: `k` more pixel-samples done.
+/// stream in [`render_streams`]. `progress(k)`: `k` more pixel-samples done, and `progress(0)`
+/// as each tile starts (see [`StreamRender::render_band`]).
 pub fn render_reference_pass<T: Intersector>(
     scene: &Scene,
     tracer: &T,
@@ -375,6 +382,7 @@ pub fn render_reference_pass<T: Intersector>(
     let results: Vec<(Tile, Vec<[i128; 3]>, u64)> = tiles(settings.width, settings.height)
         .par_iter()
         .map(|tile| {
+            progress(0);
             let mut out: Vec<[i128; 3]> = tile.pixels().map(|(x, y)| sums[y as usize * width + x as usize]).collect();
             let mut bad_count = 0u64;
             let mut camera = CameraBatch::default();

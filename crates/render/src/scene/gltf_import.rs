@@ -90,7 +90,7 @@ pub fn load(path: &Path, defines: &[Define]) -> Result<Scene, SceneError> {
     // leave them nothing to trip on, and this turns anything they missed into an error instead
     // of a crash (the panic message is still printed).
     let built = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| Builder::new(path, &document, &buffers, &images).build()));
-    let parts = match built {
+    let (parts, automatic_camera) = match built {
         Ok(r) => r?,
         Err(_) => {
             return Err(SceneError::Malformed {
@@ -116,7 +116,11 @@ pub fn load(path: &Path, defines: &[Define]) -> Result<Scene, SceneError> {
     if let (None, None, Some((w, h))) = (d.width, d.height, resolution) {
         (d.width, d.height) = (Some(w), Some(h));
     }
-    Scene::from_parts_named(parts, path)
+    let mut scene = Scene::from_parts_named(parts, path)?;
+    if automatic_camera {
+        scene.mark_automatic_camera();
+    }
+    Ok(scene)
 }
 
 /// What the `gltf` crate does not check before it indexes or unwraps (it would panic):
@@ -550,7 +554,8 @@ impl<'a> Builder<'a> {
         SceneError::invalid(self.path, message)
     }
 
-    fn build(mut self) -> Result<SceneParts, SceneError> {
+    /// The scene's parts, and whether its camera is the automatic one (the glTF has none).
+    fn build(mut self) -> Result<(SceneParts, bool), SceneError> {
         let roots: Vec<gltf::Node> = match self.doc.default_scene().or_else(|| self.doc.scenes().next()) {
             Some(s) => s.nodes().collect(),
             None => {
@@ -575,6 +580,7 @@ impl<'a> Builder<'a> {
             .positions
             .iter()
             .fold((Vec3A::splat(f32::INFINITY), Vec3A::splat(f32::NEG_INFINITY)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        let automatic_camera = self.camera.is_none();
         self.parts.camera = Some(self.camera.take().unwrap_or_else(|| default_camera(lo, hi)));
         if self.parts.normals.iter().all(|n| *n == Vec3A::ZERO) {
             self.parts.normals.clear();
@@ -582,7 +588,7 @@ impl<'a> Builder<'a> {
         if self.parts.uvs.iter().all(|n| *n == Vec2::ZERO) {
             self.parts.uvs.clear();
         }
-        Ok(self.parts)
+        Ok((self.parts, automatic_camera))
     }
 
     fn visit(&mut self, node: &gltf::Node, parent: Mat4, depth: usize) -> Result<(), SceneError> {

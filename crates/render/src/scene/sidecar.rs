@@ -5,7 +5,7 @@
 //! type errors also give the line.
 use crate::scene::error::SceneError;
 use crate::scene::lights::Environment;
-use crate::settings::RenderDefaults;
+use crate::settings::{RenderDefaults, MAX_IMAGE_SIDE, MAX_RR_DEPTH, MAX_SPP};
 use cvtrace_streams::input_file::{regular_file, NotAFile};
 use glam::Vec3A;
 use serde::Deserialize;
@@ -189,6 +189,17 @@ impl Define {
     fn number<T: std::str::FromStr>(&self, what: &str) -> Result<T, SceneError> {
         self.value.parse().map_err(|_| self.error(format!("{:?} is not {what}", self.value)))
     }
+
+    /// A whole number in `lo..=hi`: one outside is out of range (whatever type would hold it),
+    /// not "not a whole number".
+    fn whole<T: TryFrom<i128>>(&self, what: &str, lo: i128, hi: i128) -> Result<T, SceneError> {
+        let v: i128 = self.value.parse().map_err(|_| self.error(format!("{:?} is not {what}", self.value)))?;
+        if !(lo..=hi).contains(&v) {
+            let key = self.canonical_key().unwrap_or_default();
+            return Err(self.error(format!("{v} is out of range: {key} must be between {lo} and {hi}")));
+        }
+        T::try_from(v).map_err(|_| self.error(format!("{v} is out of range")))
+    }
 }
 
 /// Checks every define's key (before the scene is read, so a typo fails at once).
@@ -219,14 +230,15 @@ impl Sidecar {
         for d in defines {
             let key = d.canonical_key().unwrap_or_default();
             let whole = "a whole number";
+            let (side, spp) = (MAX_IMAGE_SIDE as i128, MAX_SPP as i128);
             let r = &mut self.render;
             match key {
-                "width" => r.width = Some(d.number(whole)?),
-                "height" => r.height = Some(d.number(whole)?),
-                "spp" => r.spp = Some(d.number(whole)?),
-                "rr_depth" => r.rr_depth = Some(d.number(whole)?),
-                "reference_spp" => r.reference_spp = Some(d.number(whole)?),
-                "max_depth" => r.max_depth = Some(d.number("a whole number (-1 for unlimited)")?),
+                "width" => r.width = Some(d.whole(whole, 1, side)?),
+                "height" => r.height = Some(d.whole(whole, 1, side)?),
+                "spp" => r.spp = Some(d.whole(whole, 1, spp)?),
+                "rr_depth" => r.rr_depth = Some(d.whole(whole, 0, MAX_RR_DEPTH as i128)?),
+                "reference_spp" => r.reference_spp = Some(d.whole(whole, 1, spp)?),
+                "max_depth" => r.max_depth = Some(d.whole("a whole number (-1 for unlimited)", -1, i32::MAX as i128)?),
                 _ => {
                     let env = self.environment.get_or_insert_with(EnvironmentSpec::default);
                     match key {
@@ -395,9 +407,12 @@ mod tests {
         // No sidecar: the defines stand alone.
         let s = Sidecar::default().with_defines(&[define("environment.color=0.1,0.2,0.3")]).unwrap();
         assert_eq!(s.environment.unwrap().color, Some([0.1, 0.2, 0.3]));
-        let cases: [(&str, &[&str]); 9] = [
+        let cases: [(&str, &[&str]); 11] = [
             ("widht=64", &["-D widht=64", "no such setting", "width"]),
             ("width=abc", &["-D width=abc", "not a whole number"]),
+            // Whole numbers too large (or negative) for the setting are out of range.
+            ("spp=99999999999", &["-D spp=99999999999", "out of range", "between 1 and 2147483647"]),
+            ("rr_depth=-2", &["-D rr_depth=-2", "out of range", "between 0 and"]),
             ("width=0", &["-D width=0", "between 1"]),
             ("max_depth=0", &["-D max_depth=0", "-1 (unlimited)"]),
             ("max_depth=x", &["-D max_depth=x", "whole number"]),

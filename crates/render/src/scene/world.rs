@@ -11,6 +11,7 @@ use crate::scene::lights::{triangle_power, Environment, LightSet, Punctual};
 use crate::scene::material::Material;
 use crate::scene::texture::Texture;
 use crate::settings::RenderDefaults;
+use cvtrace_streams::exact::MAX_SAMPLE;
 use glam::{Vec2, Vec3A};
 use std::path::Path;
 
@@ -63,6 +64,8 @@ pub struct Scene {
     textures: Vec<Texture>,
     lights: LightSet,
     camera: Camera,
+    /// The camera is [`default_camera`]'s: the scene came without one.
+    automatic_camera: bool,
     bounds: (Vec3A, Vec3A),
     ray_epsilon: f32,
     render_defaults: RenderDefaults,
@@ -138,6 +141,19 @@ impl Scene {
                 return bad(format!("material `{}` has a non-finite parameter", m.name));
             }
         }
+        // A camera ray that hits an emitter records its radiance as the sample: beyond the
+        // largest sample the exact sums hold it would be clamped, and every image of the scene
+        // wrong (the stream file's means would not even agree with its batches).
+        let mut used = vec![false; materials.len()];
+        triangle_materials.iter().for_each(|&m| used[m as usize] = true);
+        if let Some((i, m)) = materials.iter().enumerate().find(|(i, m)| used[*i] && m.emission.max_element() as f64 > MAX_SAMPLE) {
+            return bad(format!(
+                "material {i} ({:?}) emits radiance {:e} (emissiveFactor × emissiveStrength), beyond 1.4e14 (2^47), the \
+                 largest sample a render's exact sums hold; scale the scene's emission down (relative errors stay the same)",
+                m.name,
+                m.emission.max_element()
+            ));
+        }
 
         let mut tri_normal = Vec::with_capacity(triangles.len());
         let mut tri_area = Vec::with_capacity(triangles.len());
@@ -161,6 +177,7 @@ impl Scene {
         let lights = LightSet::new(&power, &tri_area, punctual, environment, radius);
 
         let scale = lo.abs().max(hi.abs()).max_element().max((hi - lo).max_element()).max(1e-3);
+        let automatic_camera = camera.is_none();
         let camera = match camera {
             Some(c) => c,
             None => default_camera(lo, hi),
@@ -178,6 +195,7 @@ impl Scene {
             textures,
             lights,
             camera,
+            automatic_camera,
             bounds: (lo, hi),
             ray_epsilon: 1e-5 * scale,
             render_defaults,
@@ -200,6 +218,18 @@ impl Scene {
 
     pub fn set_camera(&mut self, c: Camera) {
         self.camera = c;
+        self.automatic_camera = false;
+    }
+
+    /// Whether the camera is the automatic one of a scene without its own ([`default_camera`]:
+    /// it frames the scene's bounds from +Z), not one the scene or a caller gave.
+    pub fn has_automatic_camera(&self) -> bool {
+        self.automatic_camera
+    }
+
+    /// Marks the camera as the automatic one (a loader that filled it in itself).
+    pub(crate) fn mark_automatic_camera(&mut self) {
+        self.automatic_camera = true;
     }
 
     pub fn materials(&self) -> &[Material] {
