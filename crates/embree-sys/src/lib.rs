@@ -1,6 +1,7 @@
-//! Raw bindings to Embree 3 or 4, whichever `build.rs` found, and the three calls whose form
-//! differs between the two majors ([`intersect1`], [`intersect_coherent`], [`occluded1`]), so
-//! that the safe wrapper (`cvtrace-embree`) is written once for both.
+//! Raw bindings to Embree 3 or 4, whichever `build.rs` found, and the calls whose form differs
+//! between the two majors ([`intersect1`], [`intersect_coherent`], [`occluded1`] and the packet
+//! calls [`intersect8`], [`occluded8`], [`intersect16`], [`occluded16`]), so that the safe
+//! wrapper (`cvtrace-embree`) is written once for both.
 //!
 //! The bindings are bindgen's output for the installed headers, or, for an Embree 4 library
 //! without headers (the PyPI wheel `embreex`), `src/bindings/embree4.rs`: bindgen's output for
@@ -23,7 +24,7 @@ mod raw {
 pub use raw::*;
 
 mod shim;
-pub use shim::{intersect1, intersect_coherent, occluded1};
+pub use shim::{intersect1, intersect16, intersect8, intersect_coherent, occluded1, occluded16, occluded8, Valid16, Valid8};
 
 /// `RTC_INVALID_GEOMETRY_ID` is `((unsigned int)-1)` in C, a cast bindgen does not evaluate.
 pub const RTC_INVALID_GEOMETRY_ID: u32 = u32::MAX;

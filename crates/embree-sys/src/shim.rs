@@ -4,7 +4,9 @@
 //! - Embree 3 needs an `RTCIntersectContext`, whose initialiser is an inline function of its
 //!   headers (no symbol in the library), and Embree 4 replaced it by optional arguments, also
 //!   initialised inline. Both initialisers are written here, so no C compiler or header is
-//!   needed for a library that ships without them.
+//!   needed for a library that ships without them;
+//! - the packet calls (`rtcIntersect8/16`, `rtcOccluded8/16`) take `(valid, scene, context,
+//!   rays)` in Embree 3 and `(valid, scene, rays, arguments)` in Embree 4.
 use crate::*;
 
 /// What `rtcInitIntersectContext` makes: the given flags, no filter, no instance on the stack
@@ -98,3 +100,63 @@ pub unsafe fn occluded1(scene: RTCScene, ray: *mut RTCRay) {
         rtcOccluded1(scene, ray, std::ptr::null_mut())
     };
 }
+
+/// The lane masks of an 8-wide packet call: −1 for a lane that is traced, 0 for one left as
+/// it is. Embree loads them as one vector, so they are aligned as the packet is.
+#[repr(C, align(32))]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Valid8(pub [i32; 8]);
+
+/// The lane masks of a 16-wide packet call, aligned as the packet is (see [`Valid8`]).
+#[repr(C, align(64))]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Valid16(pub [i32; 16]);
+
+/// The packet calls of one width: the nearest hits and the occlusion of `N` rays in
+/// structure-of-arrays form, of which the lanes whose `valid` entry is −1 are traced (0: left
+/// as they are).
+macro_rules! packet_calls {
+    ($intersect:ident, $occluded:ident, $valid:ty, $rayhit:ty, $ray:ty, $rtc_intersect:ident, $rtc_occluded:ident, $n:literal) => {
+        #[doc = concat!("Nearest hits of the valid lanes of a packet of ", stringify!($n), " rays (Embree's `", stringify!($rtc_intersect), "`): fills their `hit` (`geomID` stays [`RTC_INVALID_GEOMETRY_ID`] on a miss) and sets their `tfar` to the hit distance.")]
+        ///
+        /// # Safety
+        /// `scene` is a committed scene, `valid` points to the packet's lane masks (−1 traced,
+        /// 0 not) and `rayhit` to an initialised packet, both aligned as their types are.
+        #[inline]
+        pub unsafe fn $intersect(scene: RTCScene, valid: *const $valid, rayhit: *mut $rayhit) {
+            #[cfg(embree_major = "3")]
+            {
+                let mut context = context(RTCIntersectContextFlags::RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT);
+                // SAFETY: the caller's guarantees, and an initialised context.
+                unsafe { $rtc_intersect(valid.cast(), scene, &mut context, rayhit) };
+            }
+            #[cfg(embree_major = "4")]
+            // SAFETY: the caller's guarantees; null arguments select the defaults.
+            unsafe {
+                $rtc_intersect(valid.cast(), scene, rayhit, std::ptr::null_mut())
+            };
+        }
+
+        #[doc = concat!("Occlusion of the valid lanes of a packet of ", stringify!($n), " rays in `[tnear, tfar]` (Embree's `", stringify!($rtc_occluded), "`): Embree sets `tfar` to −∞ where something is hit.")]
+        ///
+        /// # Safety
+        /// As for the nearest-hit call of this width, with an initialised ray packet.
+        #[inline]
+        pub unsafe fn $occluded(scene: RTCScene, valid: *const $valid, ray: *mut $ray) {
+            #[cfg(embree_major = "3")]
+            {
+                let mut context = context(RTCIntersectContextFlags::RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT);
+                // SAFETY: the caller's guarantees, and an initialised context.
+                unsafe { $rtc_occluded(valid.cast(), scene, &mut context, ray) };
+            }
+            #[cfg(embree_major = "4")]
+            // SAFETY: the caller's guarantees; null arguments select the defaults.
+            unsafe {
+                $rtc_occluded(valid.cast(), scene, ray, std::ptr::null_mut())
+            };
+        }
+    };
+}
+
+packet_calls!(intersect8, occluded8, Valid8, RTCRayHit8, RTCRay8, rtcIntersect8, rtcOccluded8, 8);
+packet_calls!(intersect16, occluded16, Valid16, RTCRayHit16, RTCRay16, rtcIntersect16, rtcOccluded16, 16);

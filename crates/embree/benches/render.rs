@@ -183,7 +183,9 @@ fn embree_rays(c: &mut Criterion) {
         ("triangles_high_fast", BuildQuality::High, false, false),
         ("medium_fast", BuildQuality::Medium, false, true),
     ] {
-        let t = device.build_scene(scene.positions(), scene.triangles(), &BuildOptions { quality, robust, compact: false, quads }).unwrap();
+        let t = device
+            .build_scene(scene.positions(), scene.triangles(), &BuildOptions { quality, robust, compact: false, quads, packets: true })
+            .unwrap();
         g.bench_function(format!("intersect_random_incoherent_{name}"), |b| {
             b.iter(|| incoherent.iter().filter(|r| t.intersect(r).is_some()).count())
         });

@@ -13,7 +13,7 @@ pub mod traversal_check;
 use cvtrace_embree_sys as ffi;
 pub use denormals::{flush_denormals_enabled, set_flush_denormals};
 
-use cvtrace_render::{Hit, Intersector, Ray};
+use cvtrace_render::{Hit, HitPacket, Intersector, Ray, RayPacket, PACKET};
 use glam::Vec3A;
 use std::ffi::{c_char, c_void, CStr};
 use std::sync::{Arc, Mutex};
@@ -52,12 +52,16 @@ pub struct BuildOptions {
     /// Hand Embree consecutive triangles that share an edge as one quad (see `quads.rs`):
     /// the same hits, traced faster. Off only to measure the difference.
     pub quads: bool,
+    /// Trace the wavefront's chunks of continuation and shadow rays as Embree packets
+    /// (`rtcIntersect16`/`rtcOccluded16`, or two 8-wide calls without AVX-512) rather than
+    /// one ray at a time: the same answers, bit for bit, either way.
+    pub packets: bool,
 }
 
 /// Embree's defaults, and cvtrace's: high quality, fast (not watertight) traversal, quads.
 impl Default for BuildOptions {
     fn default() -> Self {
-        BuildOptions { quality: BuildQuality::High, robust: false, compact: false, quads: true }
+        BuildOptions { quality: BuildQuality::High, robust: false, compact: false, quads: true, packets: true }
     }
 }
 
@@ -185,8 +189,15 @@ impl Device {
             return Err(EmbreeError::Api { call: "rtcNewScene", message: "returned no scene".into() });
         }
         // From here on the scene is released on every error path by EmbreeScene's Drop.
-        let mut scene =
-            EmbreeScene { raw, device: self.clone(), triangle_count: triangles.len(), quad_halves: None, build_time: Duration::ZERO };
+        let mut scene = EmbreeScene {
+            raw,
+            device: self.clone(),
+            triangle_count: triangles.len(),
+            quad_halves: None,
+            packets: options.packets,
+            packet_hits: options.packets && (options.robust || !options.quads),
+            build_time: Duration::ZERO,
+        };
         let mut flags = ffi::RTCSceneFlags::RTC_SCENE_FLAG_NONE;
         if options.robust {
             flags |= ffi::RTCSceneFlags::RTC_SCENE_FLAG_ROBUST;
@@ -378,6 +389,12 @@ pub struct EmbreeScene {
     triangle_count: usize,
     /// Present when the geometry is quads: maps Embree's quad hits back to triangles.
     quad_halves: Option<quads::QuadHalves>,
+    /// Whether packets go to Embree's packet calls ([`BuildOptions::packets`]).
+    packets: bool,
+    /// Whether Embree's packet calls give the nearest hits of its single-ray call bit for bit:
+    /// with robust traversal, or triangles (with fast traversal, its packet kernel for quads
+    /// rounds the barycentrics differently in the last bits; occlusion agrees either way).
+    packet_hits: bool,
     build_time: Duration,
 }
 
@@ -421,6 +438,89 @@ impl EmbreeScene {
     }
 }
 
+/// Whether packets go to Embree as one 16-wide call (CPUs with AVX-512, where Embree's
+/// 16-wide kernels run natively) or as two 8-wide ones.
+fn sixteen_wide() -> bool {
+    static WIDE: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    #[cfg(target_arch = "x86_64")]
+    return *WIDE.get_or_init(|| std::is_x86_feature_detected!("avx512f"));
+    #[cfg(not(target_arch = "x86_64"))]
+    return *WIDE.get_or_init(|| false);
+}
+
+/// The packet calls of one width `$n` on lanes `l0..l0 + $n` of a [`RayPacket`], in a module of
+/// their own.
+macro_rules! packet_width {
+    ($m:ident, $n:literal, $valid:ident, $rayhit:ident, $ray:ident, $intersect:ident, $occluded:ident) => {
+        mod $m {
+            use super::*;
+
+            /// Embree's lane masks of the active lanes `l0..l0 + N`, or `None` when none is.
+            #[inline]
+            fn valid(active: u16, l0: usize) -> Option<ffi::$valid> {
+                let bits = (u32::from(active) >> l0) & ((1u32 << $n) - 1);
+                (bits != 0).then(|| ffi::$valid(std::array::from_fn(|l| if bits >> l & 1 != 0 { -1 } else { 0 })))
+            }
+
+            /// The rays of lanes `l0..l0 + N`, as Embree's packet of that width.
+            #[inline]
+            fn ray_lanes(rays: &RayPacket, l0: usize) -> ffi::$ray {
+                let lanes = |a: &[f32; PACKET]| -> [f32; $n] { a[l0..l0 + $n].try_into().expect("lanes within the packet") };
+                ffi::$ray {
+                    org_x: lanes(&rays.origin[0]),
+                    org_y: lanes(&rays.origin[1]),
+                    org_z: lanes(&rays.origin[2]),
+                    tnear: lanes(&rays.tmin),
+                    dir_x: lanes(&rays.dir[0]),
+                    dir_y: lanes(&rays.dir[1]),
+                    dir_z: lanes(&rays.dir[2]),
+                    tfar: lanes(&rays.tmax),
+                    // A zero mask would match no geometry at all.
+                    mask: [u32::MAX; $n],
+                    ..Default::default()
+                }
+            }
+
+            /// The nearest hits of the active lanes among `l0..l0 + N` into `hits`.
+            #[inline]
+            pub(super) fn intersect(scene: &EmbreeScene, rays: &RayPacket, active: u16, l0: usize, hits: &mut HitPacket) {
+                let Some(valid) = valid(active, l0) else { return };
+                let mut rh = ffi::$rayhit { ray: ray_lanes(rays, l0), ..Default::default() };
+                rh.hit.geomID = [ffi::RTC_INVALID_GEOMETRY_ID; $n];
+                for id in &mut rh.hit.instID {
+                    id.fill(ffi::RTC_INVALID_GEOMETRY_ID);
+                }
+                // SAFETY: committed scene; `valid` holds the packet's lane masks and `rh` is an
+                // initialised packet of the same width, aligned as its type requires.
+                unsafe { ffi::$intersect(scene.raw, &valid, &mut rh) };
+                for l in (0..$n).filter(|&l| valid.0[l] != 0 && rh.hit.geomID[l] != ffi::RTC_INVALID_GEOMETRY_ID) {
+                    let (prim, u, v) = match &scene.quad_halves {
+                        Some(halves) => halves.triangle_hit(rh.hit.primID[l], rh.hit.u[l], rh.hit.v[l]),
+                        None => (rh.hit.primID[l], rh.hit.u[l], rh.hit.v[l]),
+                    };
+                    // Embree sets tfar to the hit distance.
+                    hits.set(l0 + l, Some(Hit { t: rh.ray.tfar[l], prim, u, v }));
+                }
+            }
+
+            /// The occluded ones of the active lanes among `l0..l0 + N`, as a mask of packet lanes.
+            #[inline]
+            pub(super) fn occluded(scene: &EmbreeScene, rays: &RayPacket, active: u16, l0: usize) -> u16 {
+                let Some(valid) = valid(active, l0) else { return 0 };
+                let mut r = ray_lanes(rays, l0);
+                // SAFETY: committed scene; `valid` holds the packet's lane masks and `r` is an
+                // initialised ray packet of the same width, aligned as its type requires.
+                unsafe { ffi::$occluded(scene.raw, &valid, &mut r) };
+                // Embree marks an occluded ray by setting tfar to -inf.
+                (0..$n).filter(|&l| valid.0[l] != 0 && r.tfar[l] == f32::NEG_INFINITY).fold(0, |m, l| m | 1 << (l0 + l))
+            }
+        }
+    };
+}
+
+packet_width!(packet8, 8, Valid8, RTCRayHit8, RTCRay8, intersect8, occluded8);
+packet_width!(packet16, 16, Valid16, RTCRayHit16, RTCRay16, intersect16, occluded16);
+
 impl Drop for EmbreeScene {
     fn drop(&mut self) {
         // SAFETY: `raw` came from rtcNewScene and is released exactly once.
@@ -462,6 +562,31 @@ impl Intersector for EmbreeScene {
         unsafe { ffi::occluded1(self.raw, &mut r.0) };
         // Embree marks an occluded ray by setting tfar to -inf.
         r.0.tfar == f32::NEG_INFINITY
+    }
+
+    fn intersect_packet(&self, rays: &RayPacket, active: u16) -> HitPacket {
+        let mut hits = HitPacket::default();
+        if !self.packet_hits {
+            for l in (0..PACKET).filter(|l| active >> l & 1 != 0) {
+                hits.set(l, self.intersect(&rays.ray(l)));
+            }
+        } else if sixteen_wide() {
+            packet16::intersect(self, rays, active, 0, &mut hits);
+        } else {
+            packet8::intersect(self, rays, active, 0, &mut hits);
+            packet8::intersect(self, rays, active, 8, &mut hits);
+        }
+        hits
+    }
+
+    fn occluded_packet(&self, rays: &RayPacket, active: u16) -> u16 {
+        if !self.packets {
+            (0..PACKET).filter(|&l| active >> l & 1 != 0 && self.occluded(&rays.ray(l))).fold(0, |m, l| m | 1 << l)
+        } else if sixteen_wide() {
+            packet16::occluded(self, rays, active, 0)
+        } else {
+            packet8::occluded(self, rays, active, 0) | packet8::occluded(self, rays, active, 8)
+        }
     }
 }
 

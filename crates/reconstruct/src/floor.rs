@@ -33,6 +33,7 @@
 use crate::batch_stats::variance_of_mean;
 use crate::named::named_enum;
 use crate::pt_error::{cross_bilateral, CbfOptions};
+use crate::simd::{self, Kernel, Simd};
 use cvtrace_streams::StreamSet;
 use rayon::prelude::*;
 
@@ -68,11 +69,88 @@ named_enum! {
 }
 
 /// Each pixel's value replaced, per channel, by the median of its 3×3 window (clipped at the
-/// image border; of an even count, the lower of the two middle values).
+/// image border; of an even count, the lower of the two middle values). Ordered as
+/// [`f32::total_cmp`] orders, so the median is one of the window's values, bit for bit.
 pub fn median_3x3(values: &[[f32; 3]], width: usize, height: usize) -> Vec<[f32; 3]> {
     let mut out = vec![[0.0f32; 3]; values.len()];
+    // The values as keys whose integer order is `total_cmp`'s, one plane per channel, so that
+    // the interior pixels' medians run as a min/max network along a row.
+    let keys: [Vec<i32>; 3] = std::array::from_fn(|ch| values.iter().map(|v| total_key(v[ch])).collect());
     out.par_chunks_mut(width.max(1)).enumerate().for_each(|(y, row)| {
+        simd::dispatch(MedianRow { values, keys: &keys, width, height, y, row });
+    });
+    out
+}
+
+/// [`f32::total_cmp`]'s order as an integer: flipping the magnitude bits of negative values
+/// makes the signed integers order like the floats. It is its own inverse.
+#[inline(always)]
+fn total_key(v: f32) -> i32 {
+    let b = v.to_bits() as i32;
+    b ^ (((b >> 31) as u32) >> 1) as i32
+}
+
+/// The float of a [`total_key`].
+#[inline(always)]
+fn from_total_key(k: i32) -> f32 {
+    f32::from_bits((k ^ (((k >> 31) as u32) >> 1) as i32) as u32)
+}
+
+/// The 5th smallest of nine keys: the exchange network of Paeth's median of nine (19 compare
+/// and exchanges), which leaves it in `p[4]`.
+#[inline(always)]
+fn median9(mut p: [i32; 9]) -> i32 {
+    let mut sort = |a: usize, b: usize| {
+        let (lo, hi) = (p[a].min(p[b]), p[a].max(p[b]));
+        (p[a], p[b]) = (lo, hi);
+    };
+    for (a, b) in [
+        (1, 2),
+        (4, 5),
+        (7, 8),
+        (0, 1),
+        (3, 4),
+        (6, 7),
+        (1, 2),
+        (4, 5),
+        (7, 8),
+        (0, 3),
+        (5, 8),
+        (4, 7),
+        (3, 6),
+        (1, 4),
+        (2, 5),
+        (4, 7),
+        (4, 2),
+        (6, 4),
+        (4, 2),
+    ] {
+        sort(a, b);
+    }
+    p[4]
+}
+
+/// One output row of [`median_3x3`], for [`simd::dispatch`].
+struct MedianRow<'a> {
+    values: &'a [[f32; 3]],
+    keys: &'a [Vec<i32>; 3],
+    width: usize,
+    height: usize,
+    y: usize,
+    row: &'a mut [[f32; 3]],
+}
+
+impl Kernel for MedianRow<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<S: Simd>(self, _simd: S) {
+        let MedianRow { values, keys, width, height, y, row } = self;
+        let interior = |x: usize| y >= 1 && y + 1 < height && x >= 1 && x + 1 < width;
         for (x, o) in row.iter_mut().enumerate() {
+            if interior(x) {
+                continue;
+            }
             let mut window = [[0.0f32; 9]; 3];
             let mut n = 0;
             for wy in y.saturating_sub(1)..(y + 2).min(height) {
@@ -88,15 +166,37 @@ pub fn median_3x3(values: &[[f32; 3]], width: usize, height: usize) -> Vec<[f32;
                 *w.select_nth_unstable_by(n.saturating_sub(1) / 2, f32::total_cmp).1
             });
         }
-    });
-    out
+        if y >= 1 && y + 1 < height && width >= 3 {
+            for (ch, k) in keys.iter().enumerate() {
+                let rows = [&k[(y - 1) * width..y * width], &k[y * width..(y + 1) * width], &k[(y + 1) * width..(y + 2) * width]];
+                for x in 1..width - 1 {
+                    let p = [
+                        rows[0][x - 1],
+                        rows[0][x],
+                        rows[0][x + 1],
+                        rows[1][x - 1],
+                        rows[1][x],
+                        rows[1][x + 1],
+                        rows[2][x - 1],
+                        rows[2][x],
+                        rows[2][x + 1],
+                    ];
+                    row[x][ch] = from_total_key(median9(p));
+                }
+            }
+        }
+    }
 }
 
 /// `min(errors_i, cap·m_i)` per pixel and channel, with `m` the cross-bilateral filtered 3×3
 /// median of the PT batch variance of the mean (the `pt-capped` floor variance).
 pub fn capped_errors(errors: &[[f32; 3]], set: &StreamSet, cbf: &CbfOptions, cap: f64) -> Vec<[f32; 3]> {
-    let median = cross_bilateral(&median_3x3(&variance_of_mean(&set.pt), set.width, set.height), set, cbf);
-    errors.iter().zip(&median).map(|(e, m)| std::array::from_fn(|ch| (e[ch] as f64).min(cap * m[ch] as f64) as f32)).collect()
+    cap_errors(errors, &cross_bilateral(&median_3x3(&variance_of_mean(&set.pt), set.width, set.height), set, cbf), cap)
+}
+
+/// [`capped_errors`] with the filtered median `median` given.
+pub fn cap_errors(errors: &[[f32; 3]], median: &[[f32; 3]], cap: f64) -> Vec<[f32; 3]> {
+    errors.iter().zip(median).map(|(e, m)| std::array::from_fn(|ch| (e[ch] as f64).min(cap * m[ch] as f64) as f32)).collect()
 }
 
 /// The floor of one pass: `τ`, the mode and the per-pixel `ṽ`.
@@ -137,6 +237,45 @@ pub(crate) fn blend_towards_centre(beta: &mut [f64], delta_c: f64, winv_c: f64) 
 mod tests {
     use super::*;
     use crate::solve::{Form, Workspace};
+
+    /// The min/max network of the interior pixels picks the value `select_nth_unstable_by` with
+    /// `total_cmp` picks, bit for bit: on random values with ties, signed zeros, infinities and
+    /// NaNs of both signs, in both builds, on images down to 1 pixel wide or high.
+    #[test]
+    fn the_median_network_gives_the_selected_value() {
+        use crate::rng::{hash4, uniform};
+        let special = [0.0, -0.0, f32::INFINITY, f32::NEG_INFINITY, f32::NAN, -f32::NAN, 1.0, -1.0, f32::MIN_POSITIVE];
+        let value = |i: u64, ch: u64| {
+            let r = hash4(17, i, ch, 0);
+            match r % 4 {
+                0 => special[(r >> 8) as usize % special.len()],
+                1 => ((r >> 8) % 3) as f32,
+                _ => (uniform(r) - 0.3) as f32 * 10.0,
+            }
+        };
+        let run = || {
+            for (w, h) in [(23, 17), (3, 3), (1, 5), (6, 1), (2, 2)] {
+                let values: Vec<[f32; 3]> =
+                    (0..w * h).map(|i| std::array::from_fn(|ch| value(i as u64 + 1000 * w as u64, ch as u64))).collect();
+                let got = median_3x3(&values, w, h);
+                for y in 0..h {
+                    for x in 0..w {
+                        let want: [f32; 3] = std::array::from_fn(|ch| {
+                            let mut window: Vec<f32> = (y.saturating_sub(1)..(y + 2).min(h))
+                                .flat_map(|wy| (x.saturating_sub(1)..(x + 2).min(w)).map(move |wx| wy * w + wx))
+                                .map(|i| values[i][ch])
+                                .collect();
+                            let n = window.len();
+                            *window.select_nth_unstable_by((n - 1) / 2, f32::total_cmp).1
+                        });
+                        assert_eq!(got[y * w + x].map(f32::to_bits), want.map(f32::to_bits), "{w}x{h} at ({x}, {y})");
+                    }
+                }
+            }
+        };
+        run();
+        crate::simd::force_portable(run);
+    }
 
     #[test]
     fn delta_by_hand() {

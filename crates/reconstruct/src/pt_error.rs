@@ -95,10 +95,22 @@ pub fn pt_errors(kind: ErrorEstimate, set: &StreamSet, reference: Option<&Image>
 
 /// Smooths per-pixel values with the cross-bilateral filter described in [`CbfOptions`].
 pub fn cross_bilateral(values: &[[f32; 3]], set: &StreamSet, o: &CbfOptions) -> Vec<[f32; 3]> {
+    let [out] = cross_bilateral_sets([values], set, o);
+    out
+}
+
+/// [`cross_bilateral`] of several value sets at once, each with the bits it gets on its own:
+/// the weights depend only on the guide, so each is computed once for all the sets.
+pub fn cross_bilateral_sets<const N: usize>(values: [&[[f32; 3]]; N], set: &StreamSet, o: &CbfOptions) -> [Vec<[f32; 3]>; N] {
     let (w, h) = (set.width, set.height);
     let filter = Filter::new(values, set, o);
-    let mut out = vec![[0.0f32; 3]; w * h];
-    out.par_chunks_mut(w).enumerate().for_each(|(y, row)| simd::dispatch(FilterRow { filter: &filter, y, row }));
+    let mut out: [Vec<[f32; 3]>; N] = std::array::from_fn(|_| vec![[0.0f32; 3]; w * h]);
+    let mut rows: Vec<[&mut [[f32; 3]]; N]> = Vec::with_capacity(h);
+    let mut iters = out.each_mut().map(|o| o.chunks_mut(w.max(1)));
+    for _ in 0..h {
+        rows.push(iters.each_mut().map(|i| i.next().expect("one row per image row")));
+    }
+    rows.into_par_iter().enumerate().for_each(|(y, row)| simd::dispatch(FilterRow { filter: &filter, y, row }));
     out
 }
 
@@ -107,7 +119,7 @@ type Rgb = [Vec<f32>; 3];
 
 /// Guide and value planes, one contiguous slice per quantity, so that a window row is a
 /// contiguous run the compiler can vectorise.
-struct Planes {
+struct Planes<const N: usize> {
     w: usize,
     h: usize,
     g: [Vec<f32>; 3],
@@ -115,11 +127,12 @@ struct Planes {
     g2: Vec<f32>,
     eps: f32,
     features: Option<(Rgb, Rgb)>,
-    v: [Vec<f32>; 3],
+    /// The planes of each value set.
+    v: [Rgb; N],
 }
 
-impl Planes {
-    fn new(values: &[[f32; 3]], set: &StreamSet, eps: f32) -> Self {
+impl<const N: usize> Planes<N> {
+    fn new(values: [&[[f32; 3]]; N], set: &StreamSet, eps: f32) -> Self {
         let plane = |im: &[[f32; 3]], c: usize| im.iter().map(|p| p[c]).collect::<Vec<f32>>();
         let g = &set.crn.mean.pixels;
         Planes {
@@ -132,7 +145,7 @@ impl Planes {
                 .features
                 .as_ref()
                 .map(|f| (std::array::from_fn(|c| plane(&f.albedo.pixels, c)), std::array::from_fn(|c| plane(&f.normal.pixels, c)))),
-            v: std::array::from_fn(|c| plane(values, c)),
+            v: values.map(|values| std::array::from_fn(|c| plane(values, c))),
         }
     }
 }
@@ -145,8 +158,8 @@ struct Gains {
 
 /// The filter of one call: the planes, the gains of the exponent's terms, its spatial term per
 /// offset `−r … r`, the radius `r`, and whether a pixel's own value is left out.
-struct Filter {
-    planes: Planes,
+struct Filter<const N: usize> {
+    planes: Planes<N>,
     gains: Gains,
     spatial: Vec<f32>,
     r: usize,
@@ -154,13 +167,13 @@ struct Filter {
 }
 
 /// One image row of the filter's output, for [`simd::dispatch`].
-struct FilterRow<'a> {
-    filter: &'a Filter,
+struct FilterRow<'a, const N: usize> {
+    filter: &'a Filter<N>,
     y: usize,
-    row: &'a mut [[f32; 3]],
+    row: [&'a mut [[f32; 3]]; N],
 }
 
-impl Kernel for FilterRow<'_> {
+impl<const N: usize> Kernel for FilterRow<'_, N> {
     type Output = ();
 
     #[inline(always)]
@@ -169,9 +182,9 @@ impl Kernel for FilterRow<'_> {
     }
 }
 
-impl Filter {
+impl<const N: usize> Filter<N> {
     /// The filter of `o` for `values` guided by `set`.
-    fn new(values: &[[f32; 3]], set: &StreamSet, o: &CbfOptions) -> Self {
+    fn new(values: [&[[f32; 3]]; N], set: &StreamSet, o: &CbfOptions) -> Self {
         let g = &set.crn.mean.pixels;
         let mean_sq = g.iter().map(|p| p.iter().map(|v| (*v as f64).powi(2)).sum::<f64>()).sum::<f64>() / g.len().max(1) as f64;
         let r = o.radius;
@@ -188,40 +201,46 @@ impl Filter {
         }
     }
 
-    /// Output row `y`.
+    /// Output row `y` of each value set.
     #[inline(always)]
-    fn row<S: Simd>(&self, simd: S, y: usize, row: &mut [[f32; 3]]) {
+    fn row<S: Simd>(&self, simd: S, y: usize, mut row: [&mut [[f32; 3]]; N]) {
         let (p, r) = (&self.planes, self.r);
         // Centres whose window lies whole within the row go eight at a time, one per lane (see
         // `Filter::eight`); the others, near the left and right borders, one at a time.
         let mut x = 0;
         while x < p.w {
             if x >= r && x + 8 + r <= p.w {
-                self.eight(simd, y, x, (&mut row[x..x + 8]).try_into().expect("eight centres"));
+                let out = self.eight(simd, y, x);
+                for (row, out) in row.iter_mut().zip(out) {
+                    row[x..x + 8].copy_from_slice(&out);
+                }
                 x += 8;
             } else {
-                row[x] = self.centre(simd, y, x);
+                for (row, out) in row.iter_mut().zip(self.centre(simd, y, x)) {
+                    row[x] = out;
+                }
                 x += 1;
             }
         }
     }
 
-    /// The filter's value at centre `(x, y)`.
+    /// The filter's value of each set at centre `(x, y)`.
     #[inline(always)]
-    fn centre<S: Simd>(&self, simd: S, y: usize, x: usize) -> [f32; 3] {
+    fn centre<S: Simd>(&self, simd: S, y: usize, x: usize) -> [[f32; 3]; N] {
         let (p, k, spatial, r, exclude) = (&self.planes, &self.gains, &self.spatial[..], self.r, self.exclude);
         let (w, h) = (p.w, p.h);
         let mut tbuf = [0.0f32; 2 * MAX_RADIUS + 1];
         let c = y * w + x;
         let (gc, g2c) = ([p.g[0][c], p.g[1][c], p.g[2][c]], p.g2[c]);
-        let mut acc = [[0.0f32; 8]; 4];
+        // The weights, then each set's three weighted values.
+        let mut acc_w = [0.0f32; 8];
+        let mut acc = [[[0.0f32; 8]; 3]; N];
         let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(w));
         for yy in y.saturating_sub(r)..(y + r + 1).min(h) {
             let dy2 = spatial[yy + r - y];
             let (a, b) = (yy * w + x0, yy * w + x1);
             let sp = &spatial[x0 + r - x..x1 + r - x];
             let (g0, g1, g2, n2) = (&p.g[0][a..b], &p.g[1][a..b], &p.g[2][a..b], &p.g2[a..b]);
-            let (v0, v1, v2) = (&p.v[0][a..b], &p.v[1][a..b], &p.v[2][a..b]);
             let n = b - a;
             // Exponents first (element-wise, vectorises), then weights, then the sums.
             let t = &mut tbuf[..n];
@@ -237,15 +256,20 @@ impl Filter {
             }
             simd.exp_neg_in_place(t);
             for j in 0..n {
-                let (l, wt) = (j % 8, t[j]);
-                acc[0][l] += wt;
-                acc[1][l] += wt * v0[j];
-                acc[2][l] += wt * v1[j];
-                acc[3][l] += wt * v2[j];
+                acc_w[j % 8] += t[j];
+            }
+            for (acc, v) in acc.iter_mut().zip(&p.v) {
+                let (v0, v1, v2) = (&v[0][a..b], &v[1][a..b], &v[2][a..b]);
+                for j in 0..n {
+                    let (l, wt) = (j % 8, t[j]);
+                    acc[0][l] += wt * v0[j];
+                    acc[1][l] += wt * v1[j];
+                    acc[2][l] += wt * v2[j];
+                }
             }
         }
         let sum = |a: &[f32; 8]| ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]));
-        finish(p, exclude, c, sum(&acc[0]), [sum(&acc[1]), sum(&acc[2]), sum(&acc[3])])
+        std::array::from_fn(|q| finish(&p.v[q], exclude, c, sum(&acc_w), acc[q].each_ref().map(sum)))
     }
 
     /// [`Filter::centre`] for the eight centres `x0 … x0 + 7` of row `y`, whose windows lie
@@ -255,7 +279,7 @@ impl Filter {
     /// to the centre's partial sum `dx mod 8`, in the order `Filter::centre` adds it: the same
     /// bits.
     #[inline(always)]
-    fn eight<S: Simd>(&self, simd: S, y: usize, x0: usize, out: &mut [[f32; 3]; 8]) {
+    fn eight<S: Simd>(&self, simd: S, y: usize, x0: usize) -> [[[f32; 3]; 8]; N] {
         let (p, k, spatial, r, exclude) = (&self.planes, &self.gains, &self.spatial[..], self.r, self.exclude);
         let (w, h) = (p.w, p.h);
         let c0 = y * w + x0;
@@ -265,8 +289,9 @@ impl Filter {
         let centre_features = p.features.as_ref().map(|(al, nm)| {
             ([lanes(&al[0], c0), lanes(&al[1], c0), lanes(&al[2], c0)], [lanes(&nm[0], c0), lanes(&nm[1], c0), lanes(&nm[2], c0)])
         });
-        // [partial][weight, three weighted values][lane]
-        let mut acc = [[[0.0f32; 8]; 4]; 8];
+        // [partial][lane] of the weights, [set][partial][weighted value][lane] of the values.
+        let mut acc_w = [[0.0f32; 8]; 8];
+        let mut acc = [[[[0.0f32; 8]; 3]; 8]; N];
         for yy in y.saturating_sub(r)..(y + r + 1).min(h) {
             let dy2 = spatial[yy + r - y];
             for dx in 0..=2 * r {
@@ -290,29 +315,34 @@ impl Filter {
                     }
                 }
                 simd.exp_neg_in_place(&mut t);
-                let (v0, v1, v2) = (lanes(&p.v[0], a), lanes(&p.v[1], a), lanes(&p.v[2], a));
-                let part = &mut acc[dx % 8];
+                let part = &mut acc_w[dx % 8];
                 for l in 0..8 {
-                    part[0][l] += t[l];
-                    part[1][l] += t[l] * v0[l];
-                    part[2][l] += t[l] * v1[l];
-                    part[3][l] += t[l] * v2[l];
+                    part[l] += t[l];
+                }
+                for (acc, v) in acc.iter_mut().zip(&p.v) {
+                    let (v0, v1, v2) = (lanes(&v[0], a), lanes(&v[1], a), lanes(&v[2], a));
+                    let part = &mut acc[dx % 8];
+                    for l in 0..8 {
+                        part[0][l] += t[l] * v0[l];
+                        part[1][l] += t[l] * v1[l];
+                        part[2][l] += t[l] * v2[l];
+                    }
                 }
             }
         }
-        for (l, o) in out.iter_mut().enumerate() {
-            let sum = |q: usize| {
-                ((acc[0][q][l] + acc[1][q][l]) + (acc[2][q][l] + acc[3][q][l]))
-                    + ((acc[4][q][l] + acc[5][q][l]) + (acc[6][q][l] + acc[7][q][l]))
-            };
-            *o = finish(p, exclude, c0 + l, sum(0), [sum(1), sum(2), sum(3)]);
-        }
+        let sum = |a: [[f32; 8]; 8], l: usize| ((a[0][l] + a[1][l]) + (a[2][l] + a[3][l])) + ((a[4][l] + a[5][l]) + (a[6][l] + a[7][l]));
+        std::array::from_fn(|q| {
+            std::array::from_fn(|l| {
+                let values = std::array::from_fn(|ch| sum(std::array::from_fn(|part| acc[q][part][ch]), l));
+                finish(&p.v[q], exclude, c0 + l, sum(acc_w, l), values)
+            })
+        })
     }
 }
 
 /// The colour term of a weight's exponent, `δ_rgb·k_colour`.
 #[inline(always)]
-fn colour_exponent(p: &Planes, k: &Gains, gc: [f32; 3], g2c: f32, g: [f32; 3], n2: f32) -> f32 {
+fn colour_exponent<const N: usize>(p: &Planes<N>, k: &Gains, gc: [f32; 3], g2c: f32, g: [f32; 3], n2: f32) -> f32 {
     let d = [gc[0] - g[0], gc[1] - g[1], gc[2] - g[2]];
     (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) / (p.eps + 0.5 * (g2c + n2)) * k.colour
 }
@@ -325,20 +355,21 @@ fn feature_exponent(k: &Gains, ac: [f32; 3], nc: [f32; 3], a: [f32; 3], n: [f32;
     (da[0] * da[0] + da[1] * da[1] + da[2] * da[2]) * k.albedo + (dn[0] * dn[0] + dn[1] * dn[1] + dn[2] * dn[2]) * k.normal
 }
 
-/// The filtered value from the weight sum `ws` and the weighted sums `s` of centre `c`.
+/// The filtered value from the weight sum `ws` and the weighted sums `s` of centre `c`, whose
+/// values are the planes `v`.
 #[inline(always)]
-fn finish(p: &Planes, exclude: bool, c: usize, mut ws: f32, mut s: [f32; 3]) -> [f32; 3] {
+fn finish(v: &Rgb, exclude: bool, c: usize, mut ws: f32, mut s: [f32; 3]) -> [f32; 3] {
     if exclude {
         // The centre's own weight is exactly exp(0) = 1.
         ws -= 1.0;
         for ch in 0..3 {
-            s[ch] -= p.v[ch][c];
+            s[ch] -= v[ch][c];
         }
     }
     if ws > 1e-6 {
         [s[0] / ws, s[1] / ws, s[2] / ws]
     } else {
-        [p.v[0][c], p.v[1][c], p.v[2][c]]
+        [v[0][c], v[1][c], v[2][c]]
     }
 }
 
@@ -375,11 +406,11 @@ mod tests {
                     for (radius, exclude_centre) in [(3, false), (1, true), (5, false), (2, true)] {
                         let o = CbfOptions { radius, exclude_centre, ..Default::default() };
                         let got = cross_bilateral(&values, s, &o);
-                        let filter = Filter::new(&values, s, &o);
+                        let filter = Filter::new([&values], s, &o);
                         let r = radius;
                         for y in 0..h {
                             for x in 0..w {
-                                let want = filter.centre(Portable, y, x);
+                                let [want] = filter.centre(Portable, y, x);
                                 let features = s.features.is_some();
                                 assert_eq!(
                                     got[y * w + x].map(f32::to_bits),
@@ -394,6 +425,21 @@ mod tests {
         };
         run();
         simd::force_portable(run);
+    }
+
+    /// Value sets filtered together get the bits each gets on its own.
+    #[test]
+    fn sets_filtered_together_give_the_bits_of_each_alone() {
+        use crate::synthetic::{RenderSpec, SoftShadowScene};
+        let set = SoftShadowScene::default().render(&RenderSpec { width: 41, height: 13, spp: 8, batches: 4, seed: 9 }).unwrap();
+        let a = variance_of_mean(&set.pt);
+        let b = crate::floor::median_3x3(&variance_of_mean(&set.crn), 41, 13);
+        for o in [CbfOptions::default(), CbfOptions { radius: 2, exclude_centre: true, ..Default::default() }] {
+            let [ga, gb] = cross_bilateral_sets([&a, &b], &set, &o);
+            let bits = |v: &[[f32; 3]]| v.iter().map(|p| p.map(f32::to_bits)).collect::<Vec<_>>();
+            assert_eq!(bits(&ga), bits(&cross_bilateral(&a, &set, &o)));
+            assert_eq!(bits(&gb), bits(&cross_bilateral(&b, &set, &o)));
+        }
     }
 
     #[test]

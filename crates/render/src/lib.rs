@@ -35,7 +35,7 @@ pub mod vector;
 
 pub use error::RenderError;
 pub use film::driver::{render_reference_pass, render_stream_part, render_streams, StreamRender};
-pub use intersect::{Hit, Intersector, Ray};
+pub use intersect::{Hit, HitPacket, Intersector, Ray, RayPacket, PACKET};
 pub use scene::camera::Camera;
 pub use scene::error::SceneError;
 pub use scene::lights::{Environment, Punctual};

@@ -12,11 +12,11 @@
 use crate::batch_stats::{trimmed_variance_of_mean, variance_of_mean};
 use crate::cv_pass::{check_selection, CvPass, Dof, Folds};
 use crate::demodulate::{self, Demodulation};
-use crate::floor::{capped_errors, Floor, FloorMode, FloorSource};
+use crate::floor::{cap_errors, capped_errors, median_3x3, Floor, FloorMode, FloorSource};
 use crate::input::BatchNeed;
 use crate::low_pass::{low_pass_variance, restore_low_frequencies};
 use crate::penalty::Penalty;
-use crate::pt_error::{cross_bilateral, pt_errors, CbfOptions, ErrorEstimate, MAX_RADIUS};
+use crate::pt_error::{cross_bilateral, cross_bilateral_sets, pt_errors, CbfOptions, ErrorEstimate, MAX_RADIUS};
 use crate::selection::{Selection, Selector, MAX_SEARCH_WINDOW};
 use crate::solve::{MAX_BATCHES, MAX_K};
 use crate::spec::{Bounds, EstimatorSpec, ParamKind, ParamSpec, Params, Samples, Variant};
@@ -285,13 +285,24 @@ impl ImperfectCv {
         let o = &self.options;
         let set = input.streams;
         o.folds.check(input.streams_name, SPEC.name, set.batch_count())?;
-        let errors = pt_errors(o.errors, set, input.reference, &o.cbf);
-        let floor_variance = match o.crn_floor_source {
-            _ if o.crn_floor <= 0.0 => None,
-            FloorSource::Pt => None,
-            FloorSource::Crn => Some(cross_bilateral(&variance_of_mean(&set.crn), set, &o.cbf)),
-            FloorSource::PtTrimmed => Some(cross_bilateral(&trimmed_variance_of_mean(&set.pt), set, &o.cbf)),
-            FloorSource::PtCapped => Some(capped_errors(&errors, set, &o.cbf, o.crn_floor_cap)),
+        let (errors, floor_variance) = if o.errors == ErrorEstimate::Cbf && o.crn_floor > 0.0 && o.crn_floor_source == FloorSource::PtCapped
+        {
+            // The errors and the cap both filter the PT batch variance (as it is, and its 3×3
+            // median) with the same weights: one filter pass computes them for both.
+            let v = variance_of_mean(&set.pt);
+            let [errors, median] = cross_bilateral_sets([&v, &median_3x3(&v, set.width, set.height)], set, &o.cbf);
+            let capped = cap_errors(&errors, &median, o.crn_floor_cap);
+            (errors, Some(capped))
+        } else {
+            let errors = pt_errors(o.errors, set, input.reference, &o.cbf);
+            let floor_variance = match o.crn_floor_source {
+                _ if o.crn_floor <= 0.0 => None,
+                FloorSource::Pt => None,
+                FloorSource::Crn => Some(cross_bilateral(&variance_of_mean(&set.crn), set, &o.cbf)),
+                FloorSource::PtTrimmed => Some(cross_bilateral(&trimmed_variance_of_mean(&set.pt), set, &o.cbf)),
+                FloorSource::PtCapped => Some(capped_errors(&errors, set, &o.cbf, o.crn_floor_cap)),
+            };
+            (errors, floor_variance)
         };
         let floor = (o.crn_floor > 0.0).then(|| Floor {
             tau: o.crn_floor,

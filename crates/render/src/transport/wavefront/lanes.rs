@@ -86,10 +86,12 @@ pub(crate) struct Out {
     /// First-hit features: albedo and shading normal facing the ray (the depth is `t`).
     pub first_albedo: [[f32; W]; 3],
     pub first_normal: [[f32; W]; 3],
-    /// 1 where a shadow ray is to be traced: origin, direction (`tmax` 1), the light it brings.
+    /// 1 where a shadow ray is to be traced: origin, direction, `tmax` (1 towards a point, the
+    /// kernel's; infinite towards the environment or a sun), the light it brings.
     pub shadow: [u32; W],
     pub shadow_origin: [[f32; W]; 3],
     pub shadow_dir: [[f32; W]; 3],
+    pub shadow_tmax: [f32; W],
     pub shadow_light: [[f32; W]; 3],
     /// 1 where the path goes on (its new ray is in the chunk).
     pub next: [u32; W],
@@ -103,6 +105,7 @@ impl Default for Out {
             shadow: [0; W],
             shadow_origin: [[0.0; W]; 3],
             shadow_dir: [[0.0; W]; 3],
+            shadow_tmax: [1.0; W],
             shadow_light: [[0.0; W]; 3],
             next: [0; W],
         }

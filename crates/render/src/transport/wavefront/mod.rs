@@ -16,7 +16,7 @@ mod lanes;
 #[allow(unsafe_code)]
 mod simd;
 
-use crate::intersect::{Hit, Intersector, Ray};
+use crate::intersect::{Hit, Intersector, Ray, RayPacket};
 use crate::sampler::{dims, SampleSampler};
 use crate::transport::integrator::{FirstHit, Path, PathContext};
 use glam::Vec3A;
@@ -34,8 +34,6 @@ pub(crate) struct Wavefront {
     /// Per path, in the order pushed: its radiance once it has ended, and its first-hit features.
     radiance: Vec<Vec3A>,
     firsts: Vec<FirstHit>,
-    /// Shadow rays of the scalar vertices of this bounce: slot, ray, the light it brings.
-    shadows: Vec<(u32, Ray, Vec3A)>,
     /// The lane kernel, or `None` to shade every vertex with the scalar code.
     kernel: Option<Kernel>,
     /// The scene records of the chunk being shaded.
@@ -79,7 +77,6 @@ impl Wavefront {
             live: 0,
             radiance: Vec::new(),
             firsts: Vec::new(),
-            shadows: Vec::new(),
             kernel,
             blocks: Box::default(),
             vertices: 0,
@@ -119,13 +116,13 @@ impl Wavefront {
         let mut first_bounce = true;
         while self.live > 0 {
             let want_first = features && first_bounce;
-            self.shadows.clear();
             let chunks = self.live.div_ceil(W);
             for c in 0..chunks {
                 let filled = (self.live - c * W).min(W);
                 let ch = &mut self.chunks[c];
                 let out = &mut self.outs[c];
                 out.next = [0; W];
+                out.shadow_tmax = [1.0; W];
                 let shaded = match kernel {
                     Some((_, lanes)) => classify(ctx, lanes, ch, &mut self.blocks, filled),
                     None => 0,
@@ -154,43 +151,41 @@ impl Wavefront {
                     let step = ctx.vertex(&mut path, hit, &SampleSampler::from_key(key), first);
                     set_lane_path(ch, l, &path, key, id);
                     out.next[l] = step.next as u32;
+                    out.shadow[l] = u32::from(step.shadow.is_some());
                     if let Some((ray, light)) = step.shadow {
-                        self.shadows.push(((c * W + l) as u32, ray, light));
+                        debug_assert_eq!(ray.tmin, 0.0);
+                        put(&mut out.shadow_origin, l, ray.origin);
+                        put(&mut out.shadow_dir, l, ray.dir);
+                        out.shadow_tmax[l] = ray.tmax;
+                        put(&mut out.shadow_light, l, light);
                     }
                 }
             }
             self.trace_shadows(tracer, chunks);
             self.compact();
-            for s in 0..self.live {
-                let (c, l) = slot(s);
+            // The continuation rays, a chunk at a time (packets where the ray caster can trace
+            // them with the single rays' bits).
+            for c in 0..self.live.div_ceil(W) {
+                let filled = (self.live - c * W).min(W);
                 let ch = &mut self.chunks[c];
-                let ray = Ray { origin: get(&ch.origin, l), dir: get(&ch.dir, l), tmin: 0.0, tmax: f32::INFINITY };
-                set_hit(ch, l, tracer.intersect(&ray));
+                let rays = RayPacket { origin: ch.origin, dir: ch.dir, tmin: [0.0; W], tmax: [f32::INFINITY; W] };
+                let hits = tracer.intersect_packet(&rays, ((1u32 << filled) - 1) as u16);
+                (ch.hit, ch.t, ch.u, ch.v, ch.prim) = (hits.hit, hits.t, hits.u, hits.v, hits.prim);
             }
             first_bounce = false;
         }
     }
 
-    /// Traces the bounce's shadow rays, the kernel's and the scalar vertices', and adds the
-    /// light of each unoccluded one to its path.
+    /// Traces the bounce's shadow rays, the kernel's and the scalar vertices', a chunk's as one
+    /// packet, and adds the light of each unoccluded one to its path.
     fn trace_shadows<T: Intersector>(&mut self, tracer: &T, chunks: usize) {
         for c in 0..chunks {
             let (ch, out) = (&mut self.chunks[c], &self.outs[c]);
-            for l in 0..W {
-                if out.shadow[l] != 0 {
-                    let ray = Ray { origin: get(&out.shadow_origin, l), dir: get(&out.shadow_dir, l), tmin: 0.0, tmax: 1.0 };
-                    if !tracer.occluded(&ray) {
-                        let lit = get(&ch.l, l) + get(&out.shadow_light, l);
-                        put(&mut ch.l, l, lit);
-                    }
-                }
-            }
-        }
-        for (s, ray, light) in &self.shadows {
-            let (c, l) = slot(*s as usize);
-            if !tracer.occluded(ray) {
-                let ch = &mut self.chunks[c];
-                let lit = get(&ch.l, l) + *light;
+            let active = (0..W).filter(|&l| out.shadow[l] != 0).fold(0u16, |m, l| m | 1 << l);
+            let rays = RayPacket { origin: out.shadow_origin, dir: out.shadow_dir, tmin: [0.0; W], tmax: out.shadow_tmax };
+            let occluded = tracer.occluded_packet(&rays, active);
+            for l in (0..W).filter(|&l| (active & !occluded) >> l & 1 != 0) {
+                let lit = get(&ch.l, l) + get(&out.shadow_light, l);
                 put(&mut ch.l, l, lit);
             }
         }
