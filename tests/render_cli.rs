@@ -267,7 +267,7 @@ fn bad_input_fails_clearly_and_leaves_no_file() {
         (&["render", sp, "--spp", "0", "-o", "x.streams.exr"], &["spp"]),
         (&["render", sp, "--spp", "10", "--batches", "4", "-o", "x.streams.exr"], &["multiple of batches"]),
         (&["render", sp, "--width", "1000000", "-o", "x.streams.exr"], &["1000000"]),
-        (&["render", sp, "--height", "0", "-o", "x.streams.exr"], &["image size"]),
+        (&["render", sp, "--height", "0", "-o", "x.streams.exr"], &["--height", "1..=16384"]),
         (&["render", sp, "--max-depth", "0", "-o", "x.streams.exr"], &["max_depth"]),
         (&["render", sp, "--camera", "1,2,3", "-o", "x.streams.exr"], &["--camera"]),
         (&["render", sp, "--reference", "--batches", "2", "-o", "x.ref.exr"], &["--batches"]),
