@@ -120,9 +120,10 @@ pub fn write_report(results: &StudyResults, source_dir: &Path, out_dir: &Path, o
     }
     let earlier = earlier_report_files(out_dir);
     let created = !out_dir.exists();
-    cvtrace_streams::atomic::create_dir_all(out_dir)?;
-    // Interrupted while filling a folder it made, the report takes the folder away again.
+    // Interrupted while filling a folder it made, the report takes the folder away again: the
+    // removal is registered before the folder is made, so no interrupt falls between the two.
     let _partial = created.then(|| cvtrace_streams::atomic::remove_folder_on_interrupt(out_dir));
+    cvtrace_streams::atomic::create_dir_all(out_dir)?;
     pause_for_tests();
     let written = write_viewer(results, source_dir, out_dir, options, &index, &earlier);
     match written {
