@@ -262,7 +262,7 @@ fn param_spec(p: &Bound<'_, PyAny>, estimator: &str) -> PyResult<ParamSpec> {
     };
     let default = match get("default")? {
         None => return Err(bad("no default".into())),
-        Some(v) => crate::reconstruct::param_text(&v)?,
+        Some(v) => crate::params::param_text(&v)?,
     };
     Ok(ParamSpec { name: leak(name), kind, default: leak(default), doc: leak(text("doc")?.unwrap_or_default()), alias: None })
 }
@@ -361,7 +361,7 @@ pub fn register(
                 v?.extract().map_err(|_| PyValueError::new_err("variants: expected [(key, label, {param: value}), ...]"))?;
             let mut pairs: Vec<(&'static str, &'static str)> = Vec::new();
             for (k, val) in vparams.iter() {
-                pairs.push((leak(k.str()?.to_string()), leak(crate::reconstruct::param_text(&val)?)));
+                pairs.push((leak(k.str()?.to_string()), leak(crate::params::param_text(&val)?)));
             }
             variant_list.push(Variant { key: leak(key), label: leak(vlabel), params: Box::leak(pairs.into_boxed_slice()) });
         }

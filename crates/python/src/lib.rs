@@ -11,6 +11,7 @@ mod arrays;
 mod errors;
 mod estimators;
 mod metrics;
+mod params;
 mod reconstruct;
 mod render;
 mod run;

@@ -8,33 +8,9 @@ use anyhow::bail;
 use cvtrace_reconstruct::{BatchNeed, DiagValue, Diagnostics, Input, Overrides, ParamKind, Params};
 use cvtrace_streams::Image;
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyDict, PyList, PyTuple};
+use pyo3::types::{PyDict, PyList};
 use std::path::PathBuf;
 use std::sync::Arc;
-
-/// A parameter's value as the command line writes it: booleans as true/false, None as auto,
-/// sequences comma-separated, numbers as Python writes them (which parse back to the same).
-pub fn param_text(v: &Bound<'_, PyAny>) -> PyResult<String> {
-    if v.is_none() {
-        return Ok("auto".into());
-    }
-    if v.is_instance_of::<PyBool>() {
-        return Ok(if v.is_truthy()? { "true" } else { "false" }.into());
-    }
-    if let Ok(s) = v.extract::<String>() {
-        return Ok(s);
-    }
-    if v.is_instance_of::<PyList>() || v.is_instance_of::<PyTuple>() {
-        let parts: Vec<String> = v.try_iter()?.map(|x| x.and_then(|x| param_text(&x))).collect::<PyResult<_>>()?;
-        return Ok(parts.join(","));
-    }
-    if let Ok(f) = v.extract::<f64>() {
-        if v.extract::<i64>().is_err() {
-            return Ok(format!("{f:?}"));
-        }
-    }
-    Ok(v.str()?.to_string())
-}
 
 /// The streams argument: a `Streams`, or the path of a stream file.
 pub fn streams_arg(py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<Arc<(Arc<cvtrace_streams::StreamSet>, String)>> {
@@ -152,7 +128,7 @@ pub fn reconstruct(
     let mut overrides = Overrides::default();
     if let Some(p) = params {
         for (k, v) in p.iter() {
-            overrides.set(method, &k.str()?.to_string(), &param_text(&v)?);
+            overrides.set(method, &k.str()?.to_string(), &crate::params::param_text(&v)?);
         }
     }
     let method_name = method.to_string();

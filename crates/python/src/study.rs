@@ -214,10 +214,10 @@ fn overrides_from(params: Option<&Bound<'_, PyDict>>) -> PyResult<Overrides> {
         let key = k.str()?.to_string();
         if let Ok(inner) = v.cast::<PyDict>() {
             for (p, value) in inner.iter() {
-                o.set(&key, &p.str()?.to_string(), &crate::reconstruct::param_text(&value)?);
+                o.set(&key, &p.str()?.to_string(), &crate::params::param_text(&value)?);
             }
         } else {
-            let text = format!("{key}={}", crate::reconstruct::param_text(&v)?);
+            let text = format!("{key}={}", crate::params::param_text(&v)?);
             o.parse_assignment(&text).map_err(|e| crate::errors::error(e.into()))?;
         }
     }
