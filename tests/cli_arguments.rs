@@ -4,7 +4,7 @@
 //! file written over another one.
 mod common;
 
-use common::{cvtrace, files_in, ok, scene, stderr, SMALL};
+use common::{cvtrace, files_in, ok, scene, stderr, stream_and_reference, SMALL};
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
@@ -55,20 +55,6 @@ fn refused_by(dir: &Path, program: &str, args: &[&str], needles: &[&str]) {
     }
     assert!(!e.contains("panicked") && !e.contains("memory allocation"), "{args:?}:\n{e}");
     assert_eq!(files_in(dir), before, "{args:?} left files behind");
-}
-
-/// A stream file (4 batches) and a reference of the same small view, in `dir`.
-fn inputs(dir: &Path) {
-    let s = scene();
-    let sp = s.to_str().unwrap();
-    ok(&cvtrace(
-        dir,
-        &[&["--log", "warn", "render", sp, "--spp", "8", "--batches", "4", "--seed", "3", "-o", "s.streams.exr"][..], SMALL].concat(),
-    ));
-    ok(&cvtrace(
-        dir,
-        &[&["--log", "warn", "render", sp, "--reference", "--spp", "16", "--seed", "99", "-o", "ref.exr"][..], SMALL].concat(),
-    ));
 }
 
 fn render_args<'a>(sp: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
@@ -191,7 +177,7 @@ fn reference_only_flags_and_narrow_cameras_are_refused() {
 fn fifo_and_device_inputs_are_refused_not_read() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    inputs(d);
+    stream_and_reference(d);
     assert!(Command::new("mkfifo").arg(d.join("fifo.exr")).status().unwrap().success());
     let s = scene();
     let sp = s.to_str().unwrap();
@@ -209,7 +195,7 @@ fn fifo_and_device_inputs_are_refused_not_read() {
 fn reconstruct_checks_every_option_given() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    inputs(d);
+    stream_and_reference(d);
     let run = |extra: &[&'static str]| [&["reconstruct", "s.streams.exr", "-o", "x.exr"][..], extra].concat();
     // Options of a method that does not run were not checked at all.
     refused(d, &run(&["--method", "pt", "--k", "0"]), &["--k 0"]);
@@ -228,7 +214,7 @@ fn reconstruct_checks_every_option_given() {
 fn compare_refuses_one_file_as_both_csv_and_json() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    inputs(d);
+    stream_and_reference(d);
     ok(&cvtrace(d, &["--log", "warn", "reconstruct", "s.streams.exr", "--method", "pt", "-o", "pt.exr"]));
     // With --force the JSON replaced the CSV, and the command succeeded.
     for json in ["./t.csv", "sub/../t.csv"] {
@@ -241,7 +227,7 @@ fn compare_refuses_one_file_as_both_csv_and_json() {
 fn study_arguments_that_would_wrap_or_fail_late_are_refused_first() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    inputs(d);
+    stream_and_reference(d);
     std::fs::write(d.join("bad.exr"), b"not an EXR").unwrap();
     let s = scene();
     let sp = s.to_str().unwrap();
@@ -289,7 +275,7 @@ fn study_arguments_that_would_wrap_or_fail_late_are_refused_first() {
 fn report_markdown_never_replaces_the_reports_or_the_studys_files() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    inputs(d);
+    stream_and_reference(d);
     let s = scene();
     let sp = s.to_str().unwrap();
     ok(&cvtrace(
@@ -318,7 +304,7 @@ fn report_markdown_never_replaces_the_reports_or_the_studys_files() {
 fn threads_that_cannot_start_and_unparsable_log_filters_are_errors() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    inputs(d);
+    stream_and_reference(d);
     // 1024 thread stacks do not fit in 1 GB of address space: the pool's error was a panic.
     // (Both are refused before any thread starts now.)
     let bin = env!("CARGO_BIN_EXE_cvtrace");
@@ -384,7 +370,7 @@ fn negative_numbers_are_values_out_of_range_not_flags() {
 fn errors_say_what_is_wrong_not_something_near_it() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    inputs(d);
+    stream_and_reference(d);
     let s = scene();
     let sp = s.to_str().unwrap();
     let not = |args: &[&str], wrong: &str| {

@@ -3,24 +3,11 @@
 //! an interrupt on a 100-column terminal.
 mod common;
 
-use common::{cvtrace, ok, scene, stderr, stdout, SMALL};
+use common::{cvtrace, ok, scene, stderr, stdout, stream_and_reference, SMALL};
 use std::io::{Read, Write};
 use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-
-fn inputs(dir: &Path) {
-    let s = scene();
-    let sp = s.to_str().unwrap();
-    ok(&cvtrace(
-        dir,
-        &[&["--log", "warn", "render", sp, "--spp", "8", "--batches", "4", "--seed", "3", "-o", "s.streams.exr"][..], SMALL].concat(),
-    ));
-    ok(&cvtrace(
-        dir,
-        &[&["--log", "warn", "render", sp, "--reference", "--spp", "16", "--seed", "9", "-o", "ref.exr"][..], SMALL].concat(),
-    ));
-}
 
 fn tool_missing(tool: &str) -> bool {
     let have = Command::new("which").arg(tool).output().is_ok_and(|o| o.status.success());
@@ -69,7 +56,7 @@ fn the_readmes_png_export_is_the_srgb_preview() {
 fn compare_shows_only_what_it_measures_and_its_csv_agrees() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    inputs(d);
+    stream_and_reference(d);
     ok(&cvtrace(d, &["--log", "warn", "reconstruct", "s.streams.exr", "--method", "all", "-o", "out"]));
     // Into folders that do not exist yet, as every other output.
     let out = cvtrace(
@@ -116,7 +103,7 @@ fn compare_shows_only_what_it_measures_and_its_csv_agrees() {
 fn a_variant_is_named_as_one_and_shared_flags_name_every_parameter() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    inputs(d);
+    stream_and_reference(d);
     // The README's `cv-classic` is an ablation variant, run by `study --ablations`.
     let out = cvtrace(d, &["reconstruct", "s.streams.exr", "--method", "cv-classic", "-o", "x.exr"]);
     let e = stderr(&out);

@@ -40,3 +40,18 @@ pub fn interrupt(child: &std::process::Child, signal: rustix::process::Signal) {
     let pid = rustix::process::Pid::from_child(child);
     rustix::process::kill_process(pid, signal).expect("the child is alive to be signalled");
 }
+
+/// A stream file `s.streams.exr` (8 spp, 4 batches, seed 3) and a reference `ref.exr` of the
+/// same small view (16 spp, seed 99), in `dir`.
+pub fn stream_and_reference(dir: &Path) {
+    let s = scene();
+    let sp = s.to_str().unwrap();
+    ok(&cvtrace(
+        dir,
+        &[&["--log", "warn", "render", sp, "--spp", "8", "--batches", "4", "--seed", "3", "-o", "s.streams.exr"][..], SMALL].concat(),
+    ));
+    ok(&cvtrace(
+        dir,
+        &[&["--log", "warn", "render", sp, "--reference", "--spp", "16", "--seed", "99", "-o", "ref.exr"][..], SMALL].concat(),
+    ));
+}
