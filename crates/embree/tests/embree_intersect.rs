@@ -297,6 +297,20 @@ fn quads_give_the_same_hits_as_triangles() {
     assert!(hits > rays.len() / 2, "the rays should mostly hit the field");
 }
 
+/// `count` rays from points inside the box `lo`..`hi` (2% in from its faces), in directions
+/// uniform over the sphere, drawn from `next`.
+fn rays_inside(lo: Vec3A, hi: Vec3A, count: usize, next: &mut impl FnMut() -> f32) -> Vec<Ray> {
+    (0..count)
+        .map(|_| {
+            let origin = lo + (hi - lo) * Vec3A::new(0.02 + 0.96 * next(), 0.02 + 0.96 * next(), 0.02 + 0.96 * next());
+            let z = 2.0 * next() - 1.0;
+            let phi = std::f32::consts::TAU * next();
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            ray(origin, Vec3A::new(r * phi.cos(), r * phi.sin(), z))
+        })
+        .collect()
+}
+
 /// The same on the shipped Cornell box with rays like a path tracer's: from points inside the
 /// room in every direction, so they hit walls and boxes from all sides.
 #[test]
@@ -306,15 +320,7 @@ fn quads_give_the_same_hits_as_triangles_in_the_cornell_box() {
     let (lo, hi) = scene.bounds();
     let mut state = 7u64;
     let mut next = || splitmix(&mut state);
-    let rays: Vec<Ray> = (0..100_000)
-        .map(|_| {
-            let origin = lo + (hi - lo) * Vec3A::new(0.02 + 0.96 * next(), 0.02 + 0.96 * next(), 0.02 + 0.96 * next());
-            let z = 2.0 * next() - 1.0;
-            let phi = std::f32::consts::TAU * next();
-            let r = (1.0 - z * z).max(0.0).sqrt();
-            ray(origin, Vec3A::new(r * phi.cos(), r * phi.sin(), z))
-        })
-        .collect();
+    let rays = rays_inside(lo, hi, 100_000, &mut next);
     let hits = assert_quads_match_triangles("Cornell box", scene.positions(), scene.triangles(), &rays);
     assert!(hits > rays.len() / 2, "rays from inside the room should mostly hit it");
 }
@@ -409,15 +415,7 @@ fn packets_give_the_hits_of_single_rays_bit_for_bit() {
     let (lo, hi) = scene.bounds();
     let mut state = 23u64;
     let mut next = || splitmix(&mut state);
-    let rays: Vec<Ray> = (0..PACKET * 2000)
-        .map(|_| {
-            let origin = lo + (hi - lo) * Vec3A::new(0.02 + 0.96 * next(), 0.02 + 0.96 * next(), 0.02 + 0.96 * next());
-            let z = 2.0 * next() - 1.0;
-            let phi = std::f32::consts::TAU * next();
-            let r = (1.0 - z * z).max(0.0).sqrt();
-            ray(origin, Vec3A::new(r * phi.cos(), r * phi.sin(), z))
-        })
-        .collect();
+    let rays = rays_inside(lo, hi, PACKET * 2000, &mut next);
     let masks: Vec<u16> = (0..rays.len() / PACKET).map(|k| if k % 3 == 0 { u16::MAX } else { (next() * 65536.0) as u16 }).collect();
     let packet = |rays: &[Ray]| {
         let mut p = RayPacket { origin: [[0.0; PACKET]; 3], dir: [[0.0; PACKET]; 3], tmin: [0.0; PACKET], tmax: [0.0; PACKET] };
