@@ -1,10 +1,13 @@
-"""Shared fixtures: the bundled Cornell box rendered small, and the `cvtrace` binary."""
+"""Shared fixtures: the bundled Cornell box rendered small, the `cvtrace` binary, and a check
+that a call releases the GIL."""
 
 from __future__ import annotations
 
 import os
 import shutil
 import subprocess
+import threading
+import time
 from pathlib import Path
 
 import numpy as np
@@ -53,3 +56,28 @@ def cli_error(binary: Path, *args: object) -> str:
 def same_bits(a: np.ndarray, b: np.ndarray) -> bool:
     a, b = np.asarray(a), np.asarray(b)
     return a.shape == b.shape and a.dtype == b.dtype and a.tobytes() == b.tobytes()
+
+
+def assert_releases_the_gil(call) -> None:
+    """Runs `call` while another Python thread ticks every 2 ms: the call must take a while and
+    the ticks go on all along, with no gap anywhere near the call's length."""
+    ticks = []
+    stop = threading.Event()
+
+    def tick():
+        while not stop.is_set():
+            ticks.append(time.perf_counter())
+            time.sleep(0.002)
+
+    t = threading.Thread(target=tick)
+    t.start()
+    start = time.perf_counter()
+    try:
+        call()
+    finally:
+        end = time.perf_counter()
+        stop.set()
+        t.join()
+    during = [x for x in ticks if start < x < end]
+    assert end - start > 0.05 and len(during) > 5
+    assert max(np.diff([start, *during, end])) < max(0.05, (end - start) / 3)
