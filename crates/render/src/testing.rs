@@ -131,6 +131,11 @@ pub fn cornell_box_parts() -> SceneParts {
 /// block, a smooth glass short block and a small mirror-like chrome cube: a visual check of
 /// every lobe.
 pub fn materials_box() -> Scene {
+    Scene::from_parts(materials_box_parts()).expect("the built-in material box is valid")
+}
+
+/// The parts of [`materials_box`], to vary it.
+pub fn materials_box_parts() -> SceneParts {
     let mut parts = SceneParts {
         materials: vec![
             Material::diffuse(Vec3A::splat(0.73)),
@@ -162,7 +167,7 @@ pub fn materials_box() -> Scene {
     add_box(&mut parts, v(0.1, -1.0, -0.1), v(0.65, -0.4, 0.5), 6);
     add_box(&mut parts, v(0.35, -1.0, -0.8), v(0.75, -0.6, -0.4), 7);
     parts.camera = Some(Camera { eye: v(0.0, 0.0, 3.9), target: v(0.0, 0.0, 0.0), up: Vec3A::Y, vfov_deg: 38.0, width: 256, height: 256 });
-    Scene::from_parts(parts).expect("the built-in material box is valid")
+    parts
 }
 
 /// A closed cube `[-1, 1]³` whose inward-facing walls all emit `le` and reflect `albedo`

@@ -321,8 +321,19 @@ impl Scene {
                 }
             }
         }
-        let uv = if self.uvs.is_empty() { Vec2::ZERO } else { self.uvs[i0] * w + self.uvs[i1] * u + self.uvs[i2] * v };
-        SurfacePoint { p, ng, ns, uv, material: self.tri_material[prim as usize] }
+        SurfacePoint { p, ng, ns, uv: self.uv(prim, u, v), material: self.tri_material[prim as usize] }
+    }
+
+    /// The texture coordinate at barycentrics `(u, v)` of triangle `prim` (zero without UVs),
+    /// as [`Scene::surface`] gives it.
+    #[inline]
+    pub fn uv(&self, prim: u32, u: f32, v: f32) -> Vec2 {
+        if self.uvs.is_empty() {
+            return Vec2::ZERO;
+        }
+        let [i0, i1, i2] = self.triangles[prim as usize].map(|i| i as usize);
+        let w = 1.0 - u - v;
+        self.uvs[i0] * w + self.uvs[i1] * u + self.uvs[i2] * v
     }
 }
 

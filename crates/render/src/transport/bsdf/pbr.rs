@@ -134,6 +134,15 @@ fn shading_frame(ns: Vec3A, ng: Vec3A, wo: Vec3A) -> Frame {
     Frame::from_normal(if ns.dot(wo) * ng.dot(wo) <= 0.0 { ng } else { ns })
 }
 
+/// The dielectric layer's Fresnel at normal incidence and its strength (`F90`), which depend
+/// on the material alone, not on the point or the direction.
+#[inline]
+pub(crate) fn dielectric_layer(ior: f32, specular_color: Vec3A, specular: f32) -> (Vec3A, f32) {
+    let spec_factor = specular.clamp(0.0, 1.0);
+    let r0 = ((ior - 1.0) / (ior + 1.0)).powi(2);
+    ((Vec3A::splat(r0) * specular_color.max(Vec3A::ZERO)).min(Vec3A::ONE) * spec_factor, spec_factor)
+}
+
 /// The glTF model as a mixture of its lobes (see the module doc).
 #[derive(Clone, Copy, Debug)]
 pub struct Mixture {
@@ -169,9 +178,7 @@ impl Mixture {
         let t = params.transmission.clamp(0.0, 1.0);
         let opaque = (1.0 - m) * (1.0 - t);
         let base = params.base_color.max(Vec3A::ZERO);
-        let spec_factor = params.specular.clamp(0.0, 1.0);
-        let r0 = ((params.ior - 1.0) / (params.ior + 1.0)).powi(2);
-        let f0_dielectric = (Vec3A::splat(r0) * params.specular_color.max(Vec3A::ZERO)).min(Vec3A::ONE) * spec_factor;
+        let (f0_dielectric, spec_factor) = dielectric_layer(params.ior, params.specular_color, params.specular);
         let f_view = super::fresnel::schlick(f0_dielectric, spec_factor, cos_o);
         let diffuse = base * (opaque * (1.0 - f_view.max_element()));
         let alpha = params.roughness.clamp(0.0, 1.0).powi(2);

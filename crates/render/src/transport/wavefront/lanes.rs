@@ -1,11 +1,13 @@
-//! The common vertex of a wavefront, [`W`] paths at a time: a diffuse material without
-//! textures, lit by next-event estimation towards an emissive triangle (the Cornell box's
-//! every vertex). The arithmetic is that of [`crate::transport::integrator::PathContext::vertex`]
-//! on such a vertex, operation by operation and in the same order (glam's `Vec3A` sums its dot
-//! products as `(x·x' + y·y') + z·z'`, and so does [`V3::dot`]), with every branch replaced by a
-//! select, so that the compiler can run each step on all lanes at once; the result is the same
-//! bit for bit, which the tests check against the scalar vertex and the renders check end to
-//! end.
+//! The common vertices of a wavefront, [`W`] paths at a time, in two kinds of lanes: a diffuse
+//! material ([`lane`], the Cornell box's every vertex) and an opaque glTF material with a
+//! specular layer or metal ([`glossy_lane`]: diffuse, GGX specular and metal lobes), both with
+//! their textures looked up beforehand, lit by next-event estimation towards an emissive
+//! triangle (worked out in the lane) or any other light (its sample drawn beforehand). The
+//! arithmetic is that of [`crate::transport::integrator::PathContext::vertex`] on such a
+//! vertex, operation by operation and in the same order (glam's `Vec3A` sums its dot products
+//! as `(x·x' + y·y') + z·z'`, and so does [`V3::dot`]), with every branch replaced by a select,
+//! so that the compiler can run each step on all lanes at once; the result is the same bit for
+//! bit, which the tests check against the scalar vertex and the renders check end to end.
 //!
 //! The kernel is written once, as loops over the lanes of a [`Chunk`] (structure of arrays),
 //! and compiled three times (`simd`): for AVX-512, for AVX2 and for any CPU. Rust never fuses
@@ -18,8 +20,11 @@
 //! is `unsafe`: the instructions of each build are `simd`'s.
 use crate::sampler::dims;
 use crate::scene::world::Scene;
+use crate::transport::bsdf::ggx::MIN_ALPHA;
+use crate::transport::bsdf::pbr::dielectric_layer;
+use crate::transport::light_sample::{LightSample, ShadowEnd};
 use glam::Vec3A;
-use std::f32::consts::{FRAC_1_PI, FRAC_PI_4};
+use std::f32::consts::{FRAC_1_PI, FRAC_PI_4, PI};
 
 /// Lanes per chunk: 16 single-precision values fill one AVX-512 register.
 pub(crate) const W: usize = 16;
@@ -50,11 +55,24 @@ pub(crate) struct Chunk {
     pub u: [f32; W],
     pub v: [f32; W],
     pub prim: [u32; W],
-    /// Set before the kernel runs: 1 where it shades the lane's vertex, and 1 where
-    /// next-event estimation samples an emitter there (whose record is in the blocks).
+    /// Set before the kernel runs: 1 where it shades the lane's vertex.
     pub shade: [u32; W],
-    pub has_light: [u32; W],
+    /// Set before the kernel runs, what it reads of the lane: [`DIFFUSE`] or [`GLOSSY`] (which
+    /// lanes shade it), [`HAS_LIGHT`] (next-event estimation samples an emitter, whose record
+    /// is in the blocks) and [`GIVEN`] (that sample was drawn before the kernel ran). One
+    /// array rather than four: every array the loop reads is one more dependence for the
+    /// compiler to check before it runs the loop on all lanes at once, and past a limit it
+    /// gives up.
+    pub flags: [u32; W],
 }
+
+/// The bits of [`Chunk::flags`].
+pub(crate) const DIFFUSE: u32 = 1;
+pub(crate) const GLOSSY: u32 = 2;
+pub(crate) const HAS_LIGHT: u32 = 4;
+/// The light sample's record is a [`given_light`] record: a punctual light, the environment,
+/// an emitter with an emission texture.
+pub(crate) const GIVEN: u32 = 8;
 
 impl Default for Chunk {
     fn default() -> Self {
@@ -75,7 +93,7 @@ impl Default for Chunk {
             v: [0.0; W],
             prim: [0; W],
             shade: [0; W],
-            has_light: [0; W],
+            flags: [0; W],
         }
     }
 }
@@ -95,6 +113,23 @@ pub(crate) struct Out {
     pub shadow_light: [[f32; W]; 3],
     /// 1 where the path goes on (its new ray is in the chunk).
     pub next: [u32; W],
+}
+
+impl Out {
+    /// Lane `l` of `from`.
+    #[inline(always)]
+    fn take_lane(&mut self, from: &Out, l: usize) {
+        for i in 0..3 {
+            self.first_albedo[i][l] = from.first_albedo[i][l];
+            self.first_normal[i][l] = from.first_normal[i][l];
+            self.shadow_origin[i][l] = from.shadow_origin[i][l];
+            self.shadow_dir[i][l] = from.shadow_dir[i][l];
+            self.shadow_light[i][l] = from.shadow_light[i][l];
+        }
+        self.shadow[l] = from.shadow[l];
+        self.shadow_tmax[l] = from.shadow_tmax[l];
+        self.next[l] = from.next[l];
+    }
 }
 
 impl Default for Out {
@@ -121,27 +156,75 @@ pub(crate) type Record = [f32; W];
 const TRI_P: usize = 0;
 const TRI_NG: usize = 9;
 const TRI_PDF: usize = 12;
-/// The offsets of a material record: base colour, the BSDF's albedo (at least 0), emission.
-const MAT_BASE: usize = 0;
-const MAT_ALBEDO: usize = 3;
+/// The offsets of a material record: base colour, the BSDF's albedo (the base colour, at least
+/// 0), emission; for the glossy lanes the dielectric layer's `F0` and strength
+/// (`pbr::dielectric_layer`), metallic and roughness. Base colour, albedo, metallic and
+/// roughness are those at the hit where the material has textures (`classify` looks them up).
+pub(crate) const MAT_BASE: usize = 0;
+pub(crate) const MAT_ALBEDO: usize = 3;
 const MAT_EMISSION: usize = 6;
+const MAT_F0: usize = 9;
+const MAT_SPECULAR: usize = 12;
+pub(crate) const MAT_METALLIC: usize = 13;
+pub(crate) const MAT_ROUGHNESS: usize = 14;
 /// The offsets of an emitter record: its triangle's vertices and normal, area density, emission.
 const LIGHT_P: usize = 0;
 const LIGHT_NG: usize = 9;
 const LIGHT_PDF: usize = 12;
 const LIGHT_EMISSION: usize = 13;
+/// The offsets of a light sample drawn before the kernel ran: direction, radiance, density,
+/// whether it is a delta, the shadow ray's end and whether it has none (a direction).
+const GIVEN_WI: usize = 0;
+const GIVEN_LI: usize = 3;
+const GIVEN_PDF: usize = 6;
+const GIVEN_DELTA: usize = 7;
+const GIVEN_TARGET: usize = 8;
+const GIVEN_INFINITE: usize = 11;
+
+/// The record of a light sample drawn before the kernel ran (`LightSet::sample`).
+pub(crate) fn given_light(ls: &LightSample) -> Record {
+    let (target, infinite) = match ls.end {
+        ShadowEnd::Point(target) => (target, 0.0),
+        ShadowEnd::Infinite => (Vec3A::ZERO, 1.0),
+    };
+    record(&[
+        (GIVEN_WI, &ls.wi.to_array()),
+        (GIVEN_LI, &ls.li.to_array()),
+        (GIVEN_PDF, &[ls.pdf]),
+        (GIVEN_DELTA, &[if ls.delta { 1.0 } else { 0.0 }]),
+        (GIVEN_TARGET, &target.to_array()),
+        (GIVEN_INFINITE, &[infinite]),
+    ])
+}
+
+/// Which lanes shade a material's vertices.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Kind {
+    /// The scalar vertex: glass, or an emission texture.
+    Scalar,
+    /// The diffuse lanes: the diffuse lobe alone (`pbr::Bsdf::Diffuse`).
+    Diffuse,
+    /// The glossy lanes: an opaque mixture of diffuse, specular layer and metal
+    /// (`pbr::Mixture` without glass), or the diffuse lanes at texels where its
+    /// metallic-roughness texture leaves the diffuse lobe alone.
+    Glossy,
+}
 
 /// The scene as the kernel reads it: a record per triangle (and one of its vertex normals,
 /// when the scene has them), per material and per emitter (in selection order), and which
-/// materials and emitters are the kernel's (diffuse without texture; a triangle without an
-/// emission texture). 64 bytes per triangle, twice that with vertex normals: 34 MB for the
-/// 268,041 triangles of the largest validation scene, held while it renders.
+/// materials are the kernel's (opaque, without an emission texture) and which emitters it
+/// samples itself (a triangle without an emission texture). 64 bytes per triangle, twice that with vertex normals: 34 MB
+/// for the 268,041 triangles of the largest validation scene, held while it renders.
 pub(crate) struct SceneLanes {
     pub triangle: Vec<Record>,
     pub normals: Option<Vec<Record>>,
     pub material: Vec<Record>,
-    pub material_shaded: Vec<bool>,
+    pub material_kind: Vec<Kind>,
+    /// Whether a material has a base-colour or metallic-roughness texture to look up per hit.
+    pub material_textured: Vec<bool>,
     pub light: Vec<Record>,
+    /// Whether the kernel samples an emitter itself (an untextured triangle); the others'
+    /// samples are drawn before it runs.
     pub light_sampled: Vec<bool>,
 }
 
@@ -186,17 +269,32 @@ impl SceneLanes {
                 .materials()
                 .iter()
                 .map(|m| {
+                    let (f0, specular) = dielectric_layer(m.ior, m.specular_color, m.specular);
                     record(&[
                         (MAT_BASE, &m.base_color.to_array()),
                         (MAT_ALBEDO, &m.base_color.max(Vec3A::ZERO).to_array()),
                         (MAT_EMISSION, &m.emission.to_array()),
+                        (MAT_F0, &f0.to_array()),
+                        (MAT_SPECULAR, &[specular]),
+                        (MAT_METALLIC, &[m.metallic]),
+                        (MAT_ROUGHNESS, &[m.roughness]),
                     ])
                 })
                 .collect(),
-            material_shaded: scene
+            material_kind: scene
                 .materials()
                 .iter()
-                .map(|m| m.is_diffuse_only() && m.base_color_texture.is_none() && m.emissive_texture.is_none())
+                .map(|m| match () {
+                    _ if m.emissive_texture.is_some() => Kind::Scalar,
+                    _ if m.is_diffuse_only() => Kind::Diffuse,
+                    _ if m.transmission.clamp(0.0, 1.0) == 0.0 => Kind::Glossy,
+                    _ => Kind::Scalar,
+                })
+                .collect(),
+            material_textured: scene
+                .materials()
+                .iter()
+                .map(|m| m.base_color_texture.is_some() || m.metallic_roughness_texture.is_some())
                 .collect(),
             light: emitters
                 .iter()
@@ -221,10 +319,9 @@ impl SceneLanes {
 }
 
 impl SceneLanes {
-    /// Whether the kernel can shade a vertex of this scene at all: some material is its kind,
-    /// and so is some emitter (or there are none).
+    /// Whether the kernel can shade a vertex of this scene at all: some material is its kind.
     pub fn can_shade(&self) -> bool {
-        self.material_shaded.iter().any(|&m| m) && (self.light_sampled.is_empty() || self.light_sampled.iter().any(|&l| l))
+        self.material_kind.iter().any(|&m| m != Kind::Scalar)
     }
 }
 
@@ -236,11 +333,19 @@ pub(crate) struct Blocks {
     pub normals: [Record; W],
     pub material: [Record; W],
     pub light: [Record; W],
+    /// What the glossy lanes leave, before it goes into the chunk's [`Out`] (see [`shade`]).
+    pub glossy_out: Out,
 }
 
 impl Default for Blocks {
     fn default() -> Self {
-        Blocks { triangle: [[0.0; W]; W], normals: [[0.0; W]; W], material: [[0.0; W]; W], light: [[0.0; W]; W] }
+        Blocks {
+            triangle: [[0.0; W]; W],
+            normals: [[0.0; W]; W],
+            material: [[0.0; W]; W],
+            light: [[0.0; W]; W],
+            glossy_out: Out::default(),
+        }
     }
 }
 
@@ -404,20 +509,11 @@ fn draws(c: &Chunk) -> Draws {
     d
 }
 
-/// One lane: the vertex of [`crate::transport::integrator::PathContext::vertex`] for a hit on a
-/// diffuse, untextured material whose light sample (if any) is on a triangle. Where the scalar
-/// code returns early on `x <= 0`, the lane keeps `!(x <= 0)`: the same side for NaN.
-#[allow(clippy::neg_cmp_op_on_partial_ord)]
+/// The surface point at the lane's hit (`Scene::surface`): position, geometric normal and
+/// shading normal.
 #[inline(always)]
-fn lane<const NORMALS: bool>(c: &mut Chunk, o: &mut Out, blk: &Blocks, draws: &Draws, k: &Consts, l: usize) {
-    let shade = c.shade[l] != 0;
-    let d = V3::lane(&c.dir, l);
-    let (t, u, v) = (c.t[l], c.u[l], c.v[l]);
-    let beta = V3::lane(&c.beta, l);
-    let prev_delta = c.prev_delta[l] != 0;
-    let depth = c.depth[l];
-
-    // Scene::surface.
+fn surface<const NORMALS: bool>(c: &Chunk, blk: &Blocks, l: usize) -> (V3, V3, V3) {
+    let (u, v) = (c.u[l], c.v[l]);
     let w = 1.0 - u - v;
     let (p0, p1, p2) = (V3::field(&blk.triangle, TRI_P, l), V3::field(&blk.triangle, TRI_P + 3, l), V3::field(&blk.triangle, TRI_P + 6, l));
     let p = p0.scale(w).add(p1.scale(u)).add(p2.scale(v));
@@ -432,40 +528,59 @@ fn lane<const NORMALS: bool>(c: &mut Chunk, o: &mut Out, blk: &Blocks, draws: &D
     } else {
         ng
     };
-    let front = d.dot(ng) < 0.0;
+    (p, ng, ns)
+}
 
-    // Emission, MIS-weighted against light sampling unless the previous bounce was a delta.
+/// The hit's emission, MIS-weighted against light sampling unless the previous bounce was a
+/// delta, added to the path's radiance where `shade`; then the first-hit features (albedo:
+/// the emission where there is some, else the base colour; the shading normal facing the ray).
+#[inline(always)]
+fn emission_and_features(c: &mut Chunk, o: &mut Out, blk: &Blocks, l: usize, shade: bool, ng: V3, ns: V3) {
+    let (d, t, beta) = (V3::lane(&c.dir, l), c.t[l], V3::lane(&c.beta, l));
+    let front = d.dot(ng) < 0.0;
     let emission = V3::field(&blk.material, MAT_EMISSION, l);
     let emits = front && emission.max_element() > 0.0;
     let le = V3::select(emits, emission, V3::splat(0.0));
     let cos_l = -d.dot(ng);
     let pdf_light = blk.triangle[TRI_PDF][l] * t * t / cos_l;
-    let w_em = if prev_delta { 1.0 } else { power_heuristic(c.prev_pdf[l], pdf_light) };
+    let w_em = if c.prev_delta[l] != 0 { 1.0 } else { power_heuristic(c.prev_pdf[l], pdf_light) };
     let path_l = V3::lane(&c.l, l);
     V3::select(shade && emits, path_l.add(beta.mul(le).scale(w_em)), path_l).put(&mut c.l, l);
-
-    // First-hit features.
     V3::select(ns.dot(d) > 0.0, ns.neg(), ns).put(&mut o.first_normal, l);
     V3::select(le.nonzero(), le, V3::field(&blk.material, MAT_BASE, l)).put(&mut o.first_albedo, l);
-    let goes_on = depth < k.max_depth;
+}
 
-    // Bsdf::diffuse: the frame around the shading normal (or the geometric one where the
-    // shading normal disagrees with the geometry about the side of `wo`).
-    let wo = d.neg();
-    let fnrm = V3::select(ns.dot(wo) * ng.dot(wo) <= 0.0, ng, ns);
-    let sign = if fnrm.z.is_nan() { f32::NAN } else { 1.0f32.copysign(fnrm.z) };
-    let a = -1.0 / (sign + fnrm.z);
-    let b = fnrm.x * fnrm.y * a;
-    let fs = V3 { x: 1.0 + sign * fnrm.x * fnrm.x * a, y: sign * b, z: -sign * fnrm.x };
-    let ft = V3 { x: b, y: sign + fnrm.y * fnrm.y * a, z: -fnrm.y };
-    let wo_z = wo.dot(fnrm);
-    let side = if wo_z < 0.0 { -1.0 } else { 1.0 };
-    let wo_dot_ng = wo.dot(ng);
-    let albedo = V3::field(&blk.material, MAT_ALBEDO, l);
-    let lit = albedo.max_element() > 0.0;
-    let cosine = cosine_direction(draws.bsdf[0][l], draws.bsdf[1][l]);
+/// The shading frame (`Frame::from_normal`, glam's `any_orthonormal_pair`) around `wo`'s side
+/// of the shading normal, or around the geometric normal where the shading normal disagrees
+/// with the geometry about the side of `wo`: its tangents and normal.
+#[inline(always)]
+fn shading_frame(ns: V3, ng: V3, wo: V3) -> (V3, V3, V3) {
+    let n = V3::select(ns.dot(wo) * ng.dot(wo) <= 0.0, ng, ns);
+    let sign = if n.z.is_nan() { f32::NAN } else { 1.0f32.copysign(n.z) };
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    let s = V3 { x: 1.0 + sign * n.x * n.x * a, y: sign * b, z: -sign * n.x };
+    let t = V3 { x: b, y: sign + n.y * n.y * a, z: -n.y };
+    (s, t, n)
+}
 
-    // Next-event estimation towards a point on the chosen triangle (`light_sample::sample_area`).
+/// The lane's light sample: a point on its chosen emitter triangle (`light_sample::sample_area`)
+/// seen from `p`, or the sample drawn before the kernel ran.
+struct LightPoint {
+    wi: V3,
+    li: V3,
+    pdf: f32,
+    delta: bool,
+    /// The shadow ray's end, unless it is `infinite` (a direction).
+    target: V3,
+    infinite: bool,
+    /// Whether the sample is usable (an emitter was chosen, it faces `p`, it emits).
+    sampled: bool,
+}
+
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
+#[inline(always)]
+fn light_point<const GIVEN_LIGHTS: bool>(c: &Chunk, blk: &Blocks, draws: &Draws, l: usize, p: V3, eps: f32) -> LightPoint {
     let (lx, ly) = (draws.light[0][l], draws.light[1][l]);
     let su = lx.sqrt();
     let (ba, bb) = (su * (1.0 - ly), su * ly);
@@ -473,56 +588,347 @@ fn lane<const NORMALS: bool>(c: &mut Chunk, o: &mut Out, blk: &Blocks, draws: &D
     let point = q0.scale(1.0 - ba - bb).add(q1.scale(ba)).add(q2.scale(bb));
     let to_light = point.sub(p);
     let dist2 = to_light.dot(to_light);
-    let n_l = V3::field(&blk.light, LIGHT_NG, l);
+    let normal = V3::field(&blk.light, LIGHT_NG, l);
     let wi = to_light.div(dist2.sqrt());
-    let cos_at_light = -wi.dot(n_l);
+    let cos_at_light = -wi.dot(normal);
     let li = V3::field(&blk.light, LIGHT_EMISSION, l);
     let pdf = blk.light[LIGHT_PDF][l] * dist2 / cos_at_light;
-    let sampled = c.has_light[l] != 0 && !(dist2 <= 0.0) && !(cos_at_light <= 0.0) && li.nonzero() && pdf > 0.0;
-    // Diffuse::eval_pdf at `wi`.
-    let wi_z = wi.dot(fnrm);
-    let geometric_reflection = wi.dot(ng) * wo_dot_ng > 0.0;
+    let on_triangle = !(dist2 <= 0.0) && !(cos_at_light <= 0.0) && li.nonzero() && pdf > 0.0;
+    // Without given samples in the chunk (`GIVEN_LIGHTS` false), the selects fold away.
+    let given = GIVEN_LIGHTS && c.flags[l] & GIVEN != 0;
+    LightPoint {
+        wi: V3::select(given, V3::field(&blk.light, GIVEN_WI, l), wi),
+        li: V3::select(given, V3::field(&blk.light, GIVEN_LI, l), li),
+        pdf: if given { blk.light[GIVEN_PDF][l] } else { pdf },
+        delta: given && blk.light[GIVEN_DELTA][l] != 0.0,
+        target: V3::select(given, V3::field(&blk.light, GIVEN_TARGET, l), point.add(normal.scale(eps))),
+        infinite: given && blk.light[GIVEN_INFINITE][l] != 0.0,
+        sampled: c.flags[l] & HAS_LIGHT != 0 && (given || on_triangle),
+    }
+}
+
+/// The shadow ray towards `ls` and the light it brings (`f`, `pdf_bsdf`: the BSDF at `ls.wi`),
+/// to be traced where `cast`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn shadow_ray(o: &mut Out, l: usize, cast: bool, ls: &LightPoint, p: V3, ng: V3, beta: V3, f: V3, pdf_bsdf: f32, eps: f32) {
+    let origin = spawn_origin(p, ng, ls.wi, eps);
+    o.shadow[l] = cast as u32;
+    origin.put(&mut o.shadow_origin, l);
+    V3::select(ls.infinite, ls.wi, ls.target.sub(origin)).put(&mut o.shadow_dir, l);
+    o.shadow_tmax[l] = if ls.infinite { f32::INFINITY } else { 1.0 };
+    let w_light = if ls.delta { 1.0 } else { power_heuristic(ls.pdf, pdf_bsdf) };
+    beta.mul(f).mul(ls.li).scale(w_light / ls.pdf).put(&mut o.shadow_light, l);
+}
+
+/// The path's next segment: where `scattered` (a direction `next_dir` with density `pdf` and
+/// throughput `next_beta`), the throughput check and Russian roulette of
+/// `PathContext::vertex`, then the new ray in the lane (else the lane's path is kept as it
+/// was).
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn continue_path(
+    c: &mut Chunk,
+    o: &mut Out,
+    draws: &Draws,
+    k: &Consts,
+    l: usize,
+    scattered: bool,
+    p: V3,
+    ng: V3,
+    next_dir: V3,
+    next_beta: V3,
+    pdf: f32,
+) {
+    let depth = c.depth[l];
+    let carries = next_beta.nonzero() && next_beta.is_finite();
+    // `eta_scale *= bs.eta²` with an opaque lobe's η = 1 changes no bit.
+    let roulette = depth >= k.rr_depth;
+    let q = (next_beta.max_element() * c.eta_scale[l]).min(0.95);
+    let survives = !(draws.roulette[l] >= q);
+    let next = scattered && carries && (!roulette || survives);
+    o.next[l] = next as u32;
+    let beta = V3::lane(&c.beta, l);
+    V3::select(next, V3::select(roulette, next_beta.div(q), next_beta), beta).put(&mut c.beta, l);
+    c.prev_pdf[l] = if next { pdf } else { c.prev_pdf[l] };
+    c.prev_delta[l] = if next { 0 } else { c.prev_delta[l] };
+    c.depth[l] = if next { depth + 1 } else { depth };
+    V3::select(next, spawn_origin(p, ng, next_dir, k.eps), V3::lane(&c.origin, l)).put(&mut c.origin, l);
+    V3::select(next, next_dir, V3::lane(&c.dir, l)).put(&mut c.dir, l);
+}
+
+/// One lane: the vertex of [`crate::transport::integrator::PathContext::vertex`] for a hit on a
+/// diffuse material whose light sample (if any) is on a triangle. Where the scalar code
+/// returns early on `x <= 0`, the lane keeps `!(x <= 0)`: the same side for NaN.
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
+#[inline(always)]
+fn lane<const NORMALS: bool, const GIVEN_LIGHTS: bool>(c: &mut Chunk, o: &mut Out, blk: &Blocks, draws: &Draws, k: &Consts, l: usize) {
+    let shade = c.flags[l] & DIFFUSE != 0;
+    let d = V3::lane(&c.dir, l);
+    let beta = V3::lane(&c.beta, l);
+    let (p, ng, ns) = surface::<NORMALS>(c, blk, l);
+    emission_and_features(c, o, blk, l, shade, ng, ns);
+    let goes_on = c.depth[l] < k.max_depth;
+
+    // Bsdf::diffuse.
+    let wo = d.neg();
+    let (fs, ft, fnrm) = shading_frame(ns, ng, wo);
+    let wo_z = wo.dot(fnrm);
+    let side = if wo_z < 0.0 { -1.0 } else { 1.0 };
+    let wo_dot_ng = wo.dot(ng);
+    let albedo = V3::field(&blk.material, MAT_ALBEDO, l);
+    let lit = albedo.max_element() > 0.0;
+
+    // Next-event estimation, with Diffuse::eval_pdf at the light's direction.
+    let ls = light_point::<GIVEN_LIGHTS>(c, blk, draws, l, p, k.eps);
+    let wi_z = ls.wi.dot(fnrm);
+    let geometric_reflection = ls.wi.dot(ng) * wo_dot_ng > 0.0;
     let shading_reflection = wi_z * wo_z > 0.0;
     let (o_z, i_z) = (wo_z * side, wi_z * side);
     let reflects = geometric_reflection == shading_reflection && wi_z != 0.0 && shading_reflection && lit && o_z > 0.0 && i_z > 0.0;
     let f = V3::select(reflects, albedo.scale(FRAC_1_PI).scale(wi_z.abs()), V3::splat(0.0));
     let pdf_bsdf = if reflects { i_z * FRAC_1_PI } else { 0.0 };
-    let origin = spawn_origin(p, ng, wi, k.eps);
-    let target = point.add(n_l.scale(k.eps));
-    o.shadow[l] = (shade && goes_on && lit && sampled && f.nonzero()) as u32;
-    origin.put(&mut o.shadow_origin, l);
-    target.sub(origin).put(&mut o.shadow_dir, l);
-    let w_light = power_heuristic(pdf, pdf_bsdf);
-    beta.mul(f).mul(li).scale(w_light / pdf).put(&mut o.shadow_light, l);
+    shadow_ray(o, l, shade && goes_on && lit && ls.sampled && f.nonzero(), &ls, p, ng, beta, f, pdf_bsdf, k.eps);
 
     // Diffuse::sample_drawn, then the throughput and Russian roulette.
+    let cosine = cosine_direction(draws.bsdf[0][l], draws.bsdf[1][l]);
     let wi_l = V3 { x: cosine.x, y: cosine.y, z: cosine.z * side };
     let next_dir = fs.scale(wi_l.x).add(ft.scale(wi_l.y)).add(fnrm.scale(wi_l.z));
     let scattered = lit && !(wi_l.z == 0.0 || next_dir.dot(ng) * wo_dot_ng <= 0.0);
-    let next_beta = beta.mul(albedo);
-    let carries = next_beta.nonzero() && next_beta.is_finite();
-    // `eta_scale *= bs.eta²` with a diffuse lobe's η = 1 changes no bit.
-    let roulette = depth >= k.rr_depth;
-    let q = (next_beta.max_element() * c.eta_scale[l]).min(0.95);
-    let survives = !(draws.roulette[l] >= q);
-    let next = shade && goes_on && scattered && carries && (!roulette || survives);
-    o.next[l] = next as u32;
-    V3::select(next, V3::select(roulette, next_beta.div(q), next_beta), beta).put(&mut c.beta, l);
-    c.prev_pdf[l] = if next { wi_l.z.abs() * FRAC_1_PI } else { c.prev_pdf[l] };
-    c.prev_delta[l] = if next { 0 } else { c.prev_delta[l] };
-    c.depth[l] = if next { depth + 1 } else { depth };
-    V3::select(next, spawn_origin(p, ng, next_dir, k.eps), V3::lane(&c.origin, l)).put(&mut c.origin, l);
-    V3::select(next, next_dir, d).put(&mut c.dir, l);
+    continue_path(c, o, draws, k, l, shade && goes_on && scattered, p, ng, next_dir, beta.mul(albedo), wi_l.z.abs() * FRAC_1_PI);
+}
+
+/// The glossy lanes' extra random numbers: the lobe choice, and the cosine and sine of the GGX
+/// sample's azimuth (`Ggx::sample_visible`), whose library calls stay out of the lane loop.
+struct GlossyDraws {
+    lobe: [f32; W],
+    cos_phi: [f32; W],
+    sin_phi: [f32; W],
 }
 
 #[inline(always)]
-fn lanes<const NORMALS: bool>(c: &mut Chunk, o: &mut Out, b: &Blocks, k: &Consts) {
+fn glossy_draws(c: &Chunk, d: &Draws) -> GlossyDraws {
+    let mut g = GlossyDraws { lobe: [0.0; W], cos_phi: [0.0; W], sin_phi: [0.0; W] };
+    for l in 0..W {
+        g.lobe[l] = get1d(c.key[l], dims::at(c.depth[l].saturating_sub(1), dims::LOBE));
+        let phi = 2.0 * PI * d.bsdf[1][l];
+        g.cos_phi[l] = phi.cos();
+        g.sin_phi[l] = phi.sin();
+    }
+    g
+}
+
+/// `vector::unit`: `v` times the reciprocal of its length.
+#[inline(always)]
+fn unit(v: V3) -> V3 {
+    v.scale(1.0 / v.dot(v).sqrt())
+}
+
+/// `fresnel::schlick`.
+#[inline(always)]
+fn schlick(f0: V3, f90: f32, cos: f32) -> V3 {
+    let m = (1.0 - cos.clamp(0.0, 1.0)).powi(5);
+    f0.add(V3::splat(f90).sub(f0).scale(m))
+}
+
+/// `vector::luminance`.
+#[inline(always)]
+fn luminance(c: V3) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+/// `Ggx::d`.
+#[inline(always)]
+fn ggx_d(alpha: f32, h: V3) -> f32 {
+    let cos2 = h.z * h.z;
+    let tan2 = (h.x * h.x + h.y * h.y) / cos2;
+    let a2 = alpha * alpha;
+    let e = 1.0 + tan2 / a2;
+    let d = 1.0 / (PI * a2 * cos2 * cos2 * e * e);
+    if h.z <= 0.0 {
+        0.0
+    } else {
+        d
+    }
+}
+
+/// `Ggx::lambda`.
+#[inline(always)]
+fn ggx_lambda(alpha: f32, w: V3) -> f32 {
+    let cos2 = w.z * w.z;
+    let tan2 = (w.x * w.x + w.y * w.y) / cos2;
+    let lambda = 0.5 * ((1.0 + alpha * alpha * tan2).sqrt() - 1.0);
+    if cos2 == 0.0 {
+        f32::INFINITY
+    } else {
+        lambda
+    }
+}
+
+/// The opaque lobes of `pbr::Mixture` at one vertex: what `Mixture::new` works out for a
+/// material without glass, in the shading frame `(s, t, n)`.
+struct Opaque {
+    s: V3,
+    t: V3,
+    n: V3,
+    ng: V3,
+    wo: V3,
+    side: f32,
+    wo_dot_ng: f32,
+    diffuse: V3,
+    alpha: f32,
+    f0: V3,
+    f90: f32,
+    p_diffuse: f32,
+    p_spec: f32,
+}
+
+impl Opaque {
+    #[inline(always)]
+    fn new(blk: &Blocks, l: usize, ns: V3, ng: V3, wo: V3) -> Opaque {
+        let (s, t, n) = shading_frame(ns, ng, wo);
+        let wo_l = V3 { x: wo.dot(s), y: wo.dot(t), z: wo.dot(n) };
+        let side = if wo_l.z < 0.0 { -1.0 } else { 1.0 };
+        let cos_o = wo_l.z.abs();
+        let m = blk.material[MAT_METALLIC][l].clamp(0.0, 1.0);
+        // Transmission is 0 on the kernel's materials.
+        let opaque = (1.0 - m) * 1.0;
+        let base = V3::field(&blk.material, MAT_ALBEDO, l);
+        let (f0_dielectric, spec_factor) = (V3::field(&blk.material, MAT_F0, l), blk.material[MAT_SPECULAR][l]);
+        let f_view = schlick(f0_dielectric, spec_factor, cos_o);
+        let diffuse = base.scale(opaque * (1.0 - f_view.max_element()));
+        let alpha = blk.material[MAT_ROUGHNESS][l].clamp(0.0, 1.0).powi(2).max(MIN_ALPHA);
+        let f0 = f0_dielectric.scale(opaque).add(base.scale(m));
+        let f90 = spec_factor * opaque + m;
+        let w_d = luminance(diffuse);
+        let w_s = luminance(schlick(f0, f90, cos_o));
+        let w_g = 0.0;
+        let total = w_d + w_s + w_g;
+        let a = w_d / total;
+        let (p_diffuse, p_spec) = if total <= 0.0 {
+            (0.0, 0.0)
+        } else if w_s > 0.0 {
+            (a, 1.0 - a)
+        } else {
+            (1.0, 0.0)
+        };
+        Opaque { s, t, n, ng, wo: wo_l, side, wo_dot_ng: wo.dot(ng), diffuse, alpha, f0, f90, p_diffuse, p_spec }
+    }
+
+    #[inline(always)]
+    fn opaque_local(&self, v: V3) -> V3 {
+        V3 { x: v.x, y: v.y, z: v.z * self.side }
+    }
+
+    /// `Mixture::eval_pdf` without the glass lobe: `(f · |cos θi|, pdf)` at the world direction
+    /// `wi`. Where the scalar code returns early on `x <= 0`, the lane keeps `!(x <= 0)`.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    #[inline(always)]
+    fn eval_pdf(&self, wi: V3) -> (V3, f32) {
+        let wi_l = V3 { x: wi.dot(self.s), y: wi.dot(self.t), z: wi.dot(self.n) };
+        let geometric_reflection = wi.dot(self.ng) * self.wo_dot_ng > 0.0;
+        let shading_reflection = wi_l.z * self.wo.z > 0.0;
+        let (o, i) = (self.opaque_local(self.wo), self.opaque_local(wi_l));
+        // lambert::eval and lambert::pdf.
+        let (lambert_f, lambert_pdf) = if o.z > 0.0 && i.z > 0.0 { (FRAC_1_PI, i.z * FRAC_1_PI) } else { (0.0, 0.0) };
+        let both = !(o.z <= 0.0) && !(i.z <= 0.0);
+        // MicrofacetReflection::eval and ::pdf.
+        let h = unit(o.add(i));
+        let d = ggx_d(self.alpha, h);
+        let (lambda_o, lambda_i) = (ggx_lambda(self.alpha, o), ggx_lambda(self.alpha, i));
+        let g2 = 1.0 / (1.0 + lambda_o + lambda_i);
+        let g1 = 1.0 / (1.0 + lambda_o);
+        let spec_f = schlick(self.f0, self.f90, o.dot(h)).scale(d * g2 / (4.0 * o.z * i.z));
+        let spec_f = V3::select(both, spec_f, V3::splat(0.0));
+        let spec_pdf = if both { g1 * d / (4.0 * o.z) } else { 0.0 };
+        let zero = V3::splat(0.0);
+        let (mut f, mut pdf) = (zero, 0.0);
+        let with_diffuse = shading_reflection && self.p_diffuse > 0.0;
+        f = V3::select(with_diffuse, f.add(self.diffuse.scale(lambert_f)), f);
+        pdf = if with_diffuse { pdf + self.p_diffuse * lambert_pdf } else { pdf };
+        let with_spec = shading_reflection && self.p_spec > 0.0;
+        f = V3::select(with_spec, f.add(spec_f), f);
+        pdf = if with_spec { pdf + self.p_spec * spec_pdf } else { pdf };
+        let none = geometric_reflection != shading_reflection || wi_l.z == 0.0;
+        (V3::select(none, zero, f.scale(wi_l.z.abs())), if none { 0.0 } else { pdf })
+    }
+
+    /// `Ggx::sample_visible` for `wo` (z > 0) and `MicrofacetReflection::sample`'s reflection:
+    /// the direction, and whether it is above the surface.
+    #[inline(always)]
+    fn sample_spec(&self, wo: V3, ux: f32, cos_phi: f32, sin_phi: f32) -> (V3, bool) {
+        let alpha = self.alpha;
+        let wo = V3::select(wo.z < 0.0, wo.neg(), wo);
+        let vh = unit(V3 { x: alpha * wo.x, y: alpha * wo.y, z: wo.z });
+        let lensq = vh.x * vh.x + vh.y * vh.y;
+        let t1 = V3::select(lensq > 0.0, V3 { x: -vh.y, y: vh.x, z: 0.0 }.div(lensq.sqrt()), V3 { x: 1.0, y: 0.0, z: 0.0 });
+        let t2 = V3 { x: vh.y * t1.z - vh.z * t1.y, y: vh.z * t1.x - vh.x * t1.z, z: vh.x * t1.y - vh.y * t1.x };
+        let r = ux.sqrt();
+        let p1 = r * cos_phi;
+        let p2 = r * sin_phi;
+        let s = 0.5 * (1.0 + vh.z);
+        let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * p2;
+        let nh = t1.scale(p1).add(t2.scale(p2)).add(vh.scale((1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt()));
+        let h = unit(V3 { x: alpha * nh.x, y: alpha * nh.y, z: nh.z.max(1e-6) });
+        let wi = h.scale(2.0 * wo.dot(h)).sub(wo);
+        (wi, wi.z > 0.0)
+    }
+}
+
+/// One lane: the vertex of [`crate::transport::integrator::PathContext::vertex`] for a hit on
+/// an opaque glTF material with a specular layer or metal (`pbr::Mixture` without its glass
+/// lobe).
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
+#[inline(always)]
+fn glossy_lane<const NORMALS: bool>(c: &mut Chunk, o: &mut Out, blk: &Blocks, draws: &Draws, g: &GlossyDraws, k: &Consts, l: usize) {
+    let shade = c.flags[l] & GLOSSY != 0;
+    let d = V3::lane(&c.dir, l);
+    let beta = V3::lane(&c.beta, l);
+    let (p, ng, ns) = surface::<NORMALS>(c, blk, l);
+    emission_and_features(c, o, blk, l, shade, ng, ns);
+    let goes_on = c.depth[l] < k.max_depth;
+    let bsdf = Opaque::new(blk, l, ns, ng, d.neg());
+    let non_delta = bsdf.p_diffuse > 0.0 || bsdf.p_spec > 0.0;
+
+    // Next-event estimation.
+    let ls = light_point::<true>(c, blk, draws, l, p, k.eps);
+    let (f, pdf_bsdf) = bsdf.eval_pdf(ls.wi);
+    shadow_ray(o, l, shade && goes_on && non_delta && ls.sampled && f.nonzero(), &ls, p, ng, beta, f, pdf_bsdf, k.eps);
+
+    // Mixture::sample_drawn without the glass lobe.
+    let u_lobe = g.lobe[l];
+    let pick_diffuse = u_lobe < bsdf.p_diffuse;
+    let pick_spec = !pick_diffuse && (u_lobe < bsdf.p_diffuse + bsdf.p_spec || bsdf.p_spec > 0.0);
+    let cosine = cosine_direction(draws.bsdf[0][l], draws.bsdf[1][l]);
+    let o_l = bsdf.opaque_local(bsdf.wo);
+    let (spec_dir, above) = bsdf.sample_spec(o_l, draws.bsdf[0][l], g.cos_phi[l], g.sin_phi[l]);
+    let spec_ok = !(o_l.z <= 0.0) && above;
+    let wi_l = bsdf.opaque_local(V3::select(pick_diffuse, cosine, spec_dir));
+    let next_dir = bsdf.s.scale(wi_l.x).add(bsdf.t.scale(wi_l.y)).add(bsdf.n.scale(wi_l.z));
+    let (f, pdf) = bsdf.eval_pdf(next_dir);
+    let sampled = (pick_diffuse || (pick_spec && spec_ok)) && !(pdf <= 0.0) && pdf.is_finite() && f.nonzero();
+    continue_path(c, o, draws, k, l, shade && goes_on && sampled, p, ng, next_dir, beta.mul(f.div(pdf)), pdf);
+}
+
+#[inline(always)]
+fn glossy_lanes<const NORMALS: bool>(c: &mut Chunk, o: &mut Out, b: &Blocks, k: &Consts) {
+    let d = draws(c);
+    let g = glossy_draws(c, &d);
+    let n = std::hint::black_box(W).min(W);
+    for l in 0..n {
+        glossy_lane::<NORMALS>(c, o, b, &d, &g, k, l);
+    }
+}
+
+#[inline(always)]
+fn lanes<const NORMALS: bool, const GIVEN_LIGHTS: bool>(c: &mut Chunk, o: &mut Out, b: &Blocks, k: &Consts) {
     let d = draws(c);
     // A trip count the compiler cannot see: a known 16 gets the loop fully unrolled before
     // the loop vectoriser runs, which then has nothing to vectorise.
     let n = std::hint::black_box(W).min(W);
     for l in 0..n {
-        lane::<NORMALS>(c, o, b, &d, k, l);
+        lane::<NORMALS, GIVEN_LIGHTS>(c, o, b, &d, k, l);
     }
 }
 
@@ -533,18 +939,45 @@ pub(crate) trait Transpose: Copy {
     fn transpose(self, block: &mut [Record; W]);
 }
 
-/// The kernel: shades the lanes of `c` whose `shade` is set, from the records the caller copied
-/// into `b` (which it transposes in place; vertex normals only if `normals`). Each build
-/// compiles it, inlined, for its own instructions (`simd`).
+/// The kernel: shades the lanes of `c` whose `shade` is set (those whose `glossy` is set with
+/// the glossy lanes, after the diffuse ones), from the records the caller copied into `b`
+/// (which it transposes in place; vertex normals only if `normals`). Each build compiles it,
+/// inlined, for its own instructions (`simd`).
 #[inline(always)]
 pub(crate) fn shade<T: Transpose>(isa: T, c: &mut Chunk, o: &mut Out, b: &mut Blocks, normals: bool, k: &Consts) {
     isa.transpose(&mut b.triangle);
     isa.transpose(&mut b.material);
     isa.transpose(&mut b.light);
+    let diffuse = c.flags.iter().any(|&f| f & DIFFUSE != 0);
+    let glossy = c.flags.iter().any(|&f| f & GLOSSY != 0);
     if normals {
         isa.transpose(&mut b.normals);
-        lanes::<true>(c, o, b, k)
-    } else {
-        lanes::<false>(c, o, b, k)
+    }
+    if diffuse {
+        // The diffuse lanes are the common vertex of every scene: a build without the given
+        // light samples for chunks that have none.
+        match (normals, c.flags.iter().any(|&f| f & GIVEN != 0)) {
+            (true, true) => lanes::<true, true>(c, o, b, k),
+            (true, false) => lanes::<true, false>(c, o, b, k),
+            (false, true) => lanes::<false, true>(c, o, b, k),
+            (false, false) => lanes::<false, false>(c, o, b, k),
+        }
+    }
+    if glossy {
+        // The glossy lanes write their outputs into a scratch `Out`, which then goes into `o`
+        // lane by lane: writing `o` only where a lane is theirs would read it in the loop, one
+        // more array for the compiler to check (see `Chunk::flags`).
+        let mut g = std::mem::take(&mut b.glossy_out);
+        if normals {
+            glossy_lanes::<true>(c, &mut g, b, k);
+        } else {
+            glossy_lanes::<false>(c, &mut g, b, k);
+        }
+        for l in 0..W {
+            if c.flags[l] & GLOSSY != 0 {
+                o.take_lane(&g, l);
+            }
+        }
+        b.glossy_out = g;
     }
 }

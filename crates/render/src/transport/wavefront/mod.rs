@@ -7,10 +7,12 @@
 //! Why: a vertex on its own is a chain of dependent steps between two calls into the ray
 //! caster, run one path after the other. The live paths are kept as structure-of-arrays
 //! [`lanes::Chunk`]s of [`lanes::W`] paths, compacted after every bounce, so that the common
-//! vertex ([`lanes`]: a diffuse material, an emissive triangle as the light sample) runs on a
-//! whole chunk per instruction, reading and updating the paths where they are; every other
-//! vertex (glossy or glass materials, textures, punctual lights, the environment, escaped
-//! rays) takes the scalar [`crate::transport::integrator::PathContext::vertex`].
+//! vertices ([`lanes`]: opaque materials, diffuse or glossy, textured or not, lit by any kind of
+//! light) run on a whole chunk per instruction, reading and updating the paths where they
+//! are. What does not vectorise is done per lane before the kernel runs ([`classify`]: the
+//! texture lookups, and the light samples other than on an untextured emitter triangle). The
+//! other vertices (glass, emission textures, escaped rays) take the scalar
+//! [`crate::transport::integrator::PathContext::vertex`].
 mod lanes;
 // The lane kernel's builds for each instruction set, the one place the crate allows `unsafe`.
 #[allow(unsafe_code)]
@@ -18,9 +20,12 @@ mod simd;
 
 use crate::intersect::{Hit, Intersector, Ray, RayPacket};
 use crate::sampler::{dims, SampleSampler};
+use crate::scene::material::is_diffuse_only;
 use crate::transport::integrator::{FirstHit, Path, PathContext};
 use glam::Vec3A;
-use lanes::{Blocks, Chunk, Consts, Out, W};
+use lanes::{
+    given_light, Blocks, Chunk, Consts, Kind, Out, DIFFUSE, GIVEN, GLOSSY, HAS_LIGHT, MAT_ALBEDO, MAT_BASE, MAT_METALLIC, MAT_ROUGHNESS, W,
+};
 use simd::{Isa, Kernel};
 
 pub(crate) use lanes::SceneLanes;
@@ -38,9 +43,11 @@ pub(crate) struct Wavefront {
     kernel: Option<Kernel>,
     /// The scene records of the chunk being shaded.
     blocks: Box<Blocks>,
-    /// Vertices shaded so far, and how many of them by the kernel.
+    /// Vertices shaded so far, how many of them by the kernel, and how many of those by its
+    /// glossy lanes.
     vertices: u64,
     kernel_vertices: u64,
+    glossy_vertices: u64,
 }
 
 impl Default for Wavefront {
@@ -81,6 +88,7 @@ impl Wavefront {
             blocks: Box::default(),
             vertices: 0,
             kernel_vertices: 0,
+            glossy_vertices: 0,
         }
     }
 
@@ -122,6 +130,7 @@ impl Wavefront {
                 let ch = &mut self.chunks[c];
                 let out = &mut self.outs[c];
                 out.next = [0; W];
+                out.shadow = [0; W];
                 out.shadow_tmax = [1.0; W];
                 let shaded = match kernel {
                     Some((_, lanes)) => classify(ctx, lanes, ch, &mut self.blocks, filled),
@@ -129,12 +138,12 @@ impl Wavefront {
                 };
                 // A chunk with few lanes for the kernel is cheaper vertex by vertex.
                 self.vertices += filled as u64;
-                if let Some((kernel, lanes)) = kernel.filter(|_| shaded >= MIN_SHADED) {
+                if let Some((kernel, lanes)) = kernel.filter(|_| shaded > 0) {
                     self.kernel_vertices += shaded as u64;
+                    self.glossy_vertices += ch.flags.iter().filter(|&&f| f & GLOSSY != 0).count() as u64;
                     kernel.run(ch, out, &mut self.blocks, lanes.normals.is_some(), &consts);
                 } else {
                     ch.shade = [0; W];
-                    out.shadow = [0; W];
                 }
                 for l in 0..filled {
                     if ch.shade[l] != 0 {
@@ -287,38 +296,77 @@ const KERNEL_SHARE: f64 = 0.4;
 const MIN_SHADED: usize = 4;
 
 /// Marks the first `filled` lanes whose vertex the kernel shades (a hit on a material of its
-/// kind whose light sample, if any, is on an emitter of its kind), copies their records into
-/// `blocks` and returns how many there are.
+/// kinds whose light sample, if any, is on an emitter of its kind), and which of them the glossy
+/// lanes shade; copies their records into `blocks` (with the material's textures looked up at
+/// the hit) and returns how many there are. Lanes of a kind with fewer than [`MIN_SHADED`] in
+/// the chunk are left to the scalar vertex.
 #[inline]
 fn classify(ctx: &PathContext, lanes: &SceneLanes, ch: &mut Chunk, blocks: &mut Blocks, filled: usize) -> usize {
-    let lights = ctx.scene.lights();
-    let materials = ctx.scene.triangle_materials();
+    let scene = ctx.scene;
+    let lights = scene.lights();
+    let materials = scene.triangle_materials();
+    let (mut diffuse, mut glossy) = (0, 0);
     for l in 0..filled {
-        ch.shade[l] = 0;
+        (ch.shade[l], ch.flags[l]) = (0, 0);
         if ch.hit[l] == 0 {
             continue;
         }
         let (prim, material) = (ch.prim[l] as usize, materials[ch.prim[l] as usize] as usize);
-        if !lanes.material_shaded[material] {
+        let mut kind = lanes.material_kind[material];
+        if kind == Kind::Scalar {
             continue;
         }
-        let u_select = SampleSampler::from_key(ch.key[l]).get1d(dims::at(ch.depth[l] - 1, dims::LIGHT_SELECT));
-        ch.has_light[l] = 0;
+        let sampler = SampleSampler::from_key(ch.key[l]);
+        let vertex = ch.depth[l] - 1;
+        let u_select = sampler.get1d(dims::at(vertex, dims::LIGHT_SELECT));
+        let mut flags = 0;
         if let Some(k) = lights.choose_index(u_select) {
-            if !lanes.light_sampled[k] {
-                continue;
+            if lanes.light_sampled[k] {
+                blocks.light[l] = lanes.light[k];
+                flags = HAS_LIGHT;
+            } else {
+                // Other emitters are sampled here, at the point the kernel will shade.
+                let p = scene.surface(prim as u32, ch.u[l], ch.v[l]).p;
+                if let Some(ls) = lights.sample(scene, p, u_select, sampler.get2d(dims::at(vertex, dims::LIGHT_POS))) {
+                    blocks.light[l] = given_light(&ls);
+                    flags = HAS_LIGHT | GIVEN;
+                }
             }
-            blocks.light[l] = lanes.light[k];
-            ch.has_light[l] = 1;
         }
-        ch.shade[l] = 1;
         blocks.triangle[l] = lanes.triangle[prim];
         blocks.material[l] = lanes.material[material];
+        if lanes.material_textured[material] {
+            // The parameters `Bsdf::at` resolves: the textures at the hit's UV.
+            let m = &scene.materials()[material];
+            let p = m.params_at(scene.textures(), scene.uv(prim as u32, ch.u[l], ch.v[l]));
+            let record = &mut blocks.material[l];
+            record[MAT_BASE..MAT_BASE + 3].copy_from_slice(&p.base_color.to_array());
+            record[MAT_ALBEDO..MAT_ALBEDO + 3].copy_from_slice(&p.base_color.max(Vec3A::ZERO).to_array());
+            (record[MAT_METALLIC], record[MAT_ROUGHNESS]) = (p.metallic, p.roughness);
+            if kind == Kind::Glossy && is_diffuse_only(p.metallic, p.transmission, p.specular) {
+                kind = Kind::Diffuse;
+            }
+        }
         if let Some(normals) = &lanes.normals {
             blocks.normals[l] = normals[prim];
         }
+        ch.shade[l] = 1;
+        ch.flags[l] = flags | if kind == Kind::Glossy { GLOSSY } else { DIFFUSE };
+        diffuse += (kind == Kind::Diffuse) as usize;
+        glossy += (kind == Kind::Glossy) as usize;
     }
     ch.shade[filled..].fill(0);
+    ch.flags[filled..].fill(0);
+    // Too few lanes of a kind: their vertices are cheaper one by one.
+    for (count, kind) in [(diffuse, DIFFUSE), (glossy, GLOSSY)] {
+        if count > 0 && count < MIN_SHADED {
+            for l in 0..filled {
+                if ch.flags[l] & kind != 0 {
+                    (ch.shade[l], ch.flags[l]) = (0, 0);
+                }
+            }
+        }
+    }
     ch.shade.iter().filter(|&&s| s != 0).count()
 }
 
@@ -326,10 +374,14 @@ fn classify(ctx: &PathContext, lanes: &SceneLanes, ch: &mut Chunk, blocks: &mut 
 mod tests {
     use super::*;
     use crate::sampler::{StreamKind, StreamSampler};
+    use crate::scene::lights::{Environment, Punctual};
+    use crate::scene::texture::Texture;
     use crate::scene::world::Scene;
+    use crate::scene::world::SceneParts;
     use crate::settings::PathLimits;
-    use crate::testing::{cornell_box, cornell_box_parts, materials_box, BruteForce};
+    use crate::testing::{cornell_box, cornell_box_parts, materials_box, materials_box_parts, BruteForce};
     use crate::transport::integrator::radiance_from_hit;
+    use glam::{Vec2, Vec3};
 
     /// The Cornell box with vertex normals: bent ones, some facing away from the geometry
     /// (the shading frame falls back to the geometric normal) and some zero (the surface
@@ -346,34 +398,86 @@ mod tests {
         Scene::from_parts(parts).expect("the bent-normals box is valid")
     }
 
+    /// The material box with textures: UVs on every vertex, a base-colour texture on a diffuse
+    /// wall and on the plastic, a metallic-roughness texture on the plastic and on a metal
+    /// without a specular layer, whose texels of metallic 0 leave it purely diffuse.
+    fn textured_box_parts() -> SceneParts {
+        let mut parts = materials_box_parts();
+        parts.uvs = parts.positions.iter().map(|p| Vec2::new(1.7 * p.x + 0.3 * p.y, 2.3 * p.z - p.y)).collect();
+        let texels = |n: usize, f: &dyn Fn(usize) -> Vec3| (0..n).map(f).collect();
+        parts.textures = vec![
+            Texture::new(5, 3, texels(15, &|i| Vec3::new(0.1 + 0.06 * i as f32, 0.9 - 0.05 * i as f32, (i % 3) as f32 * 0.4))).unwrap(),
+            Texture::new(4, 4, texels(16, &|i| Vec3::new(0.0, 0.2 + 0.05 * i as f32, [0.0, 1.0, 0.5, 0.0][i % 4]))).unwrap(),
+        ];
+        parts.materials[0].base_color_texture = Some(0);
+        parts.materials[4].base_color_texture = Some(0);
+        parts.materials[4].metallic_roughness_texture = Some(1);
+        parts.materials[5].metallic_roughness_texture = Some(1);
+        parts.materials[5].specular = 0.0;
+        parts
+    }
+
+    /// The textured box lit by every kind of light the kernel takes a drawn sample of: a point
+    /// light, a spot, a sun, the environment (through the open side) and an emitter with an
+    /// emission texture.
+    fn lit_box() -> Scene {
+        let mut parts = textured_box_parts();
+        let v = Vec3A::new;
+        parts.lights = vec![
+            Punctual::Point { position: v(0.3, 0.6, 0.2), intensity: v(2.0, 1.5, 1.0) },
+            Punctual::spot(v(-0.5, 0.8, 0.4), v(0.3, -1.0, -0.2).normalize(), v(3.0, 3.0, 2.0), 0.3, 0.7).unwrap(),
+            Punctual::Directional { direction: v(-0.2, -0.3, -1.0).normalize(), irradiance: v(1.0, 0.9, 0.8) },
+        ];
+        parts.environment = Some(Environment::constant(v(0.3, 0.4, 0.5)).unwrap());
+        parts.materials[3].emissive_texture = Some(0);
+        Scene::from_parts(parts).expect("the lit box is valid")
+    }
+
+    fn textured_box() -> Scene {
+        Scene::from_parts(textured_box_parts()).expect("the textured box is valid")
+    }
+
     /// Every path of a wavefront as `kernel` shades it: radiance and first-hit features.
     fn paths(scene: &Scene, limits: PathLimits, kernel: Option<Kernel>, seed: u64) -> Vec<(Vec3A, FirstHit)> {
+        paths_and_wave(scene, limits, kernel, seed, 24).0
+    }
+
+    /// [`paths`] on `n`×`n` pixels, and the wavefront that followed them.
+    fn paths_and_wave(scene: &Scene, limits: PathLimits, kernel: Option<Kernel>, seed: u64, n: u32) -> (Vec<(Vec3A, FirstHit)>, Wavefront) {
         let tracer = BruteForce::new(scene);
-        let frame = scene.camera().frame(24, 24);
+        let frame = scene.camera().frame(n, n);
         let stream = StreamSampler::new(seed, StreamKind::Pt);
         let lanes = SceneLanes::new(scene);
         let mut wave = Wavefront::new(kernel);
-        for pixel in 0..24 * 24u32 {
+        for pixel in 0..n * n {
             for s in 0..2 {
                 let smp = stream.sample(pixel as u64, s);
-                let ray = frame.ray(pixel % 24, pixel / 24, smp.get2d(dims::PIXEL));
+                let ray = frame.ray(pixel % n, pixel / n, smp.get2d(dims::PIXEL));
                 wave.push(ray, tracer.intersect(&ray), smp);
             }
         }
         wave.run(&PathContext::new(scene, limits), Some(&lanes), &tracer, true);
-        (0..wave.radiance.len()).map(|i| (wave.radiance(i), *wave.first_hit(i))).collect()
+        ((0..wave.radiance.len()).map(|i| (wave.radiance(i), *wave.first_hit(i))).collect(), wave)
     }
 
     /// Each build of the lane kernel this CPU runs gives every path the scalar vertex's radiance
-    /// and first-hit features, bit for bit: on the Cornell box (every hit a lane vertex), with
-    /// bent vertex normals, and on the material box (lane and scalar vertices mixed), with and
-    /// without a depth limit and with Russian roulette from the first bounce.
+    /// and first-hit features, bit for bit: on the Cornell box (every hit a diffuse lane vertex),
+    /// with bent vertex normals, on the material box (diffuse, glossy and scalar vertices mixed),
+    /// on it with textures and on it lit by every kind of light, with and without a depth limit
+    /// and with Russian roulette from the first bounce.
     #[test]
     fn lanes_give_the_scalar_vertex_bit_for_bit() {
         let builds: Vec<(Isa, Kernel)> =
             [Isa::Portable, Isa::Avx2, Isa::Avx512].into_iter().filter_map(|i| Some((i, i.kernel()?))).collect();
         let bits = |v: Vec3A| v.to_array().map(f32::to_bits);
-        for (name, scene) in [("cornell", cornell_box()), ("bent normals", bent_normals_box()), ("materials", materials_box())] {
+        let scenes = [
+            ("cornell", cornell_box()),
+            ("bent normals", bent_normals_box()),
+            ("materials", materials_box()),
+            ("textured", textured_box()),
+            ("lit", lit_box()),
+        ];
+        for (name, scene) in scenes {
             for limits in [PathLimits { max_depth: -1, rr_depth: 5 }, PathLimits { max_depth: 3, rr_depth: 1 }] {
                 let want = paths(&scene, limits, None, 7);
                 // The scalar wavefront is the per-path integrator on the same rays.
@@ -390,11 +494,36 @@ mod tests {
                 }
                 assert!(want.iter().filter(|(l, _)| *l != Vec3A::ZERO).count() > want.len() / 4, "{name}: too few lit paths to compare");
                 for (isa, kernel) in &builds {
-                    let got = paths(&scene, limits, Some(*kernel), 7);
+                    let (got, wave) = paths_and_wave(&scene, limits, Some(*kernel), 7, 24);
+                    let glossy = wave.glossy_vertices as f64 / wave.vertices as f64;
+                    if name != "cornell" && name != "bent normals" {
+                        assert!(glossy > 0.05, "{name}: only {glossy} of the vertices in the glossy lanes");
+                    }
                     for (k, (a, b)) in got.iter().zip(&want).enumerate() {
                         assert_eq!((bits(a.0), a.1), (bits(b.0), b.1), "{name}, {limits:?}: path {k} with the {isa:?} lanes");
                     }
                 }
+            }
+        }
+    }
+
+    /// The kernel's builds give the scalar vertex's bits on a bundled scene with textured
+    /// glossy materials, metals, point and spot lights and an area light: most of its vertices
+    /// take the glossy lanes, most light samples are drawn before the kernel runs.
+    #[test]
+    fn lanes_give_the_scalar_vertex_bit_for_bit_on_the_glossy_room() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/glossy-room/scene.gltf");
+        let scene = Scene::load(&path).expect("the bundled scene loads");
+        let limits = PathLimits { max_depth: -1, rr_depth: 5 };
+        let (want, _) = paths_and_wave(&scene, limits, None, 3, 12);
+        assert!(want.iter().filter(|(l, _)| *l != Vec3A::ZERO).count() > want.len() / 2, "too few lit paths to compare");
+        let bits = |v: Vec3A| v.to_array().map(f32::to_bits);
+        for isa in [Isa::Portable, Isa::Avx2, Isa::Avx512] {
+            let Some(kernel) = isa.kernel() else { continue };
+            let (got, wave) = paths_and_wave(&scene, limits, Some(kernel), 3, 12);
+            assert!(wave.glossy_vertices as f64 > 0.5 * wave.vertices as f64, "{isa:?}: the glossy lanes shaded too few vertices");
+            for (k, (a, b)) in got.iter().zip(&want).enumerate() {
+                assert_eq!((bits(a.0), a.1), (bits(b.0), b.1), "path {k} with the {isa:?} lanes");
             }
         }
     }
