@@ -580,10 +580,12 @@ def main():
                 print(f"  {renderer:17s} {statistics.median(r):5.2f} [{min(r):.2f}, {max(r):.2f}]  "
                       f"x{statistics.median(r) / base:4.2f} of cvtrace   {mean}")
             # Each renderer's mean against cvtrace's default (fast) traversal. The noise is the
-            # standard error over the repeats' seeds (few repeats: a rough estimate); |z| well above
-            # 3 means the two differ by more than Monte Carlo noise.
+            # standard error over the repeats' seeds; from 3 repeats that estimate is itself rough
+            # (Student's t with about 4 degrees of freedom: |z| up to about 3 is noise at 95%).
+            # cvtrace's two traversals render the same seeds, so their difference is not noise.
             ref, ref_se = mean_and_error(means['cvtrace-fast'])
-            print("  image mean against cvtrace-fast, per channel: relative difference (difference / its standard error)")
+            print("  image mean against cvtrace-fast, per channel: relative difference (difference / its standard error;"
+                  " from 3 to 5 repeats, |z| < 3 is noise)")
             for renderer in means:
                 if renderer == 'cvtrace-fast':
                     continue
