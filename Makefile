@@ -89,8 +89,9 @@ test-debian13:
 bench: setup
 	$(CARGO) bench --workspace
 
-# Throughput and image means of cvtrace and Mitsuba 3 on the same two Cornell boxes, in one
-# run (docs/performance.md). Installs Mitsuba into .cache/mitsuba-venv on first use.
+# Throughput and image means of cvtrace and Mitsuba 3 on the same scenes (two Cornell boxes and
+# the glossy, textured glossy-room), in one run (docs/performance.md); ARGS="--scenes glossy-room"
+# picks some. Installs Mitsuba into .cache/mitsuba-venv on first use.
 compare-mitsuba:
 	bash scripts/compare_mitsuba.sh $(ARGS)
 
