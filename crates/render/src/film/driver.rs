@@ -21,6 +21,7 @@ use cvtrace_streams::{Image, StreamSet};
 use glam::{DVec3, Vec3A};
 use rayon::prelude::*;
 use std::ops::Range;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// The memory this driver's renders of these settings take (its tiles, bands and sums), for the
 /// check before a render starts.
@@ -52,6 +53,29 @@ struct Context<'a, T: Intersector> {
     frame: CameraFrame,
     limits: PathLimits,
     width: u32,
+    /// Vertices the wavefronts shaded, those the lane kernel shaded and those of its glossy
+    /// lanes, summed over the tiles and logged when the render ends (the share of the kernel is
+    /// what decides how much the wavefront pays on a scene).
+    lane_counts: [AtomicU64; 3],
+}
+
+impl<T: Intersector> Context<'_, T> {
+    /// Adds the vertices a tile's wavefront shaded to the render's counts.
+    fn count_vertices(&self, wave: &Wavefront) {
+        for (sum, n) in self.lane_counts.iter().zip(wave.vertex_counts()) {
+            sum.fetch_add(n, Ordering::Relaxed);
+        }
+    }
+}
+
+impl<T: Intersector> Drop for Context<'_, T> {
+    fn drop(&mut self) {
+        let [all, kernel, glossy] = self.lane_counts.each_ref().map(|c| c.load(Ordering::Relaxed));
+        if all > 0 {
+            let share = |n: u64| 100.0 * n as f64 / all as f64;
+            tracing::debug!("lane kernel: {:.1}% of {all} vertices ({:.1}% in the glossy lanes)", share(kernel), share(glossy));
+        }
+    }
 }
 
 /// Camera rays traced together: one sample of neighbouring pixels of a tile (the renders call
@@ -152,6 +176,7 @@ fn context<'a, T: Intersector>(scene: &'a Scene, tracer: &'a T, settings: &Rende
         frame: scene.camera().frame(settings.width, settings.height),
         limits: settings.limits(),
         width: settings.width,
+        lane_counts: Default::default(),
     })
 }
 
@@ -331,6 +356,7 @@ impl<'a, T: Intersector> StreamRender<'a, T> {
             }
         }
         progress(n as u64 * samples.len() as u64);
+        ctx.count_vertices(&camera.wave);
         r
     }
 }
@@ -394,6 +420,7 @@ pub fn render_reference_pass<T: Intersector>(
                 });
             }
             progress(tile.pixel_count() as u64 * sample_range.len() as u64);
+            ctx.count_vertices(&camera.wave);
             (*tile, out, bad_count)
         })
         .collect();

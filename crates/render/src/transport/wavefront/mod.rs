@@ -234,6 +234,11 @@ impl Wavefront {
         self.vertices < PROBE_VERTICES || self.kernel_vertices as f64 >= KERNEL_SHARE * self.vertices as f64
     }
 
+    /// Vertices shaded so far: all, by the kernel, by its glossy lanes.
+    pub fn vertex_counts(&self) -> [u64; 3] {
+        [self.vertices, self.kernel_vertices, self.glossy_vertices]
+    }
+
     /// The radiance of path `i`.
     pub fn radiance(&self, i: usize) -> Vec3A {
         self.radiance[i]
