@@ -167,12 +167,9 @@ impl LightSet {
         Some(self.cdf.partition_point(|&c| c <= u_select).min(last))
     }
 
-    /// The triangle of emitter `index` (selection order), if it is one.
-    pub(crate) fn emitter_triangle(&self, index: usize) -> Option<u32> {
-        match self.emitters[index] {
-            Emitter::Triangle(prim) => Some(prim),
-            Emitter::Punctual(_) | Emitter::Environment => None,
-        }
+    /// Emitter `index` (selection order).
+    pub(crate) fn emitter(&self, index: usize) -> Emitter {
+        self.emitters[index]
     }
 }
 

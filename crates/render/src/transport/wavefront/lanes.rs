@@ -19,6 +19,7 @@
 //! ([`Transpose`]): a gather of each value on its own cost several times as much. Nothing here
 //! is `unsafe`: the instructions of each build are `simd`'s.
 use crate::sampler::dims;
+use crate::scene::lights::{Emitter, Punctual};
 use crate::scene::world::Scene;
 use crate::transport::bsdf::ggx::MIN_ALPHA;
 use crate::transport::bsdf::pbr::dielectric_layer;
@@ -70,9 +71,16 @@ pub(crate) struct Chunk {
 pub(crate) const DIFFUSE: u32 = 1;
 pub(crate) const GLOSSY: u32 = 2;
 pub(crate) const HAS_LIGHT: u32 = 4;
-/// The light sample's record is a [`given_light`] record: a punctual light, the environment,
-/// an emitter with an emission texture.
+/// The light sample's record is a [`given_light`] record: the environment, an emitter with an
+/// emission texture.
 pub(crate) const GIVEN: u32 = 8;
+/// The chosen light is a point light, a spot or a directional light (a [`punctual_light`]
+/// record), sampled in the lane.
+pub(crate) const POINT: u32 = 16;
+pub(crate) const SPOT: u32 = 32;
+pub(crate) const SUN: u32 = 64;
+/// The lights other than emitter triangles.
+const OTHER_LIGHTS: u32 = GIVEN | POINT | SPOT | SUN;
 
 impl Default for Chunk {
     fn default() -> Self {
@@ -181,6 +189,35 @@ const GIVEN_DELTA: usize = 7;
 const GIVEN_TARGET: usize = 8;
 const GIVEN_INFINITE: usize = 11;
 
+/// The offsets of a punctual light's record: position, direction (a spot's axis, a sun's
+/// direction of travel), intensity (a sun's irradiance), a spot's cone cosines, the light's
+/// selection probability.
+const PUNCTUAL_POSITION: usize = 0;
+const PUNCTUAL_DIRECTION: usize = 3;
+const PUNCTUAL_INTENSITY: usize = 6;
+const PUNCTUAL_COS_INNER: usize = 9;
+const PUNCTUAL_COS_OUTER: usize = 10;
+const PUNCTUAL_PROBABILITY: usize = 11;
+
+/// A punctual light's record and its flag.
+fn punctual_light(light: &Punctual, probability: f32) -> (Record, u32) {
+    let (position, direction, intensity, cones, flag) = match *light {
+        Punctual::Point { position, intensity } => (position, Vec3A::ZERO, intensity, [0.0, 0.0], POINT),
+        Punctual::Spot { position, direction, intensity, cos_inner, cos_outer } => {
+            (position, direction, intensity, [cos_inner, cos_outer], SPOT)
+        }
+        Punctual::Directional { direction, irradiance } => (Vec3A::ZERO, direction, irradiance, [0.0, 0.0], SUN),
+    };
+    let r = record(&[
+        (PUNCTUAL_POSITION, &position.to_array()),
+        (PUNCTUAL_DIRECTION, &direction.to_array()),
+        (PUNCTUAL_INTENSITY, &intensity.to_array()),
+        (PUNCTUAL_COS_INNER, &cones),
+        (PUNCTUAL_PROBABILITY, &[probability]),
+    ]);
+    (r, flag)
+}
+
 /// The record of a light sample drawn before the kernel ran (`LightSet::sample`).
 pub(crate) fn given_light(ls: &LightSample) -> Record {
     let (target, infinite) = match ls.end {
@@ -223,9 +260,10 @@ pub(crate) struct SceneLanes {
     /// Whether a material has a base-colour or metallic-roughness texture to look up per hit.
     pub material_textured: Vec<bool>,
     pub light: Vec<Record>,
-    /// Whether the kernel samples an emitter itself (an untextured triangle); the others'
-    /// samples are drawn before it runs.
-    pub light_sampled: Vec<bool>,
+    /// How the kernel samples each emitter: 0 for a triangle it samples itself (untextured),
+    /// [`POINT`], [`SPOT`] or [`SUN`] for a punctual light it samples itself, [`GIVEN`] for one
+    /// whose samples are drawn before it runs.
+    pub light_flags: Vec<u32>,
 }
 
 fn record(parts: &[(usize, &[f32])]) -> Record {
@@ -261,7 +299,24 @@ impl SceneLanes {
                 })
                 .collect()
         });
-        let emitters: Vec<Option<u32>> = (0..lights.len()).map(|k| lights.emitter_triangle(k)).collect();
+        let (light, light_flags) = (0..lights.len())
+            .map(|k| match lights.emitter(k) {
+                Emitter::Triangle(p) if scene.material_of(p).emissive_texture.is_none() => {
+                    let [p0, p1, p2] = scene.triangle_vertices(p).map(|v| v.to_array());
+                    let r = record(&[
+                        (LIGHT_P, &p0),
+                        (LIGHT_P + 3, &p1),
+                        (LIGHT_P + 6, &p2),
+                        (LIGHT_NG, &scene.geometric_normal(p).to_array()),
+                        (LIGHT_PDF, &[lights.pdf_area(p)]),
+                        (LIGHT_EMISSION, &scene.material_of(p).emission.to_array()),
+                    ]);
+                    (r, 0)
+                }
+                Emitter::Punctual(i) => punctual_light(&lights.punctual()[i as usize], lights.punctual_probability(i as usize)),
+                Emitter::Triangle(_) | Emitter::Environment => ([0.0; W], GIVEN),
+            })
+            .unzip();
         SceneLanes {
             triangle: triangles.map(triangle_record).collect(),
             normals,
@@ -296,24 +351,8 @@ impl SceneLanes {
                 .iter()
                 .map(|m| m.base_color_texture.is_some() || m.metallic_roughness_texture.is_some())
                 .collect(),
-            light: emitters
-                .iter()
-                .map(|e| match *e {
-                    Some(p) => {
-                        let [p0, p1, p2] = scene.triangle_vertices(p).map(|v| v.to_array());
-                        record(&[
-                            (LIGHT_P, &p0),
-                            (LIGHT_P + 3, &p1),
-                            (LIGHT_P + 6, &p2),
-                            (LIGHT_NG, &scene.geometric_normal(p).to_array()),
-                            (LIGHT_PDF, &[lights.pdf_area(p)]),
-                            (LIGHT_EMISSION, &scene.material_of(p).emission.to_array()),
-                        ])
-                    }
-                    None => [0.0; W],
-                })
-                .collect(),
-            light_sampled: emitters.iter().map(|e| e.is_some_and(|p| scene.material_of(p).emissive_texture.is_none())).collect(),
+            light,
+            light_flags,
         }
     }
 }
@@ -580,7 +619,7 @@ struct LightPoint {
 
 #[allow(clippy::neg_cmp_op_on_partial_ord)]
 #[inline(always)]
-fn light_point<const GIVEN_LIGHTS: bool>(c: &Chunk, blk: &Blocks, draws: &Draws, l: usize, p: V3, eps: f32) -> LightPoint {
+fn light_point<const OTHER: bool>(c: &Chunk, blk: &Blocks, draws: &Draws, l: usize, p: V3, eps: f32) -> LightPoint {
     let (lx, ly) = (draws.light[0][l], draws.light[1][l]);
     let su = lx.sqrt();
     let (ba, bb) = (su * (1.0 - ly), su * ly);
@@ -594,21 +633,49 @@ fn light_point<const GIVEN_LIGHTS: bool>(c: &Chunk, blk: &Blocks, draws: &Draws,
     let li = V3::field(&blk.light, LIGHT_EMISSION, l);
     let pdf = blk.light[LIGHT_PDF][l] * dist2 / cos_at_light;
     let on_triangle = !(dist2 <= 0.0) && !(cos_at_light <= 0.0) && li.nonzero() && pdf > 0.0;
-    // Without given samples in the chunk (`GIVEN_LIGHTS` false), the selects fold away.
-    let given = GIVEN_LIGHTS && c.flags[l] & GIVEN != 0;
+    // `Punctual::sample_li` where the light is punctual.
+    let flags = c.flags[l];
+    let (spot, sun) = (flags & SPOT != 0, flags & SUN != 0);
+    let position = V3::field(&blk.light, PUNCTUAL_POSITION, l);
+    let direction = V3::field(&blk.light, PUNCTUAL_DIRECTION, l);
+    let intensity = V3::field(&blk.light, PUNCTUAL_INTENSITY, l);
+    let to_punctual = position.sub(p);
+    let dist2_punctual = to_punctual.dot(to_punctual);
+    let wi_punctual = to_punctual.div(dist2_punctual.sqrt());
+    let (cos_inner, cos_outer) = (blk.light[PUNCTUAL_COS_INNER][l], blk.light[PUNCTUAL_COS_OUTER][l]);
+    let ramp = ((-wi_punctual.dot(direction) - cos_outer) * (1.0 / (cos_inner - cos_outer).max(1e-3))).clamp(0.0, 1.0);
+    let falloff = ramp * ramp;
+    let li_punctual =
+        V3::select(sun, intensity, V3::select(spot, intensity.scale(falloff / dist2_punctual), intensity.div(dist2_punctual)));
+    let lit = if sun {
+        true
+    } else if spot {
+        !(dist2_punctual <= 0.0) && falloff > 0.0
+    } else {
+        dist2_punctual > 0.0
+    };
+    // Without other lights in the chunk (`OTHER` false), the selects fold away.
+    let punctual = OTHER && flags & (POINT | SPOT | SUN) != 0;
+    let given = OTHER && flags & GIVEN != 0;
+    let wi = V3::select(punctual, V3::select(sun, direction.neg(), wi_punctual), wi);
+    let li = V3::select(punctual, li_punctual, li);
     LightPoint {
         wi: V3::select(given, V3::field(&blk.light, GIVEN_WI, l), wi),
         li: V3::select(given, V3::field(&blk.light, GIVEN_LI, l), li),
-        pdf: if given { blk.light[GIVEN_PDF][l] } else { pdf },
-        delta: given && blk.light[GIVEN_DELTA][l] != 0.0,
-        target: V3::select(given, V3::field(&blk.light, GIVEN_TARGET, l), point.add(normal.scale(eps))),
-        infinite: given && blk.light[GIVEN_INFINITE][l] != 0.0,
-        sampled: c.flags[l] & HAS_LIGHT != 0 && (given || on_triangle),
+        pdf: if given {
+            blk.light[GIVEN_PDF][l]
+        } else if punctual {
+            blk.light[PUNCTUAL_PROBABILITY][l]
+        } else {
+            pdf
+        },
+        delta: punctual || (given && blk.light[GIVEN_DELTA][l] != 0.0),
+        target: V3::select(given, V3::field(&blk.light, GIVEN_TARGET, l), V3::select(punctual, position, point.add(normal.scale(eps)))),
+        infinite: (punctual && sun) || (given && blk.light[GIVEN_INFINITE][l] != 0.0),
+        sampled: flags & HAS_LIGHT != 0 && (given || if punctual { lit && li_punctual.nonzero() } else { on_triangle }),
     }
 }
 
-/// The shadow ray towards `ls` and the light it brings (`f`, `pdf_bsdf`: the BSDF at `ls.wi`),
-/// to be traced where `cast`.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn shadow_ray(o: &mut Out, l: usize, cast: bool, ls: &LightPoint, p: V3, ng: V3, beta: V3, f: V3, pdf_bsdf: f32, eps: f32) {
@@ -663,7 +730,7 @@ fn continue_path(
 /// returns early on `x <= 0`, the lane keeps `!(x <= 0)`: the same side for NaN.
 #[allow(clippy::neg_cmp_op_on_partial_ord)]
 #[inline(always)]
-fn lane<const NORMALS: bool, const GIVEN_LIGHTS: bool>(c: &mut Chunk, o: &mut Out, blk: &Blocks, draws: &Draws, k: &Consts, l: usize) {
+fn lane<const NORMALS: bool, const OTHER: bool>(c: &mut Chunk, o: &mut Out, blk: &Blocks, draws: &Draws, k: &Consts, l: usize) {
     let shade = c.flags[l] & DIFFUSE != 0;
     let d = V3::lane(&c.dir, l);
     let beta = V3::lane(&c.beta, l);
@@ -681,7 +748,7 @@ fn lane<const NORMALS: bool, const GIVEN_LIGHTS: bool>(c: &mut Chunk, o: &mut Ou
     let lit = albedo.max_element() > 0.0;
 
     // Next-event estimation, with Diffuse::eval_pdf at the light's direction.
-    let ls = light_point::<GIVEN_LIGHTS>(c, blk, draws, l, p, k.eps);
+    let ls = light_point::<OTHER>(c, blk, draws, l, p, k.eps);
     let wi_z = ls.wi.dot(fnrm);
     let geometric_reflection = ls.wi.dot(ng) * wo_dot_ng > 0.0;
     let shading_reflection = wi_z * wo_z > 0.0;
@@ -922,13 +989,13 @@ fn glossy_lanes<const NORMALS: bool>(c: &mut Chunk, o: &mut Out, b: &Blocks, k: 
 }
 
 #[inline(always)]
-fn lanes<const NORMALS: bool, const GIVEN_LIGHTS: bool>(c: &mut Chunk, o: &mut Out, b: &Blocks, k: &Consts) {
+fn lanes<const NORMALS: bool, const OTHER: bool>(c: &mut Chunk, o: &mut Out, b: &Blocks, k: &Consts) {
     let d = draws(c);
     // A trip count the compiler cannot see: a known 16 gets the loop fully unrolled before
     // the loop vectoriser runs, which then has nothing to vectorise.
     let n = std::hint::black_box(W).min(W);
     for l in 0..n {
-        lane::<NORMALS, GIVEN_LIGHTS>(c, o, b, &d, k, l);
+        lane::<NORMALS, OTHER>(c, o, b, &d, k, l);
     }
 }
 
@@ -954,9 +1021,9 @@ pub(crate) fn shade<T: Transpose>(isa: T, c: &mut Chunk, o: &mut Out, b: &mut Bl
         isa.transpose(&mut b.normals);
     }
     if diffuse {
-        // The diffuse lanes are the common vertex of every scene: a build without the given
-        // light samples for chunks that have none.
-        match (normals, c.flags.iter().any(|&f| f & GIVEN != 0)) {
+        // The diffuse lanes are the common vertex of every scene: a build without the other
+        // lights than emitter triangles for chunks that have none.
+        match (normals, c.flags.iter().any(|&f| f & OTHER_LIGHTS != 0)) {
             (true, true) => lanes::<true, true>(c, o, b, k),
             (true, false) => lanes::<true, false>(c, o, b, k),
             (false, true) => lanes::<false, true>(c, o, b, k),

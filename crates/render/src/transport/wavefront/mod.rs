@@ -326,9 +326,9 @@ fn classify(ctx: &PathContext, lanes: &SceneLanes, ch: &mut Chunk, blocks: &mut 
         let u_select = sampler.get1d(dims::at(vertex, dims::LIGHT_SELECT));
         let mut flags = 0;
         if let Some(k) = lights.choose_index(u_select) {
-            if lanes.light_sampled[k] {
+            if lanes.light_flags[k] != GIVEN {
                 blocks.light[l] = lanes.light[k];
-                flags = HAS_LIGHT;
+                flags = HAS_LIGHT | lanes.light_flags[k];
             } else {
                 // Other emitters are sampled here, at the point the kernel will shade.
                 let p = scene.surface(prim as u32, ch.u[l], ch.v[l]).p;
