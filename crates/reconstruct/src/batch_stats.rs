@@ -5,17 +5,20 @@
 //! from the batch average give unbiased covariances of the pixel means:
 //! `Cov(ḡ_i, ḡ_j) ≈ Σ_b (g_i^b − ḡ_i)(g_j^b − ḡ_j) / (B(B−1))`.
 use cvtrace_streams::{Image, Stream};
+use crate::simd::Lines;
 use rayon::prelude::*;
 
 /// Per pixel and channel, the deviations of the `B` batch means from their average,
 /// laid out `[(pixel·3 + channel)·stride + batch]` so that one pixel's data is contiguous.
 /// A `stride` above `B` pads every row with zeros, so that fixed-width kernels can copy
-/// whole rows.
+/// whole rows. The values start on a cache line ([`Lines`]), so that with a stride of 16 every
+/// row is one line: gathering a pixel's rows touches three lines instead of four, and a
+/// 16-wide load of a row is never split across two.
 #[derive(Clone)]
 pub struct BatchCube {
     pub batches: usize,
     pub stride: usize,
-    pub data: Vec<f32>,
+    pub data: Lines,
     /// Per pixel and channel, the sum of squared deviations.
     pub sq: Vec<[f32; 3]>,
 }
@@ -34,7 +37,7 @@ impl BatchCube {
         let b = stream.batches.len();
         assert!(stride >= b);
         let n = stream.mean.pixels.len();
-        let mut data = vec![0.0f32; n * 3 * stride];
+        let mut data = Lines::zeros(n * 3 * stride);
         let mut sq = vec![[0.0f32; 3]; n];
         if let Some((values, _, _)) = floor {
             assert!(b >= 2 && values.len() == n);
