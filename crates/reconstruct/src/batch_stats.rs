@@ -4,8 +4,8 @@
 //! every pixel, so CRN batch `b` of all pixels shares its random numbers). Their deviations
 //! from the batch average give unbiased covariances of the pixel means:
 //! `Cov(ḡ_i, ḡ_j) ≈ Σ_b (g_i^b − ḡ_i)(g_j^b − ḡ_j) / (B(B−1))`.
-use cvtrace_streams::{Image, Stream};
 use crate::simd::Lines;
+use cvtrace_streams::{Image, Stream};
 use rayon::prelude::*;
 
 /// Per pixel and channel, the deviations of the `B` batch means from their average,
