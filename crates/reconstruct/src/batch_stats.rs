@@ -44,23 +44,22 @@ impl BatchCube {
         }
         let coef = helmert(b);
         if b > 0 {
-            // Each task reads its pixel range of every batch image side by side and writes each
-            // pixel's rows once, in order; every sum still runs over the batches in order.
+            // Each task streams through every batch image once for its pixel range.
             data.par_chunks_mut(3 * stride * CHUNK).zip(sq.par_chunks_mut(CHUNK)).enumerate().for_each(|(chunk, (out, sq))| {
                 let start = chunk * CHUNK;
                 let len = sq.len();
-                let images: Vec<&[[f32; 3]]> = stream.batches.iter().map(|im| &im.pixels[start..start + len]).collect();
-                for (local, px) in out.chunks_mut(3 * stride).enumerate() {
-                    let mut sum = [0.0f64; 3];
-                    for (bi, im) in images.iter().enumerate() {
-                        let p = im[local];
+                let mut sum = vec![[0.0f64; 3]; len];
+                for (bi, im) in stream.batches.iter().enumerate() {
+                    for (local, p) in im.pixels[start..start + len].iter().enumerate() {
                         for ch in 0..3 {
-                            px[ch * stride + bi] = p[ch];
-                            sum[ch] += p[ch] as f64;
+                            out[(local * 3 + ch) * stride + bi] = p[ch];
+                            sum[local][ch] += p[ch] as f64;
                         }
                     }
+                }
+                for (local, px) in out.chunks_mut(3 * stride).enumerate() {
                     for ch in 0..3 {
-                        let mean = sum[ch] / b as f64;
+                        let mean = sum[local][ch] / b as f64;
                         let mut ss = 0.0f32;
                         for slot in &mut px[ch * stride..ch * stride + b] {
                             *slot = (*slot as f64 - mean) as f32;
