@@ -1,6 +1,7 @@
 //! Times each estimator on one synthetic stream set (default 1280×720, B = 16):
 //! `cargo run --release -p cvtrace-reconstruct --example timing -- [width height batches methods]`
-//! (`TIMING_REPEATS=N` runs the methods N times in turn).
+//! (`TIMING_REPEATS=N` runs the methods N times in turn; `TIMING_DUMP=DIR` writes each method's
+//! image, layers and diagnostics as raw bits to `DIR/<method>.bin`, to compare two builds).
 use cvtrace_reconstruct::synthetic::{RenderSpec, SoftShadowScene};
 use cvtrace_reconstruct::{Input, Overrides, Registry};
 use std::time::Instant;
@@ -27,6 +28,9 @@ fn main() {
         let cpu = cpu_seconds().map(|c| c - cpu0.unwrap_or(0.0)).unwrap_or(f64::NAN);
         let phase = |key: &str, label: &str| out.diagnostics.get(key).map(|v| format!("  ({label} {v:.3} s)")).unwrap_or_default();
         let prep = phase("seconds_prepare", "prepare") + &phase("seconds_gamma", "γ criterion");
+        if let Some(dir) = std::env::var_os("TIMING_DUMP") {
+            dump(&std::path::Path::new(&dir).join(format!("{}.bin", spec.name)), &out);
+        }
         println!("{:<8} {:>7.3} s wall {:>7.3} s cpu  {:>7.2} Mpix/s{prep}", spec.name, s, cpu, (w * h) as f64 / s / 1e6);
     }
 }
@@ -44,4 +48,20 @@ fn cpu_seconds() -> Option<f64> {
     let fields: Vec<&str> = stat.rsplit(')').next()?.split_whitespace().collect();
     let ticks: f64 = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
     Some(ticks / 100.0)
+}
+
+/// The output's bits: image, then each layer, then the diagnostics but their timings.
+fn dump(path: &std::path::Path, out: &cvtrace_reconstruct::Output) {
+    let mut bytes = Vec::new();
+    for im in std::iter::once(&out.image).chain(out.aovs.iter().map(|(_, a)| a)) {
+        for p in &im.pixels {
+            for v in p {
+                bytes.extend_from_slice(&v.to_bits().to_le_bytes());
+            }
+        }
+    }
+    for (name, v) in out.diagnostics.entries.iter().filter(|(n, _)| !n.starts_with("seconds")) {
+        bytes.extend_from_slice(format!("{name}={v:?}\n").as_bytes());
+    }
+    std::fs::write(path, bytes).unwrap();
 }

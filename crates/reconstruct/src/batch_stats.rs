@@ -4,30 +4,45 @@
 //! every pixel, so CRN batch `b` of all pixels shares its random numbers). Their deviations
 //! from the batch average give unbiased covariances of the pixel means:
 //! `Cov(ḡ_i, ḡ_j) ≈ Σ_b (g_i^b − ḡ_i)(g_j^b − ḡ_j) / (B(B−1))`.
+use crate::simd::Lines;
 use cvtrace_streams::{Image, Stream};
 use rayon::prelude::*;
 
 /// Per pixel and channel, the deviations of the `B` batch means from their average,
 /// laid out `[(pixel·3 + channel)·stride + batch]` so that one pixel's data is contiguous.
 /// A `stride` above `B` pads every row with zeros, so that fixed-width kernels can copy
-/// whole rows.
+/// whole rows. The values start on a cache line ([`Lines`]), so that with a stride of 16 every
+/// row is one line: gathering a pixel's rows touches three lines instead of four, and a
+/// 16-wide load of a row is never split across two.
 #[derive(Clone)]
 pub struct BatchCube {
     pub batches: usize,
     pub stride: usize,
-    pub data: Vec<f32>,
+    pub data: Lines,
     /// Per pixel and channel, the sum of squared deviations.
     pub sq: Vec<[f32; 3]>,
 }
 
 impl BatchCube {
     pub fn deviations(stream: &Stream, stride: usize) -> Self {
+        BatchCube::deviations_floored(stream, stride, None)
+    }
+
+    /// [`BatchCube::deviations`] followed by [`BatchCube::rotate_and_floor`] with `floor =
+    /// (values, τ, s)`, each chunk of pixels rotated and floored right after its deviations,
+    /// while they are in cache, instead of in a second pass over the whole cube: the same
+    /// operations on every value in the same order, so the same bits.
+    pub fn deviations_floored(stream: &Stream, stride: usize, floor: Option<(&[[f32; 3]], f64, f64)>) -> Self {
         const CHUNK: usize = 2048;
         let b = stream.batches.len();
         assert!(stride >= b);
         let n = stream.mean.pixels.len();
-        let mut data = vec![0.0f32; n * 3 * stride];
+        let mut data = Lines::zeros(n * 3 * stride);
         let mut sq = vec![[0.0f32; 3]; n];
+        if let Some((values, _, _)) = floor {
+            assert!(b >= 2 && values.len() == n);
+        }
+        let coef = helmert(b);
         if b > 0 {
             // Each task streams through every batch image once for its pixel range.
             data.par_chunks_mut(3 * stride * CHUNK).zip(sq.par_chunks_mut(CHUNK)).enumerate().for_each(|(chunk, (out, sq))| {
@@ -52,6 +67,9 @@ impl BatchCube {
                         }
                         sq[local][ch] = ss;
                     }
+                    if let Some((values, tau, s)) = floor {
+                        rotate_and_floor_pixel(px, &mut sq[local], values[start + local], &coef, b, stride, tau, s);
+                    }
                 }
             });
         }
@@ -68,27 +86,9 @@ impl BatchCube {
     pub fn rotate_and_floor(&mut self, values: &[[f32; 3]], tau: f64, s: f64) {
         let (b, stride) = (self.batches, self.stride);
         assert!(b >= 2 && values.len() == self.sq.len());
-        let coef: Vec<(f64, f64)> = (1..b).map(|j| (1.0 / ((j * (j + 1)) as f64).sqrt(), j as f64)).collect();
+        let coef = helmert(b);
         self.data.par_chunks_mut(3 * stride).zip(self.sq.par_iter_mut()).zip(values.par_iter()).for_each(|((px, sq), v)| {
-            let mut z = [0.0f64; crate::solve::MAX_BATCHES];
-            for ch in 0..3 {
-                let row = &mut px[ch * stride..ch * stride + b];
-                // Helmert: z_{j−1} = (Σ_{a<j} d_a − j·d_j) / √(j(j+1)), j = 1..B−1.
-                let mut prefix = 0.0f64;
-                let mut ss = 0.0f64;
-                for j in 1..b {
-                    prefix += row[j - 1] as f64;
-                    let (c, jf) = coef[j - 1];
-                    z[j - 1] = (prefix - jf * row[j] as f64) * c;
-                    ss += z[j - 1] * z[j - 1];
-                }
-                let delta = (tau * v[ch] as f64 - s * ss).max(0.0);
-                z[b - 1] = (delta / s).sqrt();
-                for (dst, src) in row.iter_mut().zip(&z[..b]) {
-                    *dst = *src as f32;
-                }
-                sq[ch] = row.iter().map(|x| x * x).sum();
-            }
+            rotate_and_floor_pixel(px, sq, *v, &coef, b, stride, tau, s);
         });
     }
 
@@ -116,9 +116,73 @@ impl BatchCube {
     }
 }
 
+/// The coefficients of the Helmert rotation of `b` deviations: `(1/√(j(j+1)), j)`, `j = 1..b−1`.
+fn helmert(b: usize) -> Vec<(f64, f64)> {
+    (1..b).map(|j| (1.0 / ((j * (j + 1)) as f64).sqrt(), j as f64)).collect()
+}
+
+/// [`BatchCube::rotate_and_floor`] of one pixel's three rows `px` (`stride` apart) and norms `sq`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn rotate_and_floor_pixel(px: &mut [f32], sq: &mut [f32; 3], v: [f32; 3], coef: &[(f64, f64)], b: usize, stride: usize, tau: f64, s: f64) {
+    let mut z = [0.0f64; crate::solve::MAX_BATCHES];
+    for ch in 0..3 {
+        let row = &mut px[ch * stride..ch * stride + b];
+        // Helmert: z_{j−1} = (Σ_{a<j} d_a − j·d_j) / √(j(j+1)), j = 1..B−1.
+        let mut prefix = 0.0f64;
+        let mut ss = 0.0f64;
+        for j in 1..b {
+            prefix += row[j - 1] as f64;
+            let (c, jf) = coef[j - 1];
+            z[j - 1] = (prefix - jf * row[j] as f64) * c;
+            ss += z[j - 1] * z[j - 1];
+        }
+        let delta = (tau * v[ch] as f64 - s * ss).max(0.0);
+        z[b - 1] = (delta / s).sqrt();
+        for (dst, src) in row.iter_mut().zip(&z[..b]) {
+            *dst = *src as f32;
+        }
+        sq[ch] = row.iter().map(|x| x * x).sum();
+    }
+}
+
 #[cfg(test)]
 mod floor_tests {
     use super::*;
+
+    /// Flooring each chunk right after its deviations gives the bits of the second pass over the
+    /// whole cube, on images across several chunks, floors that bind and floors that do not.
+    #[test]
+    fn floored_in_one_pass_gives_the_bits_of_two() {
+        use crate::rng::{hash4, uniform};
+        for (w, h, b, stride) in [(70, 61, 16, 16), (33, 7, 2, 8), (50, 90, 5, 8), (9, 5, 32, 32)] {
+            let batches: Vec<Image> = (0..b)
+                .map(|k| {
+                    Image::from_fn(w, h, |x, y| {
+                        std::array::from_fn(|c| {
+                            let u = uniform(hash4(3, (y * w + x) as u64, k as u64, c as u64));
+                            if c == 2 {
+                                (u * u * u * 50.0) as f32
+                            } else {
+                                u as f32
+                            }
+                        })
+                    })
+                })
+                .collect();
+            let st = Stream::from_batches(batches);
+            let values: Vec<[f32; 3]> =
+                (0..w * h).map(|i| std::array::from_fn(|c| uniform(hash4(4, i as u64, c as u64, 0)) as f32 * 0.01)).collect();
+            let (tau, s) = (0.05, 1.0 / (b * (b - 1)) as f64);
+            let mut two = BatchCube::deviations(&st, stride);
+            two.rotate_and_floor(&values, tau, s);
+            let one = BatchCube::deviations_floored(&st, stride, Some((&values, tau, s)));
+            let bits = |c: &BatchCube| {
+                (c.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), c.sq.iter().map(|v| v.map(f32::to_bits)).collect::<Vec<_>>())
+            };
+            assert_eq!(bits(&one), bits(&two), "{w}x{h} B={b} stride {stride}");
+        }
+    }
 
     #[test]
     fn rotation_keeps_the_gram_matrix_and_the_floor_adds_u_ut() {

@@ -448,15 +448,17 @@ impl CvPass<'_> {
             parts
                 .iter()
                 .map(|(st, mean)| {
-                    let mut cube = BatchCube::deviations(st, stride);
-                    let mut plain = None;
-                    if let Some(f) = self.floor.filter(|f| f.mode == FloorMode::Common) {
-                        if self.centre_free.is_some_and(|f| !f.floored) {
-                            plain = Some(cube.clone());
-                        }
+                    let common = self.floor.filter(|f| f.mode == FloorMode::Common);
+                    if let Some(f) = common.filter(|_| self.centre_free.is_some_and(|f| !f.floored)) {
+                        let plain = BatchCube::deviations(st, stride);
+                        let mut cube = plain.clone();
                         cube.rotate_and_floor(f.values, f.tau, s);
+                        Half { cube, mean, plain: Some(plain) }
+                    } else {
+                        // Floored chunk by chunk while the deviations are in cache.
+                        let cube = BatchCube::deviations_floored(st, stride, common.map(|f| (f.values, f.tau, s)));
+                        Half { cube, mean, plain: None }
                     }
-                    Half { cube, mean, plain }
                 })
                 .collect()
         };

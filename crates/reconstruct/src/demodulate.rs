@@ -53,15 +53,16 @@ pub fn divisor(albedo: &Image) -> Image {
     d
 }
 
-/// `image / d` per pixel and channel.
+/// `image / d` per pixel and channel, in one pass (no copy to divide in place).
 pub fn divided(image: &Image, d: &Image) -> Image {
-    let mut out = image.clone();
-    for (o, q) in out.pixels.iter_mut().zip(&d.pixels) {
-        for ch in 0..3 {
-            o[ch] /= q[ch];
-        }
+    if image.pixels.len() != d.pixels.len() {
+        // As before: the pixels the divisor does not reach stay as they are.
+        let mut out = image.clone();
+        out.pixels.iter_mut().zip(&d.pixels).for_each(|(o, q)| *o = std::array::from_fn(|ch| o[ch] / q[ch]));
+        return out;
     }
-    out
+    let pixels = image.pixels.iter().zip(&d.pixels).map(|(p, q)| std::array::from_fn(|ch| p[ch] / q[ch])).collect();
+    Image { width: image.width, height: image.height, pixels }
 }
 
 /// The stream set with every mean and batch of both streams divided by `d` (features and

@@ -47,7 +47,7 @@
 // hide that structure.
 #![allow(clippy::needless_range_loop)]
 // The vector kernels (`simd`) are the only code that needs `unsafe`: intrinsics that require
-// their CPU features, and raw-pointer loads and stores.
+// their CPU features, raw-pointer loads and stores, and the cache-line-aligned buffer they read.
 #![deny(unsafe_code)]
 
 mod batch_stats;
