@@ -349,7 +349,7 @@ mod dispatch_tests {
 }
 
 /// One cache line of values.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C, align(64))]
 struct Line([f32; 16]);
 
@@ -363,38 +363,19 @@ pub struct Lines {
 impl Lines {
     /// `len` zeros (the pages are zeroed by the allocator, as `vec![0.0; len]` would be).
     pub fn zeros(len: usize) -> Self {
-        let n = len.div_ceil(16);
-        let layout = std::alloc::Layout::array::<Line>(n).expect("cube size");
-        let lines = if n == 0 {
-            Vec::new()
-        } else {
-            // SAFETY: `layout` is not zero-sized (n > 0); all-zero bytes are a valid `Line`
-            // (sixteen +0.0), and the vector owns the allocation with the same layout that
-            // allocated it (`Vec<Line>` of capacity `n`), so it frees it correctly.
-            unsafe {
-                let ptr = std::alloc::alloc_zeroed(layout).cast::<Line>();
-                if ptr.is_null() {
-                    std::alloc::handle_alloc_error(layout);
-                }
-                Vec::from_raw_parts(ptr, n, n)
-            }
-        };
-        Lines { lines, len }
+        Lines { lines: bytemuck::zeroed_vec(len.div_ceil(16)), len }
     }
 }
 
 impl std::ops::Deref for Lines {
     type Target = [f32];
     fn deref(&self) -> &[f32] {
-        // SAFETY: a `Line` is 16 f32 without padding (`repr(C)`, 64 bytes), so the lines are
-        // `16·lines.len() ≥ len` contiguous, initialised f32s.
-        unsafe { std::slice::from_raw_parts(self.lines.as_ptr().cast::<f32>(), self.len) }
+        &bytemuck::cast_slice(&self.lines)[..self.len]
     }
 }
 
 impl std::ops::DerefMut for Lines {
     fn deref_mut(&mut self) -> &mut [f32] {
-        // SAFETY: as in `deref`, and `&mut self` makes the borrow unique.
-        unsafe { std::slice::from_raw_parts_mut(self.lines.as_mut_ptr().cast::<f32>(), self.len) }
+        &mut bytemuck::cast_slice_mut(&mut self.lines)[..self.len]
     }
 }
