@@ -870,6 +870,7 @@ impl Opaque {
         let f90 = spec_factor * opaque + m;
         let w_d = luminance(diffuse);
         let w_s = luminance(schlick(f0, f90, cos_o));
+        // No glass lobe, but its weight is still added, as in the scalar sum (a −0 becomes +0).
         let w_g = 0.0;
         let total = w_d + w_s + w_g;
         let a = w_d / total;
