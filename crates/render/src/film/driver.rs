@@ -56,7 +56,7 @@ struct Context<'a, T: Intersector> {
     /// Vertices the wavefronts shaded, those the lane kernel shaded and those of its glossy
     /// lanes, summed over the tiles and logged when the render ends (the share of the kernel is
     /// what decides how much the wavefront pays on a scene).
-    lane_counts: [AtomicU64; 3],
+    lane_counts: [AtomicU64; 4],
 }
 
 impl<T: Intersector> Context<'_, T> {
@@ -70,10 +70,15 @@ impl<T: Intersector> Context<'_, T> {
 
 impl<T: Intersector> Drop for Context<'_, T> {
     fn drop(&mut self) {
-        let [all, kernel, glossy] = self.lane_counts.each_ref().map(|c| c.load(Ordering::Relaxed));
+        let [all, kernel, glossy, glass] = self.lane_counts.each_ref().map(|c| c.load(Ordering::Relaxed));
         if all > 0 {
             let share = |n: u64| 100.0 * n as f64 / all as f64;
-            tracing::debug!("lane kernel: {:.1}% of {all} vertices ({:.1}% in the glossy lanes)", share(kernel), share(glossy));
+            tracing::debug!(
+                "lane kernel: {:.1}% of {all} vertices ({:.1}% in the glossy lanes, {:.1}% in the glass lanes)",
+                share(kernel),
+                share(glossy),
+                share(glass)
+            );
         }
     }
 }

@@ -143,6 +143,17 @@ pub(crate) fn dielectric_layer(ior: f32, specular_color: Vec3A, specular: f32) -
     ((Vec3A::splat(r0) * specular_color.max(Vec3A::ZERO)).min(Vec3A::ONE) * spec_factor, spec_factor)
 }
 
+/// Whether a material with these factors is a smooth dielectric and nothing else: full
+/// transmission and no metal leave the diffuse and specular lobes no weight (the glass lobe
+/// is chosen with probability 1), and a roughness below GGX's smallest, or no change of
+/// index, makes its interface a delta.
+#[inline]
+pub(crate) fn is_smooth_glass(metallic: f32, roughness: f32, transmission: f32, ior: f32) -> bool {
+    transmission.clamp(0.0, 1.0) == 1.0
+        && metallic.clamp(0.0, 1.0) == 0.0
+        && Dielectric::new(ior.max(1.0), roughness.clamp(0.0, 1.0).powi(2)).smooth
+}
+
 /// The glTF model as a mixture of its lobes (see the module doc).
 #[derive(Clone, Copy, Debug)]
 pub struct Mixture {
@@ -574,6 +585,31 @@ mod tests {
         // The whole table is shown on failure (or with --nocapture).
         println!("{report}");
         assert!(failures.is_empty(), "{} of {checks} checks failed:\n{}", failures.len(), failures.join("\n"));
+    }
+
+    #[test]
+    fn smooth_glass_alone_is_the_glass_lobe_with_probability_one() {
+        let tinted = |p: PbrParams| PbrParams { base_color: Vec3A::new(0.6, 0.9, 0.0), ..p };
+        let glass = [
+            params(0.0, 0.0, 1.0, 1.0),
+            tinted(params(0.0, 0.03, 0.5, 1.0)),
+            PbrParams { ior: 1.33, ..tinted(params(-0.5, 0.0, 1.0, 2.0)) },
+            PbrParams { ior: 1.0, ..params(0.0, 0.8, 1.0, 1.0) },
+        ];
+        let not_glass = [params(0.0, 0.0, 1.0, 0.99), params(0.01, 0.0, 1.0, 1.0), params(0.0, 0.04, 1.0, 1.0), params(0.0, 0.0, 1.0, 0.0)];
+        let smooth = |p: &PbrParams| is_smooth_glass(p.metallic, p.roughness, p.transmission, p.ior);
+        for p in &glass {
+            assert!(smooth(p), "{p:?}");
+            for wo in [wo_at(0.9), wo_at(0.2), -wo_at(0.5), -wo_at(0.05)] {
+                let m = Bsdf::mixture(p, Vec3A::Z, Vec3A::Z, wo);
+                assert_eq!((m.p_diffuse, m.p_spec, m.p_glass), (0.0, 0.0, 1.0), "{p:?}, wo {wo}");
+                assert!(m.glass.smooth && !m.has_non_delta(), "{p:?}, wo {wo}");
+                assert_eq!((m.glass_weight, m.glass_scalar), (p.base_color.max(Vec3A::ZERO), 1.0), "{p:?}");
+            }
+        }
+        for p in &not_glass {
+            assert!(!smooth(p), "{p:?}");
+        }
     }
 
     #[test]

@@ -1,8 +1,9 @@
-//! The common vertices of a wavefront, [`W`] paths at a time, in two kinds of lanes: a diffuse
-//! material ([`lane`], the Cornell box's every vertex) and an opaque glTF material with a
-//! specular layer or metal ([`glossy_lane`]: diffuse, GGX specular and metal lobes), both with
-//! their textures looked up beforehand, lit by next-event estimation towards an emissive
-//! triangle (worked out in the lane) or any other light (its sample drawn beforehand). The
+//! The common vertices of a wavefront, [`W`] paths at a time, in three kinds of lanes: a
+//! diffuse material ([`lane`], the Cornell box's every vertex) and an opaque glTF material with
+//! a specular layer or metal ([`glossy_lane`]: diffuse, GGX specular and metal lobes), both
+//! with their textures looked up beforehand, lit by next-event estimation towards an emissive
+//! triangle (worked out in the lane) or any other light (its sample drawn beforehand); and
+//! smooth glass ([`glass_lane`]: reflect or refract, no light sample). The
 //! arithmetic is that of [`crate::transport::integrator::PathContext::vertex`] on such a
 //! vertex, operation by operation and in the same order (glam's `Vec3A` sums its dot products
 //! as `(x·x' + y·y') + z·z'`, and so does [`V3::dot`]), with every branch replaced by a select,
@@ -22,7 +23,7 @@ use crate::sampler::dims;
 use crate::scene::lights::{Emitter, Punctual};
 use crate::scene::world::Scene;
 use crate::transport::bsdf::ggx::MIN_ALPHA;
-use crate::transport::bsdf::pbr::dielectric_layer;
+use crate::transport::bsdf::pbr::{dielectric_layer, is_smooth_glass};
 use crate::transport::light_sample::{LightSample, ShadowEnd};
 use glam::Vec3A;
 use std::f32::consts::{FRAC_1_PI, FRAC_PI_4, PI};
@@ -79,6 +80,8 @@ pub(crate) const GIVEN: u32 = 8;
 pub(crate) const POINT: u32 = 16;
 pub(crate) const SPOT: u32 = 32;
 pub(crate) const SUN: u32 = 64;
+/// The glass lanes shade the lane.
+pub(crate) const GLASS: u32 = 128;
 /// The lights other than emitter triangles.
 const OTHER_LIGHTS: u32 = GIVEN | POINT | SPOT | SUN;
 
@@ -166,8 +169,9 @@ const TRI_NG: usize = 9;
 const TRI_PDF: usize = 12;
 /// The offsets of a material record: base colour, the BSDF's albedo (the base colour, at least
 /// 0), emission; for the glossy lanes the dielectric layer's `F0` and strength
-/// (`pbr::dielectric_layer`), metallic and roughness. Base colour, albedo, metallic and
-/// roughness are those at the hit where the material has textures (`classify` looks them up).
+/// (`pbr::dielectric_layer`), metallic and roughness; for the glass lanes the index of
+/// refraction (at least 1). Base colour, albedo, metallic and roughness are those at the hit
+/// where the material has textures (`classify` looks them up).
 pub(crate) const MAT_BASE: usize = 0;
 pub(crate) const MAT_ALBEDO: usize = 3;
 const MAT_EMISSION: usize = 6;
@@ -175,6 +179,7 @@ const MAT_F0: usize = 9;
 const MAT_SPECULAR: usize = 12;
 pub(crate) const MAT_METALLIC: usize = 13;
 pub(crate) const MAT_ROUGHNESS: usize = 14;
+const MAT_ETA: usize = 15;
 /// The offsets of an emitter record: its triangle's vertices and normal, area density, emission.
 const LIGHT_P: usize = 0;
 const LIGHT_NG: usize = 9;
@@ -237,7 +242,7 @@ pub(crate) fn given_light(ls: &LightSample) -> Record {
 /// Which lanes shade a material's vertices.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Kind {
-    /// The scalar vertex: glass, or an emission texture.
+    /// The scalar vertex: rough glass, a material part glass, an emission texture.
     Scalar,
     /// The diffuse lanes: the diffuse lobe alone (`pbr::Bsdf::Diffuse`).
     Diffuse,
@@ -245,6 +250,10 @@ pub(crate) enum Kind {
     /// (`pbr::Mixture` without glass), or the diffuse lanes at texels where its
     /// metallic-roughness texture leaves the diffuse lobe alone.
     Glossy,
+    /// The glass lanes: a smooth dielectric alone (`pbr::is_smooth_glass`) at the hit; a
+    /// material with a metallic-roughness texture takes the scalar vertex at texels where it
+    /// is something else.
+    Glass,
 }
 
 /// The scene as the kernel reads it: a record per triangle (and one of its vertex normals,
@@ -333,6 +342,7 @@ impl SceneLanes {
                         (MAT_SPECULAR, &[specular]),
                         (MAT_METALLIC, &[m.metallic]),
                         (MAT_ROUGHNESS, &[m.roughness]),
+                        (MAT_ETA, &[m.ior.max(1.0)]),
                     ])
                 })
                 .collect(),
@@ -343,6 +353,13 @@ impl SceneLanes {
                     _ if m.emissive_texture.is_some() => Kind::Scalar,
                     _ if m.is_diffuse_only() => Kind::Diffuse,
                     _ if m.transmission.clamp(0.0, 1.0) == 0.0 => Kind::Glossy,
+                    // A metallic-roughness texture may make glass smooth and not metallic at
+                    // some texels, which `classify` checks.
+                    _ if is_smooth_glass(m.metallic, m.roughness, m.transmission, m.ior)
+                        || (m.transmission.clamp(0.0, 1.0) == 1.0 && m.metallic_roughness_texture.is_some()) =>
+                    {
+                        Kind::Glass
+                    }
                     _ => Kind::Scalar,
                 })
                 .collect(),
@@ -372,8 +389,9 @@ pub(crate) struct Blocks {
     pub normals: [Record; W],
     pub material: [Record; W],
     pub light: [Record; W],
-    /// What the glossy lanes leave, before it goes into the chunk's [`Out`] (see [`shade`]).
-    pub glossy_out: Out,
+    /// What the glossy or the glass lanes leave, before it goes into the chunk's [`Out`] (see
+    /// [`apart`]).
+    pub scratch_out: Out,
 }
 
 impl Default for Blocks {
@@ -383,7 +401,7 @@ impl Default for Blocks {
             normals: [[0.0; W]; W],
             material: [[0.0; W]; W],
             light: [[0.0; W]; W],
-            glossy_out: Out::default(),
+            scratch_out: Out::default(),
         }
     }
 }
@@ -688,38 +706,40 @@ fn shadow_ray(o: &mut Out, l: usize, cast: bool, ls: &LightPoint, p: V3, ng: V3,
     beta.mul(f).mul(ls.li).scale(w_light / ls.pdf).put(&mut o.shadow_light, l);
 }
 
-/// The path's next segment: where `scattered` (a direction `next_dir` with density `pdf` and
-/// throughput `next_beta`), the throughput check and Russian roulette of
-/// `PathContext::vertex`, then the new ray in the lane (else the lane's path is kept as it
-/// was).
+/// The sampled continuation of a vertex: where `scattered`, a direction `dir` with density
+/// `pdf` (0 for a delta lobe, `delta`), throughput `beta` and relative index `eta`; and the
+/// vertex's draw for Russian roulette.
+struct Scatter {
+    scattered: bool,
+    dir: V3,
+    beta: V3,
+    pdf: f32,
+    delta: bool,
+    eta: f32,
+    roulette: f32,
+}
+
+/// The path's next segment: the throughput check and Russian roulette of
+/// `PathContext::vertex` on the continuation `s`, then the new ray in the lane (else the
+/// lane's path is kept as it was).
 #[allow(clippy::neg_cmp_op_on_partial_ord)]
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn continue_path(
-    c: &mut Chunk,
-    o: &mut Out,
-    draws: &Draws,
-    k: &Consts,
-    l: usize,
-    scattered: bool,
-    p: V3,
-    ng: V3,
-    next_dir: V3,
-    next_beta: V3,
-    pdf: f32,
-) {
+fn continue_path(c: &mut Chunk, o: &mut Out, k: &Consts, l: usize, p: V3, ng: V3, s: Scatter) {
+    let Scatter { scattered, dir: next_dir, beta: next_beta, pdf, delta, eta, roulette: roulette_draw } = s;
     let depth = c.depth[l];
     let carries = next_beta.nonzero() && next_beta.is_finite();
-    // `eta_scale *= bs.eta²` with an opaque lobe's η = 1 changes no bit.
+    // With the opaque lobes' η, a constant 1, the product folds away.
+    let eta_scale = c.eta_scale[l] * (eta * eta);
     let roulette = depth >= k.rr_depth;
-    let q = (next_beta.max_element() * c.eta_scale[l]).min(0.95);
-    let survives = !(draws.roulette[l] >= q);
+    let q = (next_beta.max_element() * eta_scale).min(0.95);
+    let survives = !(roulette_draw >= q);
     let next = scattered && carries && (!roulette || survives);
     o.next[l] = next as u32;
     let beta = V3::lane(&c.beta, l);
     V3::select(next, V3::select(roulette, next_beta.div(q), next_beta), beta).put(&mut c.beta, l);
+    c.eta_scale[l] = if next { eta_scale } else { c.eta_scale[l] };
     c.prev_pdf[l] = if next { pdf } else { c.prev_pdf[l] };
-    c.prev_delta[l] = if next { 0 } else { c.prev_delta[l] };
+    c.prev_delta[l] = if next { delta as u32 } else { c.prev_delta[l] };
     c.depth[l] = if next { depth + 1 } else { depth };
     V3::select(next, spawn_origin(p, ng, next_dir, k.eps), V3::lane(&c.origin, l)).put(&mut c.origin, l);
     V3::select(next, next_dir, V3::lane(&c.dir, l)).put(&mut c.dir, l);
@@ -763,7 +783,16 @@ fn lane<const NORMALS: bool, const OTHER: bool>(c: &mut Chunk, o: &mut Out, blk:
     let wi_l = V3 { x: cosine.x, y: cosine.y, z: cosine.z * side };
     let next_dir = fs.scale(wi_l.x).add(ft.scale(wi_l.y)).add(fnrm.scale(wi_l.z));
     let scattered = lit && !(wi_l.z == 0.0 || next_dir.dot(ng) * wo_dot_ng <= 0.0);
-    continue_path(c, o, draws, k, l, shade && goes_on && scattered, p, ng, next_dir, beta.mul(albedo), wi_l.z.abs() * FRAC_1_PI);
+    let s = Scatter {
+        scattered: shade && goes_on && scattered,
+        dir: next_dir,
+        beta: beta.mul(albedo),
+        pdf: wi_l.z.abs() * FRAC_1_PI,
+        delta: false,
+        eta: 1.0,
+        roulette: draws.roulette[l],
+    };
+    continue_path(c, o, k, l, p, ng, s);
 }
 
 /// The glossy lanes' extra random numbers: the lobe choice, and the cosine and sine of the GGX
@@ -976,7 +1005,16 @@ fn glossy_lane<const NORMALS: bool>(c: &mut Chunk, o: &mut Out, blk: &Blocks, dr
     let next_dir = bsdf.s.scale(wi_l.x).add(bsdf.t.scale(wi_l.y)).add(bsdf.n.scale(wi_l.z));
     let (f, pdf) = bsdf.eval_pdf(next_dir);
     let sampled = (pick_diffuse || (pick_spec && spec_ok)) && !(pdf <= 0.0) && pdf.is_finite() && f.nonzero();
-    continue_path(c, o, draws, k, l, shade && goes_on && sampled, p, ng, next_dir, beta.mul(f.div(pdf)), pdf);
+    let s = Scatter {
+        scattered: shade && goes_on && sampled,
+        dir: next_dir,
+        beta: beta.mul(f.div(pdf)),
+        pdf,
+        delta: false,
+        eta: 1.0,
+        roulette: draws.roulette[l],
+    };
+    continue_path(c, o, k, l, p, ng, s);
 }
 
 #[inline(always)]
@@ -986,6 +1024,103 @@ fn glossy_lanes<const NORMALS: bool>(c: &mut Chunk, o: &mut Out, b: &Blocks, k: 
     let n = std::hint::black_box(W).min(W);
     for l in 0..n {
         glossy_lane::<NORMALS>(c, o, b, &d, &g, k, l);
+    }
+}
+
+/// `fresnel::dielectric`: the unpolarised reflectance at an interface of relative index `eta`
+/// seen at `cos_i` (negative from inside).
+#[inline(always)]
+fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
+    let (cos_i, eta) = if cos_i < 0.0 { (-cos_i, 1.0 / eta) } else { (cos_i, eta) };
+    let cos_i = cos_i.min(1.0);
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
+    let r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    let r = 0.5 * (r_parl * r_parl + r_perp * r_perp);
+    if sin2_t >= 1.0 {
+        1.0
+    } else {
+        r
+    }
+}
+
+/// `fresnel::refract` of the local direction `w` through the interface of normal +z: the
+/// refracted direction, the relative index it crossed, and whether there is one (not total
+/// internal reflection).
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
+#[inline(always)]
+fn refract_z(w: V3, eta: f32) -> (V3, f32, bool) {
+    let z = V3 { x: 0.0, y: 0.0, z: 1.0 };
+    let cos_i = z.dot(w);
+    let inside = cos_i < 0.0;
+    let (eta, cos_i, n) = if inside { (1.0 / eta, -cos_i, z.neg()) } else { (eta, cos_i, z) };
+    let sin2_i = (1.0 - cos_i * cos_i).max(0.0);
+    let sin2_t = sin2_i / (eta * eta);
+    let cos_t = (1.0 - sin2_t).sqrt();
+    (w.neg().div(eta).add(n.scale(cos_i / eta - cos_t)), eta, !(sin2_t >= 1.0))
+}
+
+/// One lane: the vertex of [`crate::transport::integrator::PathContext::vertex`] for a hit on
+/// smooth glass alone (`pbr::Mixture` whose only lobe is `Dielectric`'s delta, chosen with
+/// probability 1): no light sample, a mirror reflection or a refraction chosen by Fresnel,
+/// transmission tinted by the base colour.
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
+#[inline(always)]
+fn glass_lane<const NORMALS: bool>(c: &mut Chunk, o: &mut Out, blk: &Blocks, g: &GlassDraws, k: &Consts, l: usize) {
+    let shade = c.flags[l] & GLASS != 0;
+    let d = V3::lane(&c.dir, l);
+    let beta = V3::lane(&c.beta, l);
+    let (p, ng, ns) = surface::<NORMALS>(c, blk, l);
+    emission_and_features(c, o, blk, l, shade, ng, ns);
+    let goes_on = c.depth[l] < k.max_depth;
+    let wo = d.neg();
+    let (s, t, n) = shading_frame(ns, ng, wo);
+    let wo_l = V3 { x: wo.dot(s), y: wo.dot(t), z: wo.dot(n) };
+    o.shadow[l] = 0;
+
+    // Dielectric::sample of a smooth interface.
+    let eta = blk.material[MAT_ETA][l];
+    let r = fresnel_dielectric(wo_l.z, eta);
+    let reflect = g.choice[l] < r;
+    let (refracted, etap, refracts) = refract_z(wo_l, eta);
+    let wi_l = V3::select(reflect, V3 { x: -wo_l.x, y: -wo_l.y, z: wo_l.z }, refracted);
+    let transmittance = 1.0 - r;
+    let (f_cos, pdf) = if reflect { (r, r) } else { (transmittance / (etap * etap), transmittance) };
+
+    // Mixture::sample_drawn's glass lobe: the direction on the side the geometry agrees with.
+    let wi = s.scale(wi_l.x).add(t.scale(wi_l.y)).add(n.scale(wi_l.z));
+    let sides = (wi.dot(ng) * wo.dot(ng) > 0.0) == reflect;
+    let sampled = wo_l.z != 0.0 && (reflect || refracts) && sides;
+    let tint = V3::select(reflect, V3::splat(1.0), V3::field(&blk.material, MAT_ALBEDO, l));
+    let s = Scatter {
+        scattered: shade && goes_on && sampled,
+        dir: wi,
+        beta: beta.mul(tint.scale(f_cos / pdf)),
+        pdf: 0.0,
+        delta: true,
+        eta: if reflect { 1.0 } else { etap },
+        roulette: g.roulette[l],
+    };
+    continue_path(c, o, k, l, p, ng, s);
+}
+
+/// The glass lanes' random numbers: reflect or refract, and Russian roulette's.
+struct GlassDraws {
+    choice: [f32; W],
+    roulette: [f32; W],
+}
+
+#[inline(always)]
+fn glass_lanes<const NORMALS: bool>(c: &mut Chunk, o: &mut Out, b: &Blocks, k: &Consts) {
+    let mut g = GlassDraws { choice: [0.0; W], roulette: [0.0; W] };
+    for l in 0..std::hint::black_box(W).min(W) {
+        let (key, vertex) = (c.key[l], c.depth[l].saturating_sub(1));
+        g.choice[l] = get1d(key, dims::at(vertex, dims::DIELECTRIC_CHOICE));
+        g.roulette[l] = get1d(key, dims::at(vertex, dims::RUSSIAN_ROULETTE));
+    }
+    for l in 0..std::hint::black_box(W).min(W) {
+        glass_lane::<NORMALS>(c, o, b, &g, k, l);
     }
 }
 
@@ -1007,8 +1142,8 @@ pub(crate) trait Transpose: Copy {
     fn transpose(self, block: &mut [Record; W]);
 }
 
-/// The kernel: shades the lanes of `c` whose `shade` is set (those whose `glossy` is set with
-/// the glossy lanes, after the diffuse ones), from the records the caller copied into `b`
+/// The kernel: shades the lanes of `c` whose `shade` is set (with the diffuse, then the
+/// glossy, then the glass lanes, as their flags say), from the records the caller copied into `b`
 /// (which it transposes in place; vertex normals only if `normals`). Each build compiles it,
 /// inlined, for its own instructions (`simd`).
 #[inline(always)]
@@ -1032,20 +1167,24 @@ pub(crate) fn shade<T: Transpose>(isa: T, c: &mut Chunk, o: &mut Out, b: &mut Bl
         }
     }
     if glossy {
-        // The glossy lanes write their outputs into a scratch `Out`, which then goes into `o`
-        // lane by lane: writing `o` only where a lane is theirs would read it in the loop, one
-        // more array for the compiler to check (see `Chunk::flags`).
-        let mut g = std::mem::take(&mut b.glossy_out);
-        if normals {
-            glossy_lanes::<true>(c, &mut g, b, k);
-        } else {
-            glossy_lanes::<false>(c, &mut g, b, k);
-        }
-        for l in 0..W {
-            if c.flags[l] & GLOSSY != 0 {
-                o.take_lane(&g, l);
-            }
-        }
-        b.glossy_out = g;
+        apart(c, o, b, GLOSSY, |c, g, b| if normals { glossy_lanes::<true>(c, g, b, k) } else { glossy_lanes::<false>(c, g, b, k) });
     }
+    if c.flags.iter().any(|&f| f & GLASS != 0) {
+        apart(c, o, b, GLASS, |c, g, b| if normals { glass_lanes::<true>(c, g, b, k) } else { glass_lanes::<false>(c, g, b, k) });
+    }
+}
+
+/// Runs the lanes of one kind (`flag`) on a scratch `Out`, which then goes into `o` lane by
+/// lane where a lane is of that kind: writing `o` only there would read it in the loop, one
+/// more array for the compiler to check (see `Chunk::flags`).
+#[inline(always)]
+fn apart(c: &mut Chunk, o: &mut Out, b: &mut Blocks, flag: u32, run: impl FnOnce(&mut Chunk, &mut Out, &Blocks)) {
+    let mut scratch = std::mem::take(&mut b.scratch_out);
+    run(c, &mut scratch, b);
+    for l in 0..W {
+        if c.flags[l] & flag != 0 {
+            o.take_lane(&scratch, l);
+        }
+    }
+    b.scratch_out = scratch;
 }

@@ -8,10 +8,11 @@
 //! caster, run one path after the other. The live paths are kept as structure-of-arrays
 //! [`lanes::Chunk`]s of [`lanes::W`] paths, compacted after every bounce, so that the common
 //! vertices ([`lanes`]: opaque materials, diffuse or glossy, textured or not, lit by any kind of
-//! light) run on a whole chunk per instruction, reading and updating the paths where they
-//! are. What does not vectorise is done per lane before the kernel runs ([`classify`]: the
-//! texture lookups, and the light samples other than on an untextured emitter triangle). The
-//! other vertices (glass, emission textures, escaped rays) take the scalar
+//! light, and smooth glass) run on a whole chunk per instruction, reading and updating the
+//! paths where they are. What does not vectorise is done per lane before the kernel runs
+//! ([`classify`]: the texture lookups, and the light samples other than on an untextured
+//! emitter triangle). The other vertices (rough glass, materials part glass, emission
+//! textures, escaped rays) take the scalar
 //! [`crate::transport::integrator::PathContext::vertex`].
 mod lanes;
 // The lane kernel's builds for each instruction set, the one place the crate allows `unsafe`.
@@ -21,10 +22,12 @@ mod simd;
 use crate::intersect::{Hit, Intersector, Ray, RayPacket};
 use crate::sampler::{dims, SampleSampler};
 use crate::scene::material::is_diffuse_only;
+use crate::transport::bsdf::pbr::is_smooth_glass;
 use crate::transport::integrator::{FirstHit, Path, PathContext};
 use glam::Vec3A;
 use lanes::{
-    given_light, Blocks, Chunk, Consts, Kind, Out, DIFFUSE, GIVEN, GLOSSY, HAS_LIGHT, MAT_ALBEDO, MAT_BASE, MAT_METALLIC, MAT_ROUGHNESS, W,
+    given_light, Blocks, Chunk, Consts, Kind, Out, DIFFUSE, GIVEN, GLASS, GLOSSY, HAS_LIGHT, MAT_ALBEDO, MAT_BASE, MAT_METALLIC,
+    MAT_ROUGHNESS, W,
 };
 use simd::{Isa, Kernel};
 
@@ -44,10 +47,11 @@ pub(crate) struct Wavefront {
     /// The scene records of the chunk being shaded.
     blocks: Box<Blocks>,
     /// Vertices shaded so far, how many of them by the kernel, and how many of those by its
-    /// glossy lanes.
+    /// glossy and by its glass lanes.
     vertices: u64,
     kernel_vertices: u64,
     glossy_vertices: u64,
+    glass_vertices: u64,
 }
 
 impl Default for Wavefront {
@@ -89,6 +93,7 @@ impl Wavefront {
             vertices: 0,
             kernel_vertices: 0,
             glossy_vertices: 0,
+            glass_vertices: 0,
         }
     }
 
@@ -140,7 +145,9 @@ impl Wavefront {
                 self.vertices += filled as u64;
                 if let Some((kernel, lanes)) = kernel.filter(|_| shaded > 0) {
                     self.kernel_vertices += shaded as u64;
-                    self.glossy_vertices += ch.flags.iter().filter(|&&f| f & GLOSSY != 0).count() as u64;
+                    let of_kind = |kind: u32| ch.flags.iter().filter(|&&f| f & kind != 0).count() as u64;
+                    self.glossy_vertices += of_kind(GLOSSY);
+                    self.glass_vertices += of_kind(GLASS);
                     kernel.run(ch, out, &mut self.blocks, lanes.normals.is_some(), &consts);
                 } else {
                     ch.shade = [0; W];
@@ -234,9 +241,9 @@ impl Wavefront {
         self.vertices < PROBE_VERTICES || self.kernel_vertices as f64 >= KERNEL_SHARE * self.vertices as f64
     }
 
-    /// Vertices shaded so far: all, by the kernel, by its glossy lanes.
-    pub fn vertex_counts(&self) -> [u64; 3] {
-        [self.vertices, self.kernel_vertices, self.glossy_vertices]
+    /// Vertices shaded so far: all, by the kernel, by its glossy lanes, by its glass lanes.
+    pub fn vertex_counts(&self) -> [u64; 4] {
+        [self.vertices, self.kernel_vertices, self.glossy_vertices, self.glass_vertices]
     }
 
     /// The radiance of path `i`.
@@ -301,8 +308,8 @@ const KERNEL_SHARE: f64 = 0.4;
 const MIN_SHADED: usize = 4;
 
 /// Marks the first `filled` lanes whose vertex the kernel shades (a hit on a material of its
-/// kinds whose light sample, if any, is on an emitter of its kind), and which of them the glossy
-/// lanes shade; copies their records into `blocks` (with the material's textures looked up at
+/// kinds whose light sample, if any, is on an emitter of its kind), and which lanes shade each
+/// (diffuse, glossy, glass); copies their records into `blocks` (with the material's textures looked up at
 /// the hit) and returns how many there are. Lanes of a kind with fewer than [`MIN_SHADED`] in
 /// the chunk are left to the scalar vertex.
 #[inline]
@@ -310,7 +317,7 @@ fn classify(ctx: &PathContext, lanes: &SceneLanes, ch: &mut Chunk, blocks: &mut 
     let scene = ctx.scene;
     let lights = scene.lights();
     let materials = scene.triangle_materials();
-    let (mut diffuse, mut glossy) = (0, 0);
+    let (mut diffuse, mut glossy, mut glass) = (0, 0, 0);
     for l in 0..filled {
         (ch.shade[l], ch.flags[l]) = (0, 0);
         if ch.hit[l] == 0 {
@@ -325,7 +332,8 @@ fn classify(ctx: &PathContext, lanes: &SceneLanes, ch: &mut Chunk, blocks: &mut 
         let vertex = ch.depth[l] - 1;
         let u_select = sampler.get1d(dims::at(vertex, dims::LIGHT_SELECT));
         let mut flags = 0;
-        if let Some(k) = lights.choose_index(u_select) {
+        // Smooth glass samples no light: its only lobe is a delta.
+        if let Some(k) = lights.choose_index(u_select).filter(|_| kind != Kind::Glass) {
             if lanes.light_flags[k] != GIVEN {
                 blocks.light[l] = lanes.light[k];
                 flags = HAS_LIGHT | lanes.light_flags[k];
@@ -351,19 +359,28 @@ fn classify(ctx: &PathContext, lanes: &SceneLanes, ch: &mut Chunk, blocks: &mut 
             if kind == Kind::Glossy && is_diffuse_only(p.metallic, p.transmission, p.specular) {
                 kind = Kind::Diffuse;
             }
+            if kind == Kind::Glass && !is_smooth_glass(p.metallic, p.roughness, p.transmission, p.ior) {
+                continue;
+            }
         }
         if let Some(normals) = &lanes.normals {
             blocks.normals[l] = normals[prim];
         }
         ch.shade[l] = 1;
-        ch.flags[l] = flags | if kind == Kind::Glossy { GLOSSY } else { DIFFUSE };
+        ch.flags[l] = flags
+            | match kind {
+                Kind::Glossy => GLOSSY,
+                Kind::Glass => GLASS,
+                _ => DIFFUSE,
+            };
         diffuse += (kind == Kind::Diffuse) as usize;
         glossy += (kind == Kind::Glossy) as usize;
+        glass += (kind == Kind::Glass) as usize;
     }
     ch.shade[filled..].fill(0);
     ch.flags[filled..].fill(0);
     // Too few lanes of a kind: their vertices are cheaper one by one.
-    for (count, kind) in [(diffuse, DIFFUSE), (glossy, GLOSSY)] {
+    for (count, kind) in [(diffuse, DIFFUSE), (glossy, GLOSSY), (glass, GLASS)] {
         if count > 0 && count < MIN_SHADED {
             for l in 0..filled {
                 if ch.flags[l] & kind != 0 {
@@ -404,8 +421,10 @@ mod tests {
     }
 
     /// The material box with textures: UVs on every vertex, a base-colour texture on a diffuse
-    /// wall and on the plastic, a metallic-roughness texture on the plastic and on a metal
-    /// without a specular layer, whose texels of metallic 0 leave it purely diffuse.
+    /// wall, on the plastic and on the glass, a metallic-roughness texture on the plastic, on a
+    /// metal without a specular layer, whose texels of metallic 0 leave it purely diffuse, and
+    /// on the glass made metallic, whose texels of metallic 0 (three in four) leave it smooth
+    /// glass alone.
     fn textured_box_parts() -> SceneParts {
         let mut parts = materials_box_parts();
         parts.uvs = parts.positions.iter().map(|p| Vec2::new(1.7 * p.x + 0.3 * p.y, 2.3 * p.z - p.y)).collect();
@@ -413,12 +432,16 @@ mod tests {
         parts.textures = vec![
             Texture::new(5, 3, texels(15, &|i| Vec3::new(0.1 + 0.06 * i as f32, 0.9 - 0.05 * i as f32, (i % 3) as f32 * 0.4))).unwrap(),
             Texture::new(4, 4, texels(16, &|i| Vec3::new(0.0, 0.2 + 0.05 * i as f32, [0.0, 1.0, 0.5, 0.0][i % 4]))).unwrap(),
+            Texture::new(4, 4, texels(16, &|i| Vec3::new(0.0, 1.0, [0.0, 0.0, 0.0, 0.7][i % 4]))).unwrap(),
         ];
         parts.materials[0].base_color_texture = Some(0);
         parts.materials[4].base_color_texture = Some(0);
         parts.materials[4].metallic_roughness_texture = Some(1);
         parts.materials[5].metallic_roughness_texture = Some(1);
         parts.materials[5].specular = 0.0;
+        parts.materials[6].base_color_texture = Some(0);
+        parts.materials[6].metallic_roughness_texture = Some(2);
+        parts.materials[6].metallic = 1.0;
         parts
     }
 
@@ -467,7 +490,7 @@ mod tests {
 
     /// Each build of the lane kernel this CPU runs gives every path the scalar vertex's radiance
     /// and first-hit features, bit for bit: on the Cornell box (every hit a diffuse lane vertex),
-    /// with bent vertex normals, on the material box (diffuse, glossy and scalar vertices mixed),
+    /// with bent vertex normals, on the material box (diffuse, glossy and glass vertices mixed),
     /// on it with textures and on it lit by every kind of light, with and without a depth limit
     /// and with Russian roulette from the first bounce.
     #[test]
@@ -501,8 +524,10 @@ mod tests {
                 for (isa, kernel) in &builds {
                     let (got, wave) = paths_and_wave(&scene, limits, Some(*kernel), 7, 24);
                     let glossy = wave.glossy_vertices as f64 / wave.vertices as f64;
+                    let glass = wave.glass_vertices as f64 / wave.vertices as f64;
                     if name != "cornell" && name != "bent normals" {
                         assert!(glossy > 0.05, "{name}: only {glossy} of the vertices in the glossy lanes");
+                        assert!(glass > 0.01, "{name}: only {glass} of the vertices in the glass lanes");
                     }
                     for (k, (a, b)) in got.iter().zip(&want).enumerate() {
                         assert_eq!((bits(a.0), a.1), (bits(b.0), b.1), "{name}, {limits:?}: path {k} with the {isa:?} lanes");
@@ -512,23 +537,30 @@ mod tests {
         }
     }
 
-    /// The kernel's builds give the scalar vertex's bits on a bundled scene with textured
-    /// glossy materials, metals, point and spot lights and an area light: most of its vertices
-    /// take the glossy lanes, most light samples are drawn before the kernel runs.
+    /// The kernel's builds give the scalar vertex's bits on two bundled scenes: glossy-room
+    /// (textured glossy materials, metals, point and spot lights and an area light: most of
+    /// its vertices take the glossy lanes, most light samples are drawn before the kernel
+    /// runs) and glass-of-water (smooth glass and water: some take the glass lanes).
     #[test]
-    fn lanes_give_the_scalar_vertex_bit_for_bit_on_the_glossy_room() {
-        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/glossy-room/scene.gltf");
-        let scene = Scene::load(&path).expect("the bundled scene loads");
-        let limits = PathLimits { max_depth: -1, rr_depth: 5 };
-        let (want, _) = paths_and_wave(&scene, limits, None, 3, 12);
-        assert!(want.iter().filter(|(l, _)| *l != Vec3A::ZERO).count() > want.len() / 2, "too few lit paths to compare");
-        let bits = |v: Vec3A| v.to_array().map(f32::to_bits);
-        for isa in [Isa::Portable, Isa::Avx2, Isa::Avx512] {
-            let Some(kernel) = isa.kernel() else { continue };
-            let (got, wave) = paths_and_wave(&scene, limits, Some(kernel), 3, 12);
-            assert!(wave.glossy_vertices as f64 > 0.5 * wave.vertices as f64, "{isa:?}: the glossy lanes shaded too few vertices");
-            for (k, (a, b)) in got.iter().zip(&want).enumerate() {
-                assert_eq!((bits(a.0), a.1), (bits(b.0), b.1), "path {k} with the {isa:?} lanes");
+    fn lanes_give_the_scalar_vertex_bit_for_bit_on_bundled_scenes() {
+        let glossy_share = |w: &Wavefront| w.glossy_vertices as f64 / w.vertices as f64;
+        let glass_share = |w: &Wavefront| w.glass_vertices as f64 / w.vertices as f64;
+        let cases: [(&str, &dyn Fn(&Wavefront) -> f64, f64); 2] =
+            [("glossy-room", &glossy_share, 0.5), ("glass-of-water", &glass_share, 0.03)];
+        for (name, share, least) in cases {
+            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../scenes/{name}/scene.gltf"));
+            let scene = Scene::load(&path).expect("the bundled scene loads");
+            let limits = PathLimits { max_depth: -1, rr_depth: 5 };
+            let (want, _) = paths_and_wave(&scene, limits, None, 3, 12);
+            assert!(want.iter().filter(|(l, _)| *l != Vec3A::ZERO).count() > want.len() / 2, "{name}: too few lit paths to compare");
+            let bits = |v: Vec3A| v.to_array().map(f32::to_bits);
+            for isa in [Isa::Portable, Isa::Avx2, Isa::Avx512] {
+                let Some(kernel) = isa.kernel() else { continue };
+                let (got, wave) = paths_and_wave(&scene, limits, Some(kernel), 3, 12);
+                assert!(share(&wave) > least, "{name}, {isa:?}: the lanes of its kind shaded {} of the vertices", share(&wave));
+                for (k, (a, b)) in got.iter().zip(&want).enumerate() {
+                    assert_eq!((bits(a.0), a.1), (bits(b.0), b.1), "{name}: path {k} with the {isa:?} lanes");
+                }
             }
         }
     }
