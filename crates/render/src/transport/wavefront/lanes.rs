@@ -1,9 +1,9 @@
 //! The common vertices of a wavefront, [`W`] paths at a time, in three kinds of lanes: a
-//! diffuse material ([`lane`], the Cornell box's every vertex) and an opaque glTF material with
-//! a specular layer or metal ([`glossy_lane`]: diffuse, GGX specular and metal lobes), both
-//! with their textures looked up beforehand, lit by next-event estimation towards an emissive
+//! diffuse material ([`lane`], the Cornell box's every vertex) and any other glTF material
+//! ([`glossy_lane`]: diffuse, GGX specular, metal and glass lobes, rough or smooth), both with
+//! their textures looked up beforehand, lit by next-event estimation towards an emissive
 //! triangle (worked out in the lane) or any other light (its sample drawn beforehand); and
-//! smooth glass ([`glass_lane`]: reflect or refract, no light sample). The
+//! smooth glass alone ([`glass_lane`]: reflect or refract, no light sample). The
 //! arithmetic is that of [`crate::transport::integrator::PathContext::vertex`] on such a
 //! vertex, operation by operation and in the same order (glam's `Vec3A` sums its dot products
 //! as `(x·x' + y·y') + z·z'`, and so does [`V3::dot`]), with every branch replaced by a select,
@@ -82,6 +82,8 @@ pub(crate) const SPOT: u32 = 32;
 pub(crate) const SUN: u32 = 64;
 /// The glass lanes shade the lane.
 pub(crate) const GLASS: u32 = 128;
+/// The lane's glossy material has a glass lobe (its transmission is in [`Blocks::transmission`]).
+pub(crate) const GLASS_LOBE: u32 = 256;
 /// The lights other than emitter triangles.
 const OTHER_LIGHTS: u32 = GIVEN | POINT | SPOT | SUN;
 
@@ -242,16 +244,16 @@ pub(crate) fn given_light(ls: &LightSample) -> Record {
 /// Which lanes shade a material's vertices.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Kind {
-    /// The scalar vertex: rough glass, a material part glass, an emission texture.
+    /// The scalar vertex: an emission texture.
     Scalar,
     /// The diffuse lanes: the diffuse lobe alone (`pbr::Bsdf::Diffuse`).
     Diffuse,
-    /// The glossy lanes: an opaque mixture of diffuse, specular layer and metal
-    /// (`pbr::Mixture` without glass), or the diffuse lanes at texels where its
-    /// metallic-roughness texture leaves the diffuse lobe alone.
+    /// The glossy lanes: a mixture of diffuse, specular layer, metal and glass
+    /// (`pbr::Mixture`), or the diffuse lanes at texels where its metallic-roughness texture
+    /// leaves the diffuse lobe alone.
     Glossy,
     /// The glass lanes: a smooth dielectric alone (`pbr::is_smooth_glass`) at the hit; a
-    /// material with a metallic-roughness texture takes the scalar vertex at texels where it
+    /// material with a metallic-roughness texture takes the glossy lanes at texels where it
     /// is something else.
     Glass,
 }
@@ -268,6 +270,8 @@ pub(crate) struct SceneLanes {
     pub material_kind: Vec<Kind>,
     /// Whether a material has a base-colour or metallic-roughness texture to look up per hit.
     pub material_textured: Vec<bool>,
+    /// Each material's transmission (its glass lobe's share).
+    pub material_transmission: Vec<f32>,
     pub light: Vec<Record>,
     /// How the kernel samples each emitter: 0 for a triangle it samples itself (untextured),
     /// [`POINT`], [`SPOT`] or [`SUN`] for a punctual light it samples itself, [`GIVEN`] for one
@@ -352,7 +356,6 @@ impl SceneLanes {
                 .map(|m| match () {
                     _ if m.emissive_texture.is_some() => Kind::Scalar,
                     _ if m.is_diffuse_only() => Kind::Diffuse,
-                    _ if m.transmission.clamp(0.0, 1.0) == 0.0 => Kind::Glossy,
                     // A metallic-roughness texture may make glass smooth and not metallic at
                     // some texels, which `classify` checks.
                     _ if is_smooth_glass(m.metallic, m.roughness, m.transmission, m.ior)
@@ -360,7 +363,7 @@ impl SceneLanes {
                     {
                         Kind::Glass
                     }
-                    _ => Kind::Scalar,
+                    _ => Kind::Glossy,
                 })
                 .collect(),
             material_textured: scene
@@ -368,6 +371,7 @@ impl SceneLanes {
                 .iter()
                 .map(|m| m.base_color_texture.is_some() || m.metallic_roughness_texture.is_some())
                 .collect(),
+            material_transmission: scene.materials().iter().map(|m| m.transmission).collect(),
             light,
             light_flags,
         }
@@ -389,8 +393,10 @@ pub(crate) struct Blocks {
     pub normals: [Record; W],
     pub material: [Record; W],
     pub light: [Record; W],
+    /// The transmission of the glossy lanes' materials (read where a lane has [`GLASS_LOBE`]).
+    pub transmission: [f32; W],
     /// What the glossy or the glass lanes leave, before it goes into the chunk's [`Out`] (see
-    /// [`apart`]).
+    /// [`shade`]).
     pub scratch_out: Out,
 }
 
@@ -401,6 +407,7 @@ impl Default for Blocks {
             normals: [[0.0; W]; W],
             material: [[0.0; W]; W],
             light: [[0.0; W]; W],
+            transmission: [0.0; W],
             scratch_out: Out::default(),
         }
     }
@@ -795,19 +802,25 @@ fn lane<const NORMALS: bool, const OTHER: bool>(c: &mut Chunk, o: &mut Out, blk:
     continue_path(c, o, k, l, p, ng, s);
 }
 
-/// The glossy lanes' extra random numbers: the lobe choice, and the cosine and sine of the GGX
-/// sample's azimuth (`Ggx::sample_visible`), whose library calls stay out of the lane loop.
+/// The glossy lanes' extra random numbers: the lobe choice, the cosine and sine of the GGX
+/// sample's azimuth (`Ggx::sample_visible`), whose library calls stay out of the lane loop,
+/// and (with a glass lobe) the choice between reflection and refraction.
 struct GlossyDraws {
     lobe: [f32; W],
     cos_phi: [f32; W],
     sin_phi: [f32; W],
+    choice: [f32; W],
 }
 
 #[inline(always)]
-fn glossy_draws(c: &Chunk, d: &Draws) -> GlossyDraws {
-    let mut g = GlossyDraws { lobe: [0.0; W], cos_phi: [0.0; W], sin_phi: [0.0; W] };
+fn glossy_draws<const GLASS: bool>(c: &Chunk, d: &Draws) -> GlossyDraws {
+    let mut g = GlossyDraws { lobe: [0.0; W], cos_phi: [0.0; W], sin_phi: [0.0; W], choice: [0.0; W] };
     for l in 0..W {
-        g.lobe[l] = get1d(c.key[l], dims::at(c.depth[l].saturating_sub(1), dims::LOBE));
+        let (key, vertex) = (c.key[l], c.depth[l].saturating_sub(1));
+        g.lobe[l] = get1d(key, dims::at(vertex, dims::LOBE));
+        if GLASS {
+            g.choice[l] = get1d(key, dims::at(vertex, dims::DIELECTRIC_CHOICE));
+        }
         let phi = 2.0 * PI * d.bsdf[1][l];
         g.cos_phi[l] = phi.cos();
         g.sin_phi[l] = phi.sin();
@@ -862,9 +875,107 @@ fn ggx_lambda(alpha: f32, w: V3) -> f32 {
     }
 }
 
-/// The opaque lobes of `pbr::Mixture` at one vertex: what `Mixture::new` works out for a
-/// material without glass, in the shading frame `(s, t, n)`.
-struct Opaque {
+/// `Ggx::pdf_visible`.
+#[inline(always)]
+fn ggx_pdf_visible(alpha: f32, wo: V3, h: V3) -> f32 {
+    let wo = V3::select(wo.z < 0.0, wo.neg(), wo);
+    let pdf = 1.0 / (1.0 + ggx_lambda(alpha, wo)) * wo.dot(h).max(0.0) * ggx_d(alpha, h) / wo.z;
+    if wo.z == 0.0 {
+        0.0
+    } else {
+        pdf
+    }
+}
+
+/// `Ggx::sample_visible` for `wo`, with the azimuth's cosine and sine drawn beforehand.
+#[inline(always)]
+fn ggx_sample_visible(alpha: f32, wo: V3, ux: f32, cos_phi: f32, sin_phi: f32) -> V3 {
+    let wo = V3::select(wo.z < 0.0, wo.neg(), wo);
+    let vh = unit(V3 { x: alpha * wo.x, y: alpha * wo.y, z: wo.z });
+    let lensq = vh.x * vh.x + vh.y * vh.y;
+    let t1 = V3::select(lensq > 0.0, V3 { x: -vh.y, y: vh.x, z: 0.0 }.div(lensq.sqrt()), V3 { x: 1.0, y: 0.0, z: 0.0 });
+    let t2 = V3 { x: vh.y * t1.z - vh.z * t1.y, y: vh.z * t1.x - vh.x * t1.z, z: vh.x * t1.y - vh.y * t1.x };
+    let r = ux.sqrt();
+    let p1 = r * cos_phi;
+    let p2 = r * sin_phi;
+    let s = 0.5 * (1.0 + vh.z);
+    let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * p2;
+    let nh = t1.scale(p1).add(t2.scale(p2)).add(vh.scale((1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt()));
+    unit(V3 { x: alpha * nh.x, y: alpha * nh.y, z: nh.z.max(1e-6) })
+}
+
+/// `frame::reflect`: `w` mirrored about `n`.
+#[inline(always)]
+fn reflect(w: V3, n: V3) -> V3 {
+    n.scale(2.0 * w.dot(n)).sub(w)
+}
+
+/// `fresnel::dielectric`: the unpolarised reflectance at an interface of relative index `eta`
+/// seen at `cos_i` (negative from inside).
+#[inline(always)]
+fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
+    let (cos_i, eta) = if cos_i < 0.0 { (-cos_i, 1.0 / eta) } else { (cos_i, eta) };
+    let cos_i = cos_i.min(1.0);
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
+    let r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    let r = 0.5 * (r_parl * r_parl + r_perp * r_perp);
+    if sin2_t >= 1.0 {
+        1.0
+    } else {
+        r
+    }
+}
+
+/// `fresnel::refract` of `w` through the interface of normal `n` and relative index `eta`:
+/// the refracted direction, the relative index it crossed, and whether there is one (not
+/// total internal reflection).
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
+#[inline(always)]
+fn refract(w: V3, n: V3, eta: f32) -> (V3, f32, bool) {
+    let cos_i = n.dot(w);
+    let inside = cos_i < 0.0;
+    let (eta, cos_i, n) = if inside { (1.0 / eta, -cos_i, n.neg()) } else { (eta, cos_i, n) };
+    let sin2_i = (1.0 - cos_i * cos_i).max(0.0);
+    let sin2_t = sin2_i / (eta * eta);
+    let cos_t = (1.0 - sin2_t).sqrt();
+    (w.neg().div(eta).add(n.scale(cos_i / eta - cos_t)), eta, !(sin2_t >= 1.0))
+}
+
+/// A sample of a smooth interface (`Dielectric::sample` when it is smooth): the local
+/// direction, `f · |cos θi|`, its probability, the relative index crossed, whether it was
+/// reflected, and whether there is one.
+struct SmoothSample {
+    wi: V3,
+    f_cos: f32,
+    pdf: f32,
+    eta: f32,
+    reflected: bool,
+    ok: bool,
+}
+
+#[inline(always)]
+fn smooth_dielectric(wo: V3, eta: f32, u_choice: f32) -> SmoothSample {
+    let r = fresnel_dielectric(wo.z, eta);
+    let reflected = u_choice < r;
+    let (refracted, etap, refracts) = refract(wo, V3 { x: 0.0, y: 0.0, z: 1.0 }, eta);
+    let transmittance = 1.0 - r;
+    let (f_cos, pdf) = if reflected { (r, r) } else { (transmittance / (etap * etap), transmittance) };
+    SmoothSample {
+        wi: V3::select(reflected, V3 { x: -wo.x, y: -wo.y, z: wo.z }, refracted),
+        f_cos,
+        pdf,
+        eta: if reflected { 1.0 } else { etap },
+        reflected,
+        ok: wo.z != 0.0 && (reflected || refracts),
+    }
+}
+
+/// The lobes of `pbr::Mixture` at one vertex: what `Mixture::new` works out, in the shading
+/// frame `(s, t, n)`. Without `GLASS`, for a material without transmission: its glass lobe
+/// has no weight, and the code for it folds away.
+struct Lobes<const GLASS: bool> {
     s: V3,
     t: V3,
     n: V3,
@@ -876,41 +987,70 @@ struct Opaque {
     alpha: f32,
     f0: V3,
     f90: f32,
+    glass_weight: V3,
+    glass_scalar: f32,
+    eta: f32,
+    smooth: bool,
     p_diffuse: f32,
     p_spec: f32,
+    p_glass: f32,
 }
 
-impl Opaque {
+impl<const GLASS: bool> Lobes<GLASS> {
     #[inline(always)]
-    fn new(blk: &Blocks, l: usize, ns: V3, ng: V3, wo: V3) -> Opaque {
+    fn new(blk: &Blocks, l: usize, ns: V3, ng: V3, wo: V3) -> Self {
         let (s, t, n) = shading_frame(ns, ng, wo);
         let wo_l = V3 { x: wo.dot(s), y: wo.dot(t), z: wo.dot(n) };
         let side = if wo_l.z < 0.0 { -1.0 } else { 1.0 };
         let cos_o = wo_l.z.abs();
         let m = blk.material[MAT_METALLIC][l].clamp(0.0, 1.0);
-        // Transmission is 0 on the kernel's materials.
-        let opaque = (1.0 - m) * 1.0;
+        let transmission = if GLASS { blk.transmission[l].clamp(0.0, 1.0) } else { 0.0 };
+        let opaque = (1.0 - m) * (1.0 - transmission);
         let base = V3::field(&blk.material, MAT_ALBEDO, l);
         let (f0_dielectric, spec_factor) = (V3::field(&blk.material, MAT_F0, l), blk.material[MAT_SPECULAR][l]);
         let f_view = schlick(f0_dielectric, spec_factor, cos_o);
         let diffuse = base.scale(opaque * (1.0 - f_view.max_element()));
-        let alpha = blk.material[MAT_ROUGHNESS][l].clamp(0.0, 1.0).powi(2).max(MIN_ALPHA);
+        let alpha_raw = blk.material[MAT_ROUGHNESS][l].clamp(0.0, 1.0).powi(2);
+        let alpha = alpha_raw.max(MIN_ALPHA);
         let f0 = f0_dielectric.scale(opaque).add(base.scale(m));
         let f90 = spec_factor * opaque + m;
+        let glass_scalar = (1.0 - m) * transmission;
+        let eta = blk.material[MAT_ETA][l];
         let w_d = luminance(diffuse);
         let w_s = luminance(schlick(f0, f90, cos_o));
-        // No glass lobe, but its weight is still added, as in the scalar sum (a −0 becomes +0).
-        let w_g = 0.0;
+        // Without glass, its weight is still added, as in the scalar sum (a −0 becomes +0).
+        let w_g = if GLASS && glass_scalar > 0.0 { glass_scalar * (0.5 + 0.5 * luminance(base)) } else { 0.0 };
         let total = w_d + w_s + w_g;
-        let a = w_d / total;
-        let (p_diffuse, p_spec) = if total <= 0.0 {
-            (0.0, 0.0)
+        let (a, b) = (w_d / total, w_s / total);
+        let (p_diffuse, p_spec, p_glass) = if total <= 0.0 {
+            (0.0, 0.0, 0.0)
+        } else if GLASS && w_g > 0.0 {
+            (a, b, 1.0 - a - b)
         } else if w_s > 0.0 {
-            (a, 1.0 - a)
+            (a, 1.0 - a, 0.0)
         } else {
-            (1.0, 0.0)
+            (1.0, 0.0, 0.0)
         };
-        Opaque { s, t, n, ng, wo: wo_l, side, wo_dot_ng: wo.dot(ng), diffuse, alpha, f0, f90, p_diffuse, p_spec }
+        Lobes {
+            s,
+            t,
+            n,
+            ng,
+            wo: wo_l,
+            side,
+            wo_dot_ng: wo.dot(ng),
+            diffuse,
+            alpha,
+            f0,
+            f90,
+            glass_weight: base.scale(glass_scalar),
+            glass_scalar,
+            eta,
+            smooth: alpha_raw < MIN_ALPHA || eta == 1.0,
+            p_diffuse,
+            p_spec,
+            p_glass,
+        }
     }
 
     #[inline(always)]
@@ -918,8 +1058,60 @@ impl Opaque {
         V3 { x: v.x, y: v.y, z: v.z * self.side }
     }
 
-    /// `Mixture::eval_pdf` without the glass lobe: `(f · |cos θi|, pdf)` at the world direction
-    /// `wi`. Where the scalar code returns early on `x <= 0`, the lane keeps `!(x <= 0)`.
+    #[inline(always)]
+    fn to_world(&self, v: V3) -> V3 {
+        self.s.scale(v.x).add(self.t.scale(v.y)).add(self.n.scale(v.z))
+    }
+
+    /// `Mixture::has_non_delta`: light sampling can help.
+    #[inline(always)]
+    fn has_non_delta(&self) -> bool {
+        self.p_diffuse > 0.0 || self.p_spec > 0.0 || (GLASS && self.p_glass > 0.0 && !self.smooth)
+    }
+
+    /// `Dielectric::eval_pdf` of the rough interface for the local directions `wo`, `wi`.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    #[inline(always)]
+    fn rough_dielectric(&self, wo: V3, wi: V3) -> (f32, f32) {
+        // `Dielectric::half_vector`.
+        let (co, ci) = (wo.z, wi.z);
+        let reflection = co * ci > 0.0;
+        let etap = if reflection {
+            1.0
+        } else if co > 0.0 {
+            self.eta
+        } else {
+            1.0 / self.eta
+        };
+        let wm = wi.scale(etap).add(wo);
+        let nonzero = wm.dot(wm) != 0.0;
+        let wm = unit(wm);
+        let wm = V3::select(wm.z < 0.0, wm.neg(), wm);
+        let (wm_i, wm_o) = (wm.dot(wi), wm.dot(wo));
+        let found = co != 0.0 && ci != 0.0 && nonzero && !(wm_i * ci < 0.0 || wm_o * co < 0.0);
+
+        let alpha = self.alpha;
+        let r = fresnel_dielectric(wm_o, self.eta);
+        let t = 1.0 - r;
+        let d = ggx_d(alpha, wm);
+        let g = 1.0 / (1.0 + ggx_lambda(alpha, wo) + ggx_lambda(alpha, wi));
+        let pdf_h = ggx_pdf_visible(alpha, wo, wm);
+        let (f, pdf) = if reflection {
+            (d * g * r / (4.0 * (wi.z * wo.z).abs()), pdf_h / (4.0 * wm_o.abs()) * r)
+        } else {
+            let denom = wm_i + wm_o / etap;
+            let denom2 = denom * denom;
+            (d * g * t * (wm_i * wm_o / (wi.z * wo.z * denom2)).abs() / (etap * etap), pdf_h * wm_i.abs() / denom2 * t)
+        };
+        if found {
+            (f, pdf)
+        } else {
+            (0.0, 0.0)
+        }
+    }
+
+    /// `Mixture::eval_pdf`: `(f · |cos θi|, pdf)` at the world direction `wi`. Where the
+    /// scalar code returns early on `x <= 0`, the lane keeps `!(x <= 0)`.
     #[allow(clippy::neg_cmp_op_on_partial_ord)]
     #[inline(always)]
     fn eval_pdf(&self, wi: V3) -> (V3, f32) {
@@ -947,118 +1139,128 @@ impl Opaque {
         let with_spec = shading_reflection && self.p_spec > 0.0;
         f = V3::select(with_spec, f.add(spec_f), f);
         pdf = if with_spec { pdf + self.p_spec * spec_pdf } else { pdf };
+        if GLASS {
+            let (fg, pg) = self.rough_dielectric(self.wo, wi_l);
+            // Glass tints transmission only; reflection off the interface is white.
+            let w = V3::select(shading_reflection, V3::splat(self.glass_scalar), self.glass_weight);
+            let with_glass = self.p_glass > 0.0 && !self.smooth;
+            f = V3::select(with_glass, f.add(w.scale(fg)), f);
+            pdf = if with_glass { pdf + self.p_glass * pg } else { pdf };
+        }
         let none = geometric_reflection != shading_reflection || wi_l.z == 0.0;
         (V3::select(none, zero, f.scale(wi_l.z.abs())), if none { 0.0 } else { pdf })
-    }
-
-    /// `Ggx::sample_visible` for `wo` (z > 0) and `MicrofacetReflection::sample`'s reflection:
-    /// the direction, and whether it is above the surface.
-    #[inline(always)]
-    fn sample_spec(&self, wo: V3, ux: f32, cos_phi: f32, sin_phi: f32) -> (V3, bool) {
-        let alpha = self.alpha;
-        let wo = V3::select(wo.z < 0.0, wo.neg(), wo);
-        let vh = unit(V3 { x: alpha * wo.x, y: alpha * wo.y, z: wo.z });
-        let lensq = vh.x * vh.x + vh.y * vh.y;
-        let t1 = V3::select(lensq > 0.0, V3 { x: -vh.y, y: vh.x, z: 0.0 }.div(lensq.sqrt()), V3 { x: 1.0, y: 0.0, z: 0.0 });
-        let t2 = V3 { x: vh.y * t1.z - vh.z * t1.y, y: vh.z * t1.x - vh.x * t1.z, z: vh.x * t1.y - vh.y * t1.x };
-        let r = ux.sqrt();
-        let p1 = r * cos_phi;
-        let p2 = r * sin_phi;
-        let s = 0.5 * (1.0 + vh.z);
-        let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * p2;
-        let nh = t1.scale(p1).add(t2.scale(p2)).add(vh.scale((1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt()));
-        let h = unit(V3 { x: alpha * nh.x, y: alpha * nh.y, z: nh.z.max(1e-6) });
-        let wi = h.scale(2.0 * wo.dot(h)).sub(wo);
-        (wi, wi.z > 0.0)
     }
 }
 
 /// One lane: the vertex of [`crate::transport::integrator::PathContext::vertex`] for a hit on
-/// an opaque glTF material with a specular layer or metal (`pbr::Mixture` without its glass
-/// lobe).
+/// a glTF material of several lobes (`pbr::Mixture`; with `GLASS`, one whose glass lobe
+/// may be chosen).
 #[allow(clippy::neg_cmp_op_on_partial_ord)]
 #[inline(always)]
-fn glossy_lane<const NORMALS: bool>(c: &mut Chunk, o: &mut Out, blk: &Blocks, draws: &Draws, g: &GlossyDraws, k: &Consts, l: usize) {
+fn glossy_lane<const NORMALS: bool, const GLASS: bool>(
+    c: &mut Chunk,
+    o: &mut Out,
+    blk: &Blocks,
+    draws: &Draws,
+    g: &GlossyDraws,
+    k: &Consts,
+    l: usize,
+) {
     let shade = c.flags[l] & GLOSSY != 0;
     let d = V3::lane(&c.dir, l);
     let beta = V3::lane(&c.beta, l);
     let (p, ng, ns) = surface::<NORMALS>(c, blk, l);
     emission_and_features(c, o, blk, l, shade, ng, ns);
     let goes_on = c.depth[l] < k.max_depth;
-    let bsdf = Opaque::new(blk, l, ns, ng, d.neg());
-    let non_delta = bsdf.p_diffuse > 0.0 || bsdf.p_spec > 0.0;
+    let bsdf = Lobes::<GLASS>::new(blk, l, ns, ng, d.neg());
 
     // Next-event estimation.
     let ls = light_point::<true>(c, blk, draws, l, p, k.eps);
     let (f, pdf_bsdf) = bsdf.eval_pdf(ls.wi);
-    shadow_ray(o, l, shade && goes_on && non_delta && ls.sampled && f.nonzero(), &ls, p, ng, beta, f, pdf_bsdf, k.eps);
+    shadow_ray(o, l, shade && goes_on && bsdf.has_non_delta() && ls.sampled && f.nonzero(), &ls, p, ng, beta, f, pdf_bsdf, k.eps);
 
-    // Mixture::sample_drawn without the glass lobe.
+    // Mixture::sample_drawn: the lobe, then its direction.
     let u_lobe = g.lobe[l];
+    let (ux, cos_phi, sin_phi) = (draws.bsdf[0][l], g.cos_phi[l], g.sin_phi[l]);
     let pick_diffuse = u_lobe < bsdf.p_diffuse;
-    let pick_spec = !pick_diffuse && (u_lobe < bsdf.p_diffuse + bsdf.p_spec || bsdf.p_spec > 0.0);
-    let cosine = cosine_direction(draws.bsdf[0][l], draws.bsdf[1][l]);
+    let pick_spec = !pick_diffuse && (u_lobe < bsdf.p_diffuse + bsdf.p_spec || (bsdf.p_glass == 0.0 && bsdf.p_spec > 0.0));
+    let pick_glass = GLASS && !pick_diffuse && !pick_spec && bsdf.p_glass > 0.0;
+    let cosine = cosine_direction(ux, draws.bsdf[1][l]);
     let o_l = bsdf.opaque_local(bsdf.wo);
-    let (spec_dir, above) = bsdf.sample_spec(o_l, draws.bsdf[0][l], g.cos_phi[l], g.sin_phi[l]);
-    let spec_ok = !(o_l.z <= 0.0) && above;
-    let wi_l = bsdf.opaque_local(V3::select(pick_diffuse, cosine, spec_dir));
-    let next_dir = bsdf.s.scale(wi_l.x).add(bsdf.t.scale(wi_l.y)).add(bsdf.n.scale(wi_l.z));
+    // MicrofacetReflection::sample.
+    let spec_dir = reflect(o_l, ggx_sample_visible(bsdf.alpha, o_l, ux, cos_phi, sin_phi));
+    let spec_ok = !(o_l.z <= 0.0) && spec_dir.z > 0.0;
+    let mut wi_l = bsdf.opaque_local(V3::select(pick_diffuse, cosine, spec_dir));
+    let mut lobe_ok = pick_diffuse || (pick_spec && spec_ok);
+    let mut delta = Scatter { scattered: false, dir: wi_l, beta, pdf: 0.0, delta: true, eta: 1.0, roulette: draws.roulette[l] };
+    if GLASS {
+        let wo_l = bsdf.wo;
+        let u_choice = g.choice[l];
+        // Dielectric::sample of a rough interface.
+        let wm = ggx_sample_visible(bsdf.alpha, wo_l, ux, cos_phi, sin_phi);
+        let r = fresnel_dielectric(wo_l.dot(wm), bsdf.eta);
+        let reflected = u_choice < r;
+        let (refracted, _, refracts) = refract(wo_l, wm, bsdf.eta);
+        let rough_dir = V3::select(reflected, reflect(wo_l, wm), refracted);
+        let (_, rough_pdf) = bsdf.rough_dielectric(wo_l, rough_dir);
+        let rough_ok = wo_l.z != 0.0
+            && if reflected { !(rough_dir.z * wo_l.z <= 0.0) } else { refracts && !(rough_dir.z * wo_l.z >= 0.0) }
+            && !(rough_pdf <= 0.0)
+            && rough_pdf.is_finite();
+        // Its smooth interface: a delta lobe, its weight worked out here.
+        let sm = smooth_dielectric(wo_l, bsdf.eta, u_choice);
+        let dir = bsdf.to_world(sm.wi);
+        let sides = (dir.dot(ng) * bsdf.wo_dot_ng > 0.0) == sm.reflected;
+        let tint = V3::select(sm.reflected, V3::splat(bsdf.glass_scalar), bsdf.glass_weight);
+        delta = Scatter {
+            scattered: sm.ok && sides,
+            dir,
+            beta: beta.mul(tint.scale(sm.f_cos / (sm.pdf * bsdf.p_glass))),
+            pdf: 0.0,
+            delta: true,
+            eta: sm.eta,
+            roulette: draws.roulette[l],
+        };
+        wi_l = V3::select(pick_glass, rough_dir, wi_l);
+        lobe_ok = if pick_glass { !bsdf.smooth && rough_ok } else { lobe_ok };
+    }
+    let next_dir = bsdf.to_world(wi_l);
     let (f, pdf) = bsdf.eval_pdf(next_dir);
-    let sampled = (pick_diffuse || (pick_spec && spec_ok)) && !(pdf <= 0.0) && pdf.is_finite() && f.nonzero();
-    let s = Scatter {
-        scattered: shade && goes_on && sampled,
-        dir: next_dir,
-        beta: beta.mul(f.div(pdf)),
-        pdf,
-        delta: false,
-        eta: 1.0,
-        roulette: draws.roulette[l],
+    let sampled = lobe_ok && !(pdf <= 0.0) && pdf.is_finite() && f.nonzero();
+    let eta = if GLASS && wi_l.z * bsdf.wo.z < 0.0 {
+        if bsdf.wo.z > 0.0 {
+            bsdf.eta
+        } else {
+            1.0 / bsdf.eta
+        }
+    } else {
+        1.0
+    };
+    let smooth_glass = GLASS && pick_glass && bsdf.smooth;
+    let s = if smooth_glass {
+        Scatter { scattered: shade && goes_on && delta.scattered, ..delta }
+    } else {
+        Scatter {
+            scattered: shade && goes_on && sampled,
+            dir: next_dir,
+            beta: beta.mul(f.div(pdf)),
+            pdf,
+            delta: false,
+            eta,
+            roulette: draws.roulette[l],
+        }
     };
     continue_path(c, o, k, l, p, ng, s);
 }
 
 #[inline(always)]
-fn glossy_lanes<const NORMALS: bool>(c: &mut Chunk, o: &mut Out, b: &Blocks, k: &Consts) {
+fn glossy_lanes<const NORMALS: bool, const GLASS: bool>(c: &mut Chunk, o: &mut Out, b: &Blocks, k: &Consts) {
     let d = draws(c);
-    let g = glossy_draws(c, &d);
+    let g = glossy_draws::<GLASS>(c, &d);
     let n = std::hint::black_box(W).min(W);
     for l in 0..n {
-        glossy_lane::<NORMALS>(c, o, b, &d, &g, k, l);
+        glossy_lane::<NORMALS, GLASS>(c, o, b, &d, &g, k, l);
     }
-}
-
-/// `fresnel::dielectric`: the unpolarised reflectance at an interface of relative index `eta`
-/// seen at `cos_i` (negative from inside).
-#[inline(always)]
-fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
-    let (cos_i, eta) = if cos_i < 0.0 { (-cos_i, 1.0 / eta) } else { (cos_i, eta) };
-    let cos_i = cos_i.min(1.0);
-    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
-    let r_parl = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    let r_perp = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    let r = 0.5 * (r_parl * r_parl + r_perp * r_perp);
-    if sin2_t >= 1.0 {
-        1.0
-    } else {
-        r
-    }
-}
-
-/// `fresnel::refract` of the local direction `w` through the interface of normal +z: the
-/// refracted direction, the relative index it crossed, and whether there is one (not total
-/// internal reflection).
-#[allow(clippy::neg_cmp_op_on_partial_ord)]
-#[inline(always)]
-fn refract_z(w: V3, eta: f32) -> (V3, f32, bool) {
-    let z = V3 { x: 0.0, y: 0.0, z: 1.0 };
-    let cos_i = z.dot(w);
-    let inside = cos_i < 0.0;
-    let (eta, cos_i, n) = if inside { (1.0 / eta, -cos_i, z.neg()) } else { (eta, cos_i, z) };
-    let sin2_i = (1.0 - cos_i * cos_i).max(0.0);
-    let sin2_t = sin2_i / (eta * eta);
-    let cos_t = (1.0 - sin2_t).sqrt();
-    (w.neg().div(eta).add(n.scale(cos_i / eta - cos_t)), eta, !(sin2_t >= 1.0))
 }
 
 /// One lane: the vertex of [`crate::transport::integrator::PathContext::vertex`] for a hit on
@@ -1079,27 +1281,20 @@ fn glass_lane<const NORMALS: bool>(c: &mut Chunk, o: &mut Out, blk: &Blocks, g: 
     let wo_l = V3 { x: wo.dot(s), y: wo.dot(t), z: wo.dot(n) };
     o.shadow[l] = 0;
 
-    // Dielectric::sample of a smooth interface.
-    let eta = blk.material[MAT_ETA][l];
-    let r = fresnel_dielectric(wo_l.z, eta);
-    let reflect = g.choice[l] < r;
-    let (refracted, etap, refracts) = refract_z(wo_l, eta);
-    let wi_l = V3::select(reflect, V3 { x: -wo_l.x, y: -wo_l.y, z: wo_l.z }, refracted);
-    let transmittance = 1.0 - r;
-    let (f_cos, pdf) = if reflect { (r, r) } else { (transmittance / (etap * etap), transmittance) };
+    let sm = smooth_dielectric(wo_l, blk.material[MAT_ETA][l], g.choice[l]);
 
-    // Mixture::sample_drawn's glass lobe: the direction on the side the geometry agrees with.
-    let wi = s.scale(wi_l.x).add(t.scale(wi_l.y)).add(n.scale(wi_l.z));
-    let sides = (wi.dot(ng) * wo.dot(ng) > 0.0) == reflect;
-    let sampled = wo_l.z != 0.0 && (reflect || refracts) && sides;
-    let tint = V3::select(reflect, V3::splat(1.0), V3::field(&blk.material, MAT_ALBEDO, l));
+    // Mixture::sample_drawn's glass lobe: the direction on the side the geometry agrees with,
+    // its weight with the lobe's probability 1 and the glass weights 1 and the base colour.
+    let wi = s.scale(sm.wi.x).add(t.scale(sm.wi.y)).add(n.scale(sm.wi.z));
+    let sides = (wi.dot(ng) * wo.dot(ng) > 0.0) == sm.reflected;
+    let tint = V3::select(sm.reflected, V3::splat(1.0), V3::field(&blk.material, MAT_ALBEDO, l));
     let s = Scatter {
-        scattered: shade && goes_on && sampled,
+        scattered: shade && goes_on && sm.ok && sides,
         dir: wi,
-        beta: beta.mul(tint.scale(f_cos / pdf)),
+        beta: beta.mul(tint.scale(sm.f_cos / sm.pdf)),
         pdf: 0.0,
         delta: true,
-        eta: if reflect { 1.0 } else { etap },
+        eta: sm.eta,
         roulette: g.roulette[l],
     };
     continue_path(c, o, k, l, p, ng, s);
@@ -1166,25 +1361,43 @@ pub(crate) fn shade<T: Transpose>(isa: T, c: &mut Chunk, o: &mut Out, b: &mut Bl
             (false, false) => lanes::<false, false>(c, o, b, k),
         }
     }
-    if glossy {
-        apart(c, o, b, GLOSSY, |c, g, b| if normals { glossy_lanes::<true>(c, g, b, k) } else { glossy_lanes::<false>(c, g, b, k) });
+    // The glossy and the glass lanes write their outputs into a scratch `Out`, which then goes
+    // into `o` lane by lane where a lane is theirs: writing `o` only there would read it in
+    // the loop, one more array for the compiler to check (see `Chunk::flags`). No closures
+    // here: a closure is a function of its own, compiled without the build's instructions
+    // unless it is inlined.
+    let glass = c.flags.iter().any(|&f| f & GLASS != 0);
+    if !glossy && !glass {
+        return;
     }
-    if c.flags.iter().any(|&f| f & GLASS != 0) {
-        apart(c, o, b, GLASS, |c, g, b| if normals { glass_lanes::<true>(c, g, b, k) } else { glass_lanes::<false>(c, g, b, k) });
-    }
-}
-
-/// Runs the lanes of one kind (`flag`) on a scratch `Out`, which then goes into `o` lane by
-/// lane where a lane is of that kind: writing `o` only there would read it in the loop, one
-/// more array for the compiler to check (see `Chunk::flags`).
-#[inline(always)]
-fn apart(c: &mut Chunk, o: &mut Out, b: &mut Blocks, flag: u32, run: impl FnOnce(&mut Chunk, &mut Out, &Blocks)) {
     let mut scratch = std::mem::take(&mut b.scratch_out);
-    run(c, &mut scratch, b);
-    for l in 0..W {
-        if c.flags[l] & flag != 0 {
-            o.take_lane(&scratch, l);
+    if glossy {
+        // The glass lobe's build only for chunks that have one.
+        match (normals, c.flags.iter().any(|&f| f & GLASS_LOBE != 0)) {
+            (true, true) => glossy_lanes::<true, true>(c, &mut scratch, b, k),
+            (true, false) => glossy_lanes::<true, false>(c, &mut scratch, b, k),
+            (false, true) => glossy_lanes::<false, true>(c, &mut scratch, b, k),
+            (false, false) => glossy_lanes::<false, false>(c, &mut scratch, b, k),
         }
+        take_lanes(c, o, &scratch, GLOSSY);
+    }
+    if glass {
+        if normals {
+            glass_lanes::<true>(c, &mut scratch, b, k);
+        } else {
+            glass_lanes::<false>(c, &mut scratch, b, k);
+        }
+        take_lanes(c, o, &scratch, GLASS);
     }
     b.scratch_out = scratch;
+}
+
+/// The lanes of `scratch` whose flags have `flag`, into `o`.
+#[inline(always)]
+fn take_lanes(c: &Chunk, o: &mut Out, scratch: &Out, flag: u32) {
+    for l in 0..W {
+        if c.flags[l] & flag != 0 {
+            o.take_lane(scratch, l);
+        }
+    }
 }

@@ -7,12 +7,11 @@
 //! Why: a vertex on its own is a chain of dependent steps between two calls into the ray
 //! caster, run one path after the other. The live paths are kept as structure-of-arrays
 //! [`lanes::Chunk`]s of [`lanes::W`] paths, compacted after every bounce, so that the common
-//! vertices ([`lanes`]: opaque materials, diffuse or glossy, textured or not, lit by any kind of
-//! light, and smooth glass) run on a whole chunk per instruction, reading and updating the
-//! paths where they are. What does not vectorise is done per lane before the kernel runs
+//! vertices ([`lanes`]: every glTF material, diffuse, glossy or glass, textured or not, lit by
+//! any kind of light) run on a whole chunk per instruction, reading and updating the paths
+//! where they are. What does not vectorise is done per lane before the kernel runs
 //! ([`classify`]: the texture lookups, and the light samples other than on an untextured
-//! emitter triangle). The other vertices (rough glass, materials part glass, emission
-//! textures, escaped rays) take the scalar
+//! emitter triangle). The other vertices (emission textures, escaped rays) take the scalar
 //! [`crate::transport::integrator::PathContext::vertex`].
 mod lanes;
 // The lane kernel's builds for each instruction set, the one place the crate allows `unsafe`.
@@ -22,12 +21,13 @@ mod simd;
 use crate::intersect::{Hit, Intersector, Ray, RayPacket};
 use crate::sampler::{dims, SampleSampler};
 use crate::scene::material::is_diffuse_only;
+use crate::scene::world::Scene;
 use crate::transport::bsdf::pbr::is_smooth_glass;
 use crate::transport::integrator::{FirstHit, Path, PathContext};
 use glam::Vec3A;
 use lanes::{
-    given_light, Blocks, Chunk, Consts, Kind, Out, DIFFUSE, GIVEN, GLASS, GLOSSY, HAS_LIGHT, MAT_ALBEDO, MAT_BASE, MAT_METALLIC,
-    MAT_ROUGHNESS, W,
+    given_light, Blocks, Chunk, Consts, Kind, Out, DIFFUSE, GIVEN, GLASS, GLASS_LOBE, GLOSSY, HAS_LIGHT, MAT_ALBEDO, MAT_BASE,
+    MAT_METALLIC, MAT_ROUGHNESS, W,
 };
 use simd::{Isa, Kernel};
 
@@ -315,7 +315,6 @@ const MIN_SHADED: usize = 4;
 #[inline]
 fn classify(ctx: &PathContext, lanes: &SceneLanes, ch: &mut Chunk, blocks: &mut Blocks, filled: usize) -> usize {
     let scene = ctx.scene;
-    let lights = scene.lights();
     let materials = scene.triangle_materials();
     let (mut diffuse, mut glossy, mut glass) = (0, 0, 0);
     for l in 0..filled {
@@ -328,24 +327,9 @@ fn classify(ctx: &PathContext, lanes: &SceneLanes, ch: &mut Chunk, blocks: &mut 
         if kind == Kind::Scalar {
             continue;
         }
-        let sampler = SampleSampler::from_key(ch.key[l]);
-        let vertex = ch.depth[l] - 1;
-        let u_select = sampler.get1d(dims::at(vertex, dims::LIGHT_SELECT));
-        let mut flags = 0;
-        // Smooth glass samples no light: its only lobe is a delta.
-        if let Some(k) = lights.choose_index(u_select).filter(|_| kind != Kind::Glass) {
-            if lanes.light_flags[k] != GIVEN {
-                blocks.light[l] = lanes.light[k];
-                flags = HAS_LIGHT | lanes.light_flags[k];
-            } else {
-                // Other emitters are sampled here, at the point the kernel will shade.
-                let p = scene.surface(prim as u32, ch.u[l], ch.v[l]).p;
-                if let Some(ls) = lights.sample(scene, p, u_select, sampler.get2d(dims::at(vertex, dims::LIGHT_POS))) {
-                    blocks.light[l] = given_light(&ls);
-                    flags = HAS_LIGHT | GIVEN;
-                }
-            }
-        }
+        // Smooth glass alone samples no light: its only lobe is a delta. (Where a texture makes
+        // it something else, the light is sampled below.)
+        let mut flags = if kind == Kind::Glass { 0 } else { light_sample(scene, lanes, ch, blocks, l) };
         blocks.triangle[l] = lanes.triangle[prim];
         blocks.material[l] = lanes.material[material];
         if lanes.material_textured[material] {
@@ -360,8 +344,14 @@ fn classify(ctx: &PathContext, lanes: &SceneLanes, ch: &mut Chunk, blocks: &mut 
                 kind = Kind::Diffuse;
             }
             if kind == Kind::Glass && !is_smooth_glass(p.metallic, p.roughness, p.transmission, p.ior) {
-                continue;
+                kind = Kind::Glossy;
+                flags = light_sample(scene, lanes, ch, blocks, l);
             }
+        }
+        let transmission = lanes.material_transmission[material];
+        blocks.transmission[l] = transmission;
+        if kind == Kind::Glossy && transmission.clamp(0.0, 1.0) > 0.0 {
+            flags |= GLASS_LOBE;
         }
         if let Some(normals) = &lanes.normals {
             blocks.normals[l] = normals[prim];
@@ -392,11 +382,37 @@ fn classify(ctx: &PathContext, lanes: &SceneLanes, ch: &mut Chunk, blocks: &mut 
     ch.shade.iter().filter(|&&s| s != 0).count()
 }
 
+/// The light sample of lane `l`'s vertex as the kernel takes it: the chosen emitter's record
+/// in `blocks` (or, for a light the kernel does not sample itself, a sample drawn here at the
+/// vertex) and the flags that say which.
+#[inline(always)]
+fn light_sample(scene: &Scene, lanes: &SceneLanes, ch: &Chunk, blocks: &mut Blocks, l: usize) -> u32 {
+    let lights = scene.lights();
+    let sampler = SampleSampler::from_key(ch.key[l]);
+    let vertex = ch.depth[l] - 1;
+    let u_select = sampler.get1d(dims::at(vertex, dims::LIGHT_SELECT));
+    let Some(k) = lights.choose_index(u_select) else { return 0 };
+    if lanes.light_flags[k] != GIVEN {
+        blocks.light[l] = lanes.light[k];
+        return HAS_LIGHT | lanes.light_flags[k];
+    }
+    // Other emitters are sampled here, at the point the kernel will shade.
+    let p = scene.surface(ch.prim[l], ch.u[l], ch.v[l]).p;
+    match lights.sample(scene, p, u_select, sampler.get2d(dims::at(vertex, dims::LIGHT_POS))) {
+        Some(ls) => {
+            blocks.light[l] = given_light(&ls);
+            HAS_LIGHT | GIVEN
+        }
+        None => 0,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::sampler::{StreamKind, StreamSampler};
     use crate::scene::lights::{Environment, Punctual};
+    use crate::scene::material::Material;
     use crate::scene::texture::Texture;
     use crate::scene::world::Scene;
     use crate::scene::world::SceneParts;
@@ -461,6 +477,19 @@ mod tests {
         Scene::from_parts(parts).expect("the lit box is valid")
     }
 
+    /// The material box with every kind of glass lobe: rough glass, a frosted plastic (part
+    /// rough glass) and a half-transmissive smooth glass over a diffuse base (a delta lobe
+    /// beside others).
+    fn glass_box() -> Scene {
+        let mut parts = materials_box_parts();
+        parts.materials[6] = Material::glass(1.5, 0.3);
+        parts.materials[4].transmission = 0.5;
+        parts.materials[4].roughness = 0.4;
+        parts.materials[7] = Material { transmission: 0.6, roughness: 0.0, metallic: 0.0, ..Material::diffuse(Vec3A::new(0.9, 0.7, 0.3)) };
+        parts.materials[7].specular = 1.0;
+        Scene::from_parts(parts).expect("the glass box is valid")
+    }
+
     fn textured_box() -> Scene {
         Scene::from_parts(textured_box_parts()).expect("the textured box is valid")
     }
@@ -491,8 +520,8 @@ mod tests {
     /// Each build of the lane kernel this CPU runs gives every path the scalar vertex's radiance
     /// and first-hit features, bit for bit: on the Cornell box (every hit a diffuse lane vertex),
     /// with bent vertex normals, on the material box (diffuse, glossy and glass vertices mixed),
-    /// on it with textures and on it lit by every kind of light, with and without a depth limit
-    /// and with Russian roulette from the first bounce.
+    /// on it with textures, on it lit by every kind of light and on it with every kind of glass
+    /// lobe, with and without a depth limit and with Russian roulette from the first bounce.
     #[test]
     fn lanes_give_the_scalar_vertex_bit_for_bit() {
         let builds: Vec<(Isa, Kernel)> =
@@ -504,6 +533,7 @@ mod tests {
             ("materials", materials_box()),
             ("textured", textured_box()),
             ("lit", lit_box()),
+            ("glass", glass_box()),
         ];
         for (name, scene) in scenes {
             for limits in [PathLimits { max_depth: -1, rr_depth: 5 }, PathLimits { max_depth: 3, rr_depth: 1 }] {
@@ -525,8 +555,12 @@ mod tests {
                     let (got, wave) = paths_and_wave(&scene, limits, Some(*kernel), 7, 24);
                     let glossy = wave.glossy_vertices as f64 / wave.vertices as f64;
                     let glass = wave.glass_vertices as f64 / wave.vertices as f64;
+                    // The glass box's materials with a glass lobe take the glossy lanes too.
+                    let least_glossy = if name == "glass" { 0.2 } else { 0.05 };
                     if name != "cornell" && name != "bent normals" {
-                        assert!(glossy > 0.05, "{name}: only {glossy} of the vertices in the glossy lanes");
+                        assert!(glossy > least_glossy, "{name}: only {glossy} of the vertices in the glossy lanes");
+                    }
+                    if name != "cornell" && name != "bent normals" && name != "glass" {
                         assert!(glass > 0.01, "{name}: only {glass} of the vertices in the glass lanes");
                     }
                     for (k, (a, b)) in got.iter().zip(&want).enumerate() {
@@ -543,11 +577,10 @@ mod tests {
     /// runs) and glass-of-water (smooth glass and water: some take the glass lanes).
     #[test]
     fn lanes_give_the_scalar_vertex_bit_for_bit_on_bundled_scenes() {
-        let glossy_share = |w: &Wavefront| w.glossy_vertices as f64 / w.vertices as f64;
-        let glass_share = |w: &Wavefront| w.glass_vertices as f64 / w.vertices as f64;
-        let cases: [(&str, &dyn Fn(&Wavefront) -> f64, f64); 2] =
-            [("glossy-room", &glossy_share, 0.5), ("glass-of-water", &glass_share, 0.03)];
-        for (name, share, least) in cases {
+        // Each scene, whether its lanes to count are the glass lanes (else the glossy ones), and
+        // the least share of the vertices they shade.
+        for (name, glass, least) in [("glossy-room", false, 0.5), ("glass-of-water", true, 0.03)] {
+            let share = |w: &Wavefront| if glass { w.glass_vertices } else { w.glossy_vertices } as f64 / w.vertices as f64;
             let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../../scenes/{name}/scene.gltf"));
             let scene = Scene::load(&path).expect("the bundled scene loads");
             let limits = PathLimits { max_depth: -1, rr_depth: 5 };
