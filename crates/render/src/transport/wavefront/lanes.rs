@@ -595,6 +595,30 @@ fn surface<const NORMALS: bool>(c: &Chunk, blk: &Blocks, l: usize) -> (V3, V3, V
     (p, ng, ns)
 }
 
+/// What every kind of lane starts a vertex with: whether the lane is its kind (`flag`), the
+/// ray's direction, the path's throughput, the surface at the hit (position, geometric and
+/// shading normal), whether the path may go on from it; the hit's emission and first-hit
+/// features already in place.
+struct Arrival {
+    shade: bool,
+    d: V3,
+    beta: V3,
+    p: V3,
+    ng: V3,
+    ns: V3,
+    goes_on: bool,
+}
+
+#[inline(always)]
+fn arrive<const NORMALS: bool>(c: &mut Chunk, o: &mut Out, blk: &Blocks, k: &Consts, l: usize, flag: u32) -> Arrival {
+    let shade = c.flags[l] & flag != 0;
+    let d = V3::lane(&c.dir, l);
+    let beta = V3::lane(&c.beta, l);
+    let (p, ng, ns) = surface::<NORMALS>(c, blk, l);
+    emission_and_features(c, o, blk, l, shade, ng, ns);
+    Arrival { shade, d, beta, p, ng, ns, goes_on: c.depth[l] < k.max_depth }
+}
+
 /// The hit's emission, MIS-weighted against light sampling unless the previous bounce was a
 /// delta, added to the path's radiance where `shade`; then the first-hit features (albedo:
 /// the emission where there is some, else the base colour; the shading normal facing the ray).
@@ -758,12 +782,7 @@ fn continue_path(c: &mut Chunk, o: &mut Out, k: &Consts, l: usize, p: V3, ng: V3
 #[allow(clippy::neg_cmp_op_on_partial_ord)]
 #[inline(always)]
 fn lane<const NORMALS: bool, const OTHER: bool>(c: &mut Chunk, o: &mut Out, blk: &Blocks, draws: &Draws, k: &Consts, l: usize) {
-    let shade = c.flags[l] & DIFFUSE != 0;
-    let d = V3::lane(&c.dir, l);
-    let beta = V3::lane(&c.beta, l);
-    let (p, ng, ns) = surface::<NORMALS>(c, blk, l);
-    emission_and_features(c, o, blk, l, shade, ng, ns);
-    let goes_on = c.depth[l] < k.max_depth;
+    let Arrival { shade, d, beta, p, ng, ns, goes_on } = arrive::<NORMALS>(c, o, blk, k, l, DIFFUSE);
 
     // Bsdf::diffuse.
     let wo = d.neg();
@@ -1166,12 +1185,7 @@ fn glossy_lane<const NORMALS: bool, const GLASS: bool>(
     k: &Consts,
     l: usize,
 ) {
-    let shade = c.flags[l] & GLOSSY != 0;
-    let d = V3::lane(&c.dir, l);
-    let beta = V3::lane(&c.beta, l);
-    let (p, ng, ns) = surface::<NORMALS>(c, blk, l);
-    emission_and_features(c, o, blk, l, shade, ng, ns);
-    let goes_on = c.depth[l] < k.max_depth;
+    let Arrival { shade, d, beta, p, ng, ns, goes_on } = arrive::<NORMALS>(c, o, blk, k, l, GLOSSY);
     let bsdf = Lobes::<GLASS>::new(blk, l, ns, ng, d.neg());
 
     // Next-event estimation.
@@ -1270,12 +1284,7 @@ fn glossy_lanes<const NORMALS: bool, const GLASS: bool>(c: &mut Chunk, o: &mut O
 #[allow(clippy::neg_cmp_op_on_partial_ord)]
 #[inline(always)]
 fn glass_lane<const NORMALS: bool>(c: &mut Chunk, o: &mut Out, blk: &Blocks, g: &GlassDraws, k: &Consts, l: usize) {
-    let shade = c.flags[l] & GLASS != 0;
-    let d = V3::lane(&c.dir, l);
-    let beta = V3::lane(&c.beta, l);
-    let (p, ng, ns) = surface::<NORMALS>(c, blk, l);
-    emission_and_features(c, o, blk, l, shade, ng, ns);
-    let goes_on = c.depth[l] < k.max_depth;
+    let Arrival { shade, d, beta, p, ng, ns, goes_on } = arrive::<NORMALS>(c, o, blk, k, l, GLASS);
     let wo = d.neg();
     let (s, t, n) = shading_frame(ns, ng, wo);
     let wo_l = V3 { x: wo.dot(s), y: wo.dot(t), z: wo.dot(n) };
