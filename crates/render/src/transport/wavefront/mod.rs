@@ -309,9 +309,9 @@ const MIN_SHADED: usize = 4;
 
 /// Marks the first `filled` lanes whose vertex the kernel shades (a hit on a material of its
 /// kinds whose light sample, if any, is on an emitter of its kind), and which lanes shade each
-/// (diffuse, glossy, glass); copies their records into `blocks` (with the material's textures looked up at
-/// the hit) and returns how many there are. Lanes of a kind with fewer than [`MIN_SHADED`] in
-/// the chunk are left to the scalar vertex.
+/// (diffuse, glossy, glass); copies their records into `blocks` (with the material's textures
+/// looked up at the hit) and returns how many there are. Lanes of a kind with fewer than
+/// [`MIN_SHADED`] in the chunk are left to the scalar vertex.
 #[inline]
 fn classify(ctx: &PathContext, lanes: &SceneLanes, ch: &mut Chunk, blocks: &mut Blocks, filled: usize) -> usize {
     let scene = ctx.scene;
